@@ -1,0 +1,45 @@
+"""Collision detection: broad phase, then the narrow-phase function of each shape pair.
+
+Candidate pairs are ordered so that body A has the lower ``ShapeType`` (the key
+order of ``narrowphase.NARROW_PHASE``), grouped by shape pair, and each group
+goes through its narrow-phase function in one batched call.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mini_engine.broadphase import candidate_pairs
+from mini_engine.contacts import Contacts
+from mini_engine.model import Model
+from mini_engine.narrowphase import NARROW_PHASE
+
+
+class UnsupportedShapePairError(ValueError):
+    """Two shapes that may touch but have no narrow-phase function."""
+
+
+def detect_contacts(model: Model, pos: np.ndarray, rot: np.ndarray, margin: float) -> Contacts:
+    """All contacts (depth >= -margin) between bodies at poses ``pos (n, 3)``, ``rot (n, 3, 3)``.
+
+    Normals point from ``body_a`` to ``body_b``; ``body_a`` has the lower shape code.
+    """
+    a, b = candidate_pairs(model, pos, rot, margin)
+    if a.size == 0:
+        return Contacts.empty()
+    swap = model.body_shape[a] > model.body_shape[b]
+    a, b = np.where(swap, b, a), np.where(swap, a, b)
+    shape_a, shape_b = model.body_shape[a], model.body_shape[b]
+
+    found = []
+    for key in sorted(set(zip(shape_a.tolist(), shape_b.tolist(), strict=True))):
+        collide = NARROW_PHASE.get(key)
+        if collide is None:
+            raise UnsupportedShapePairError(f"no narrow phase for shape pair {key}")
+        group = np.flatnonzero((shape_a == key[0]) & (shape_b == key[1]))
+        ga, gb = a[group], b[group]
+        hits = collide(
+            pos[ga], rot[ga], model.body_size[ga], pos[gb], rot[gb], model.body_size[gb], margin
+        )
+        found.append(Contacts(ga[hits.pair], gb[hits.pair], hits.point, hits.normal, hits.depth))
+    return Contacts(*(np.concatenate(parts) for parts in zip(*found, strict=True)))

@@ -1,0 +1,87 @@
+"""Applied forces: gravity and linear spring-dampers.
+
+Gravity is returned as an acceleration (it does not pass through ``F / m``, so
+free fall is exact to the last bit); springs as forces and torques about each
+body's centre of mass. Both are evaluated at the state at the start of the
+step, which makes them explicit in time whatever the integrator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mini_engine.model import WORLD_ANCHOR, Model, State
+from mini_engine.rotation import apply, cross
+
+MIN_SPRING_LENGTH = 1e-12
+"""m. Below this anchor distance the spring axis is undefined; the spring then
+exerts no force (a zero-length spring at rest length 0 is in equilibrium anyway)."""
+
+
+def gravity_acceleration(model: Model) -> np.ndarray:
+    """Linear acceleration (n, 3) m/s², world frame, from gravity; zero for fixed bodies."""
+    return np.where(model.body_fixed[:, None], 0.0, model.gravity[None, :])
+
+
+def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forces (n, 3) N and torques (n, 3) N·m about each centre of mass, world frame, from springs.
+
+    For a spring from anchor A (on body a) to anchor B (on body b or fixed in the world)
+    with length L and unit axis u = (B - A) / L, the tension is
+    ``f = k (L - rest) + c (v_B - v_A)·u``; body a feels ``+f u`` at A, body b ``-f u`` at B.
+
+    Args:
+        rot: (n, 3, 3) body-to-world rotations of ``state.quat``.
+    """
+    n = model.n_bodies
+    force = np.zeros((n, 3))
+    torque = np.zeros((n, 3))
+    if model.n_springs == 0:
+        return force, torque
+    a, b = model.spring_body_a, model.spring_body_b
+    to_world = b == WORLD_ANCHOR
+    b_safe = np.where(to_world, 0, b)
+
+    arm_a = apply(rot[a], model.spring_anchor_a)
+    arm_b = np.where(to_world[:, None], 0.0, apply(rot[b_safe], model.spring_anchor_b))
+    point_a = state.pos[a] + arm_a
+    point_b = np.where(to_world[:, None], model.spring_anchor_b, state.pos[b_safe] + arm_b)
+    vel_a = state.vel[a] + cross(state.ang_vel[a], arm_a)
+    vel_b = np.where(
+        to_world[:, None], 0.0, state.vel[b_safe] + cross(state.ang_vel[b_safe], arm_b)
+    )
+
+    offset = point_b - point_a
+    length = np.linalg.norm(offset, axis=1)
+    axis = offset / np.maximum(length, MIN_SPRING_LENGTH)[:, None]
+    axis[length < MIN_SPRING_LENGTH] = 0.0
+    stretch_speed = np.sum((vel_b - vel_a) * axis, axis=1)
+    tension = model.spring_stiffness * (length - model.spring_rest_length)
+    tension += model.spring_damping * stretch_speed
+    force_on_a = tension[:, None] * axis
+
+    np.add.at(force, a, force_on_a)
+    np.add.at(torque, a, cross(arm_a, force_on_a))
+    on_body = ~to_world
+    np.add.at(force, b[on_body], -force_on_a[on_body])
+    np.add.at(torque, b[on_body], cross(arm_b[on_body], -force_on_a[on_body]))
+    force[model.body_fixed] = 0.0
+    torque[model.body_fixed] = 0.0
+    return force, torque
+
+
+def spring_energy(model: Model, state: State, rot: np.ndarray) -> float:
+    """Elastic energy J stored in all springs, ``Σ ½ k (L - rest)²``."""
+    if model.n_springs == 0:
+        return 0.0
+    a, b = model.spring_body_a, model.spring_body_b
+    to_world = b == WORLD_ANCHOR
+    b_safe = np.where(to_world, 0, b)
+    point_a = state.pos[a] + apply(rot[a], model.spring_anchor_a)
+    point_b = np.where(
+        to_world[:, None],
+        model.spring_anchor_b,
+        state.pos[b_safe] + apply(rot[b_safe], model.spring_anchor_b),
+    )
+    length = np.linalg.norm(point_b - point_a, axis=1)
+    return float(np.sum(0.5 * model.spring_stiffness * (length - model.spring_rest_length) ** 2))

@@ -1,0 +1,462 @@
+"""Contact response: the documented impulse, generalised to many contacts by sequential impulses.
+
+For one contact this is exactly formulas.md section 3: with ``r × n`` written
+``rn`` and the scalar triple product ``((I⁻¹ rn) × r)·n = rn·(I⁻¹ rn)``,
+
+    j = -(1 + e) (v_rel·n) / (1/m_A + 1/m_B + rn_A·I_A⁻¹ rn_A + rn_B·I_B⁻¹ rn_B)
+
+For several contacts, each contact ``i`` gets a target normal velocity
+``-e (v_rel·n)`` from its approach speed *before* the solve, and the solver
+sweeps the contacts, each time applying the impulse that reaches its target,
+with the accumulated impulse clamped to ``>= 0`` (contacts push, never pull;
+Catto's sequential impulses). A single contact converges in one sweep to the
+documented ``j``.
+
+Vectorization: contacts are coloured so that no two contacts of one colour
+share a dynamic body; one colour is then one NumPy update (Gauss-Seidel
+between colours, exact within a colour because the contacts are independent).
+Body velocities live in one array ``body_twist (n + 1, 6)``: rows are bodies,
+columns ``[v (3), ω (3)]`` world frame, and the extra last row is the zero
+twist of every fixed body, so contacts with the ground never block a colour.
+
+Each contact row is a 12-vector Jacobian ``J = [-n, -rn_A, n, rn_B]`` over
+``[twist_A, twist_B]``: ``J · twist = (v_PB - v_PA)·n``; ``M⁻¹Jᵀ`` holds the
+matching velocity change per unit impulse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from mini_engine.contacts import Contacts
+from mini_engine.model import Model
+from mini_engine.rotation import apply, cross
+from mini_engine.settings import Settings
+
+RESTITUTION_MIX: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+    "max": np.maximum,
+    "min": np.minimum,
+    "mean": lambda a, b: 0.5 * (a + b),
+    "product": np.multiply,
+}
+"""Pair restitution from the two bodies' values (``Settings.restitution_mix``)."""
+
+FRICTION_MIX: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+    "geometric_mean": lambda a, b: np.sqrt(a * b),
+    "min": np.minimum,
+    "max": np.maximum,
+    "product": np.multiply,
+}
+"""Pair friction coefficient from the two bodies' values (``Settings.friction_mix``)."""
+
+
+COLOUR_SEED = 20151
+"""Seed of the contact priority permutation used by the colouring (any fixed value works;
+fixed so that the same contacts always get the same colours)."""
+
+WARM_START_MATCH_FRACTION = 0.1
+"""A contact inherits last step's impulse from a contact of the same pair at most this
+fraction of the pair's smaller bounding radius away (resting contacts move far less;
+the four corners of a 10 cm box face are 14 times further apart)."""
+
+COLOUR_ROUNDS = 3
+"""Claim rounds per colour. Measured on a 1000-sphere pile (3,700 contacts): 3 rounds give
+11 colours in 1.0 ms; unlimited rounds 12 colours in 1.1 ms; 1 round 23 colours."""
+
+
+class ContactReport(NamedTuple):
+    """What happened at every contact during one step (c contacts).
+
+    Attributes:
+        contacts: the detected contacts (bodies, point, normal A→B, depth).
+        restitution: (c,) the pair's e used.
+        normal_velocity_before: (c,) m/s, ``(v_PB - v_PA)·n`` after the applied forces and
+            before any impulse; negative while approaching.
+        normal_velocity_after: (c,) m/s, the same after the solve.
+        normal_impulse: (c,) N·s, accumulated impulse along n on B (and -n on A), >= 0.
+        friction_impulse: (c, 3) N·s, world frame, accumulated tangential impulse on B.
+        iterations: solver sweeps used.
+    """
+
+    contacts: Contacts
+    restitution: np.ndarray
+    normal_velocity_before: np.ndarray
+    normal_velocity_after: np.ndarray
+    normal_impulse: np.ndarray
+    friction_impulse: np.ndarray
+    iterations: int
+
+    @staticmethod
+    def empty() -> ContactReport:
+        return ContactReport(
+            Contacts.empty(),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros((0, 3)),
+            0,
+        )
+
+
+class _Rows(NamedTuple):
+    """Solver rows of one constraint direction, ordered by colour (c rows)."""
+
+    jacobian: np.ndarray  # (c, 12) [-d, -r_A×d, d, r_B×d]
+    response: np.ndarray  # (c, 12) M⁻¹Jᵀ: twist change per unit impulse
+    mass: np.ndarray  # (c,) effective mass 1/(J M⁻¹ Jᵀ), kg
+
+
+def pair_values(
+    model: Model, contacts: Contacts, settings: Settings
+) -> tuple[np.ndarray, np.ndarray]:
+    """Restitution (c,) and friction coefficient (c,) of each contact's body pair.
+
+    The mixing rules of ``settings`` apply unless the model overrides the pair.
+    """
+    a, b = contacts.body_a, contacts.body_b
+    restitution = RESTITUTION_MIX[settings.restitution_mix](
+        model.body_restitution[a], model.body_restitution[b]
+    )
+    friction = FRICTION_MIX[settings.friction_mix](model.body_friction[a], model.body_friction[b])
+    if model.pair_body_a.size:
+        n = model.n_bodies
+        override_key = np.minimum(model.pair_body_a, model.pair_body_b) * n + np.maximum(
+            model.pair_body_a, model.pair_body_b
+        )
+        contact_key = np.minimum(a, b) * n + np.maximum(a, b)
+        order = np.argsort(override_key, kind="stable")
+        slot = np.clip(np.searchsorted(override_key[order], contact_key), 0, order.size - 1)
+        hit = override_key[order][slot] == contact_key
+        chosen = order[slot]
+        pair_e, pair_mu = model.pair_restitution[chosen], model.pair_friction[chosen]
+        restitution = np.where(hit & ~np.isnan(pair_e), pair_e, restitution)
+        friction = np.where(hit & ~np.isnan(pair_mu), pair_mu, friction)
+    return restitution, friction
+
+
+def colour_contacts(row_a: np.ndarray, row_b: np.ndarray, static_row: int) -> np.ndarray:
+    """Colour (c,) int of each contact; no two contacts of one colour share a dynamic body.
+
+    Luby-style rounds, all vectorized. Each contact has a fixed pseudo-random priority
+    (a seeded permutation, so the result is deterministic). In a round every body claims
+    its highest-priority candidate contact; a contact claimed by both its bodies joins the
+    colour, its bodies are marked used, and candidates touching no used body try again,
+    up to ``COLOUR_ROUNDS`` times; then the next colour starts. Random priorities matter:
+    contacts come out of the broad phase in spatial order, and index priorities then form
+    long chains where only a few contacts win each round. The static row never blocks:
+    each contact's fixed side gets a private row of its own for the colouring.
+    """
+    count = row_a.size
+    private = static_row + np.arange(count)
+    priority_order = np.random.default_rng(COLOUR_SEED).permutation(count)
+    pair_rows = np.stack(
+        [
+            np.where(row_a == static_row, private, row_a),
+            np.where(row_b == static_row, private, row_b),
+        ],
+        axis=1,
+    )
+    colour = np.full(count, -1, dtype=np.int64)
+    claim = np.empty(static_row + count, dtype=np.int64)
+    remaining = priority_order[::-1].copy()  # lowest priority first: the last write wins
+    current = 0
+    while remaining.size:
+        used = np.zeros(static_row + count, dtype=bool)
+        candidates = remaining
+        for _ in range(COLOUR_ROUNDS):
+            if not candidates.size:
+                break
+            rows = pair_rows[candidates]
+            claim[rows.ravel()] = np.repeat(candidates, 2)
+            wins = (claim[rows[:, 0]] == candidates) & (claim[rows[:, 1]] == candidates)
+            winners = candidates[wins]  # never empty: the top-priority candidate always wins
+            colour[winners] = current
+            used[pair_rows[winners].ravel()] = True
+            rows = rows[~wins]
+            candidates = candidates[~wins][~(used[rows[:, 0]] | used[rows[:, 1]])]
+        remaining = remaining[colour[remaining] < 0]
+        current += 1
+    return colour
+
+
+def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b) -> _Rows:
+    """Jacobian, response and effective mass of constraint rows along ``direction (c, 3)``."""
+    rd_a, rd_b = cross(arm_a, direction), cross(arm_b, direction)
+    w_a, w_b = apply(inv_inertia_a, rd_a), apply(inv_inertia_b, rd_b)
+    jacobian = np.concatenate([-direction, -rd_a, direction, rd_b], axis=1)
+    response = np.concatenate(
+        [-inv_mass_a[:, None] * direction, -w_a, inv_mass_b[:, None] * direction, w_b], axis=1
+    )
+    inverse_mass = inv_mass_a + inv_mass_b + np.sum(rd_a * w_a, axis=1) + np.sum(rd_b * w_b, axis=1)
+    return _Rows(jacobian, response, 1.0 / inverse_mass)
+
+
+def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents (c, 3) completing ``normal (c, 3)`` to a right-handed basis."""
+    helper = np.where(
+        (np.abs(normal[:, 0]) < 0.57735)[:, None],
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+    )
+    t1 = cross(normal, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, cross(normal, t1)
+
+
+def _sweep_normal(body_twist, pair_rows, rows: _Rows, target, impulse, batches) -> float:
+    """One Gauss-Seidel sweep over the colour batches; returns the largest velocity change, m/s.
+
+    The change of a contact is its impulse change over its effective mass (what the sweep
+    did to its own relative normal velocity), measured once per sweep.
+    """
+    start = impulse.copy()
+    for s in batches:
+        index = pair_rows[s]
+        twist = body_twist[index].reshape(-1, 12)
+        velocity = np.einsum("ij,ij->i", rows.jacobian[s], twist)
+        accumulated = np.maximum(impulse[s] + rows.mass[s] * (target[s] - velocity), 0.0)
+        delta = accumulated - impulse[s]
+        impulse[s] = accumulated
+        twist += delta[:, None] * rows.response[s]
+        body_twist[index] = twist.reshape(-1, 2, 6)
+    return float(np.max(np.abs(impulse - start) / rows.mass))
+
+
+def _sweep_friction(
+    body_twist, pair_rows, rows1, rows2, friction, normal_impulse, impulse, batches
+) -> float:
+    """One sweep of the two tangent rows per contact, the impulse clamped to the disc μ λ_n.
+
+    Returns the largest tangential velocity change, m/s.
+    """
+    start = impulse.copy()
+    for s in batches:
+        index = pair_rows[s]
+        twist = body_twist[index].reshape(-1, 12)
+        v1 = np.einsum("ij,ij->i", rows1.jacobian[s], twist)
+        v2 = np.einsum("ij,ij->i", rows2.jacobian[s], twist)
+        trial = impulse[s] - np.stack([rows1.mass[s] * v1, rows2.mass[s] * v2], axis=1)
+        limit = friction[s] * normal_impulse[s]
+        norm = np.linalg.norm(trial, axis=1)
+        scale = np.where(norm > limit, limit / np.maximum(norm, 1e-300), 1.0)
+        accumulated = trial * scale[:, None]
+        delta = accumulated - impulse[s]
+        impulse[s] = accumulated
+        twist += delta[:, :1] * rows1.response[s] + delta[:, 1:] * rows2.response[s]
+        body_twist[index] = twist.reshape(-1, 2, 6)
+    change = np.abs(impulse - start) / np.stack([rows1.mass, rows2.mass], axis=1)
+    return float(np.max(change))
+
+
+class ContactSolution(NamedTuple):
+    """Result of ``solve_contacts``.
+
+    Attributes:
+        vel: (n, 3) m/s, world frame, after the impulses.
+        ang_vel: (n, 3) rad/s, world frame, after the impulses.
+        report: per-contact record of the step.
+        pseudo_twist: (n, 6) or None; split-impulse position-correction velocities
+            ``[v (3) m/s, ω (3) rad/s]``, world frame, applied to the pose only.
+    """
+
+    vel: np.ndarray
+    ang_vel: np.ndarray
+    report: ContactReport
+    pseudo_twist: np.ndarray | None
+
+
+def solve_contacts(
+    model: Model,
+    contacts: Contacts,
+    pos: np.ndarray,
+    inv_inertia_world: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+    settings: Settings,
+    previous: ContactReport | None = None,
+) -> ContactSolution:
+    """Apply contact impulses to the velocities ``vel, ang_vel (n, 3)`` (world frame).
+
+    Args:
+        contacts: detected at the start of the step (``pos`` are those positions).
+        inv_inertia_world: (n, 3, 3) ``R I⁻¹ Rᵀ``, zero for fixed bodies.
+        previous: the last step's report, for warm starting (``Settings.warm_start``).
+    """
+    if contacts.count == 0:
+        return ContactSolution(vel, ang_vel, ContactReport.empty(), None)
+    n = model.n_bodies
+    static_row = n
+    a, b = contacts.body_a, contacts.body_b
+    row_a = np.where(model.body_fixed[a], static_row, a)
+    row_b = np.where(model.body_fixed[b], static_row, b)
+
+    # colour the contact graph and put each colour in one contiguous slice
+    colour = colour_contacts(row_a, row_b, static_row) if contacts.count > 1 else np.zeros(1, int)
+    order = np.argsort(colour, kind="stable")
+    bounds = np.searchsorted(colour[order], np.arange(colour.max() + 2))
+    batches = [slice(bounds[k], bounds[k + 1]) for k in range(bounds.size - 1)]
+    contacts = Contacts(*(field[order] for field in contacts))
+    a, b, row_a, row_b = a[order], b[order], row_a[order], row_b[order]
+    pair_rows = np.stack([row_a, row_b], axis=1)
+
+    # pre-step: arms, Jacobians, effective masses, targets from the approach speed
+    arm_a, arm_b = contacts.point - pos[a], contacts.point - pos[b]
+    inv_mass_a, inv_mass_b = model.body_inv_mass[a], model.body_inv_mass[b]
+    inv_inertia_a, inv_inertia_b = inv_inertia_world[a], inv_inertia_world[b]
+    normal_rows = _rows(
+        contacts.normal, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b
+    )
+    restitution, friction = pair_values(model, contacts, settings)
+
+    body_twist = np.zeros((n + 1, 6))
+    body_twist[:n, :3], body_twist[:n, 3:] = vel, ang_vel
+    before = np.einsum("ij,ij->i", normal_rows.jacobian, body_twist[pair_rows].reshape(-1, 12))
+    target = _normal_targets(contacts.depth, before, restitution, settings)
+
+    # warm start: last step's impulses at the matching contacts, applied before the sweeps
+    use_friction = bool(np.any(friction > 0.0))
+    impulse, previous_friction = _warm_start_impulses(model, contacts, previous, settings)
+    _apply_impulses(body_twist, pair_rows, normal_rows.response, impulse, batches)
+    if use_friction:
+        t1, t2 = _tangents(contacts.normal)
+        tangent_rows = [
+            _rows(t, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b)
+            for t in (t1, t2)
+        ]
+        tangent_impulse = np.stack(
+            [np.sum(previous_friction * t1, axis=1), np.sum(previous_friction * t2, axis=1)], axis=1
+        )
+        for rows, column in zip(tangent_rows, tangent_impulse.T, strict=True):
+            _apply_impulses(body_twist, pair_rows, rows.response, column, batches)
+
+    # sequential impulses: normal rows, then friction rows, colour by colour
+    sweeps = 0
+    for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
+        change = _sweep_normal(body_twist, pair_rows, normal_rows, target, impulse, batches)
+        if use_friction:
+            change = max(
+                change,
+                _sweep_friction(
+                    body_twist,
+                    pair_rows,
+                    *tangent_rows,
+                    friction,
+                    impulse,
+                    tangent_impulse,
+                    batches,
+                ),
+            )
+        if change <= settings.solver_tolerance:
+            break
+
+    after = np.einsum("ij,ij->i", normal_rows.jacobian, body_twist[pair_rows].reshape(-1, 12))
+    friction_impulse = (
+        tangent_impulse[:, :1] * t1 + tangent_impulse[:, 1:] * t2
+        if use_friction
+        else np.zeros((contacts.count, 3))
+    )
+    report = ContactReport(contacts, restitution, before, after, impulse, friction_impulse, sweeps)
+    pseudo = (
+        _split_impulse(
+            body_twist.shape[0], pair_rows, normal_rows, contacts.depth, batches, settings
+        )
+        if settings.position_correction == "split_impulse"
+        else None
+    )
+    return ContactSolution(body_twist[:n, :3].copy(), body_twist[:n, 3:].copy(), report, pseudo)
+
+
+def _apply_impulses(body_twist, pair_rows, response, impulse, batches) -> None:
+    """Add the impulses ``impulse (c,)`` along rows with ``response (c, 12)`` to the twists."""
+    if not np.any(impulse):
+        return
+    for s in batches:  # contacts of one colour share no dynamic body: plain fancy += is exact
+        index = pair_rows[s]
+        body_twist[index] += (impulse[s, None] * response[s]).reshape(-1, 2, 6)
+
+
+def _warm_start_impulses(
+    model: Model, contacts: Contacts, previous: ContactReport | None, settings: Settings
+) -> tuple[np.ndarray, np.ndarray]:
+    """Initial normal impulses (c,) N·s and friction impulses (c, 3) N·s, world frame.
+
+    Each contact takes the accumulated impulses of the nearest contact of the same body
+    pair in ``previous`` if that one lies within ``WARM_START_MATCH_FRACTION`` of the
+    pair's smaller bounding radius; otherwise it starts from zero. A first impact has no
+    previous contact, so the documented single impulse is unchanged by warm starting.
+    """
+    count = contacts.count
+    if not settings.warm_start or previous is None or previous.contacts.count == 0:
+        return np.zeros(count), np.zeros((count, 3))
+    n = model.n_bodies
+    old = previous.contacts
+    old_key = old.body_a * n + old.body_b
+    key = contacts.body_a * n + contacts.body_b
+    order = np.argsort(old_key, kind="stable")
+    sorted_key = old_key[order]
+    start = np.searchsorted(sorted_key, key, side="left")
+    end = np.searchsorted(sorted_key, key, side="right")
+    width = int(max((end - start).max(), 1))
+    slot = start[:, None] + np.arange(width)[None, :]
+    valid = slot < end[:, None]
+    candidate = order[np.minimum(slot, order.size - 1)]
+    distance_sq = np.sum((old.point[candidate] - contacts.point[:, None, :]) ** 2, axis=2)
+    distance_sq[~valid] = np.inf
+    best = np.argmin(distance_sq, axis=1)
+    rows = np.arange(count)
+    radius = np.minimum(
+        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
+    )
+    matched = distance_sq[rows, best] <= (WARM_START_MATCH_FRACTION * radius) ** 2
+    source = candidate[rows, best]
+    normal = np.where(matched, previous.normal_impulse[source], 0.0)
+    friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
+    return normal, friction
+
+
+def _correction_speed(depth: np.ndarray, settings: Settings) -> np.ndarray:
+    """Bias velocity (c,) m/s removing β of the penetration beyond the slop per step, capped."""
+    excess = np.maximum(depth - settings.penetration_slop, 0.0)
+    return np.minimum(
+        settings.baumgarte_factor * excess / settings.dt, settings.max_correction_speed
+    )
+
+
+def _normal_targets(depth, before, restitution, settings: Settings) -> np.ndarray:
+    """Target normal velocity (c,) m/s of each contact after the solve.
+
+    Contacts approaching faster than the threshold bounce: ``-e (v_rel·n)`` (Newton's law,
+    from the approach speed before the solve); the others target 0 (they stop approaching).
+    Every reported contact counts as touching, including those separated by less than
+    ``Settings.contact_margin``. Baumgarte adds its bias velocity as a floor.
+    """
+    bounce = before < -settings.restitution_threshold
+    target = np.where(bounce, -restitution * before, 0.0)
+    if settings.position_correction == "baumgarte":
+        target = np.maximum(target, _correction_speed(depth, settings))
+    return target
+
+
+def _split_impulse(
+    rows_count, pair_rows, normal_rows: _Rows, depth, batches, settings
+) -> np.ndarray:
+    """Pseudo-velocities (n, 6) that remove penetration through the pose only (split impulse).
+
+    The same sequential-impulse sweeps, on a twist array that starts at zero and targets
+    the Baumgarte bias; the result moves positions this step and is then discarded, so no
+    kinetic energy is added.
+    """
+    pseudo = np.zeros((rows_count, 6))
+    target = _correction_speed(depth, settings)
+    if not np.any(target > 0.0):
+        return pseudo[:-1]
+    impulse = np.zeros(depth.size)
+    for _ in range(settings.solver_iterations):
+        change = _sweep_normal(pseudo, pair_rows, normal_rows, target, impulse, batches)
+        if change <= settings.solver_tolerance:
+            break
+    return pseudo[:-1]

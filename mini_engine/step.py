@@ -1,0 +1,129 @@
+"""One time step of the engine, phase by phase (Box2D-Lite's ``World::Step`` order).
+
+Phases a scene does not need are skipped: no collision work when nothing can
+touch, no inverse-inertia work without torques or contacts, no gyroscopic
+work for isotropic bodies, nothing at all for fixed bodies.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from mini_engine.collision import detect_contacts
+from mini_engine.contacts import Contacts
+from mini_engine.forces import gravity_acceleration, spring_forces
+from mini_engine.integrate import (
+    integrate_angular_velocity,
+    integrate_linear_velocity,
+    integrate_pose,
+)
+from mini_engine.model import Model, State
+from mini_engine.rotation import (
+    quat_multiply,
+    quat_normalize,
+    quat_to_matrix,
+    rotation_quat,
+    world_inertia,
+)
+from mini_engine.settings import Settings
+from mini_engine.solver import ContactReport, solve_contacts
+
+DEFAULT_SETTINGS = Settings()
+
+
+class StepResult(NamedTuple):
+    """The state after one step and what happened at the contacts during it."""
+
+    state: State
+    contacts: ContactReport
+
+
+POSE_VELOCITY = {
+    "semi_implicit_euler": lambda old, new: new,
+    "explicit_euler": lambda old, new: old,
+}
+"""Which velocities move the pose: the new ones (semi-implicit) or the old ones (explicit)."""
+
+
+def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> StepResult:
+    """Advance ``state`` by ``settings.dt``; returns the new state and the contact report."""
+    dt = settings.dt
+    moving = np.flatnonzero(model.body_dynamic)
+    rot = quat_to_matrix(state.quat)  # orientations as matrices, once per step
+
+    # 1. collision detection at the start-of-step poses (broad phase, then narrow phase)
+    contacts = (
+        detect_contacts(
+            model, state.pos, rot, settings.contact_margin + settings.broadphase_padding
+        )
+        if model.can_touch
+        else Contacts.empty()
+    )
+    # 2. applied loads at the start-of-step state: gravity, spring-dampers
+    force, torque = spring_forces(model, state, rot)
+    lin_acc = gravity_acceleration(model) + force * model.body_inv_mass[:, None]
+    # 3. world inverse inertia R I⁻¹ Rᵀ, only where a torque or an impulse will use it
+    needs_inertia = contacts.count > 0 or np.any(torque != 0.0)
+    inv_inertia_world = world_inertia(rot, model.body_inv_inertia) if needs_inertia else None
+    # 4. integrate velocities: v += a dt; ω per the gyroscopic rule, then ω += I⁻¹τ dt
+    vel = integrate_linear_velocity(state.vel, lin_acc, dt)
+    ang_vel = integrate_angular_velocity(
+        state.ang_vel,
+        torque,
+        inv_inertia_world,
+        rot,
+        model.body_inertia,
+        model.body_inv_inertia,
+        model.gyroscopic_bodies if settings.gyroscopic != "none" else moving[:0],
+        settings.gyroscopic,
+        dt,
+    )
+    # 5. contact impulses (sequential impulses with restitution; friction if any μ > 0)
+    solution = solve_contacts(
+        model, contacts, state.pos, inv_inertia_world, vel, ang_vel, settings, state.contact_memory
+    )
+    vel, ang_vel = solution.vel, solution.ang_vel
+    # 6. integrate positions with the velocities the integrator names
+    choose = POSE_VELOCITY[settings.integrator]
+    pos, quat = integrate_pose(
+        state.pos,
+        state.quat,
+        choose(state.vel, vel),
+        choose(state.ang_vel, ang_vel),
+        moving,
+        settings.orientation_update,
+        dt,
+    )
+    # 7. split-impulse position correction (pose only, velocities untouched)
+    if solution.pseudo_twist is not None:
+        pos, quat = _apply_pseudo_twist(pos, quat, solution.pseudo_twist, dt)
+    memory = solution.report if solution.report.contacts.count else None
+    return StepResult(State(pos, quat, vel, ang_vel, state.time + dt, memory), solution.report)
+
+
+def _apply_pseudo_twist(pos, quat, pseudo_twist, dt) -> tuple[np.ndarray, np.ndarray]:
+    """Move poses by split-impulse pseudo-velocities ``pseudo_twist (n, 6)`` over ``dt``."""
+    moved = np.flatnonzero(np.any(pseudo_twist != 0.0, axis=1))
+    if moved.size == 0:
+        return pos, quat
+    pos = pos.copy()
+    quat = quat.copy()
+    pos[moved] += pseudo_twist[moved, :3] * dt
+    quat[moved] = quat_normalize(
+        quat_multiply(rotation_quat(pseudo_twist[moved, 3:] * dt), quat[moved])
+    )
+    return pos, quat
+
+
+def simulate(
+    model: Model, state: State, settings: Settings, steps: int
+) -> tuple[State, list[ContactReport]]:
+    """Advance ``steps`` steps; returns the final state and the non-empty contact reports."""
+    reports = []
+    for _ in range(steps):
+        state, report = step(model, state, settings)
+        if report.contacts.count:
+            reports.append(report)
+    return state, reports

@@ -1,0 +1,1 @@
+"""physval validation layer: scenarios, engine adapters, metrics, reports (later issues)."""
