@@ -324,7 +324,9 @@ def build_model(
         if not (np.isfinite(body.mass) and body.mass > 0.0):
             raise ValueError(f"{label}.mass: expected a finite number > 0; got {body.mass!r}")
         if isinstance(body.shape, Plane) and not body.fixed:
-            raise ValueError(f"{label}.fixed: a plane is infinite and must be fixed")
+            raise ValueError(
+                f"{label}.fixed: expected true for a plane (planes are infinite and static)"
+            )
         if body.world == SHARED_WORLD and not body.fixed:
             raise ValueError(f"{label}.world: only fixed bodies may be shared by every world")
 

@@ -57,6 +57,9 @@ COLOUR_SEED = 20151
 """Seed of the contact priority permutation used by the colouring (any fixed value works;
 fixed so that the same contacts always get the same colours)."""
 
+TINY_IMPULSE = 1e-300
+"""N·s. Guards the friction-disc scaling against 0/0 when the trial impulse is zero."""
+
 WARM_START_MATCH_FRACTION = 0.1
 """A contact inherits last step's impulse from a contact of the same pair at most this
 fraction of the pair's smaller bounding radius away (resting contacts move far less;
@@ -227,29 +230,26 @@ def _sweep_normal(body_twist, pair_rows, rows: _Rows, target, impulse, batches) 
 
 
 def _sweep_friction(
-    body_twist, pair_rows, rows1, rows2, friction, normal_impulse, impulse, batches
+    body_twist, pair_rows, rows: _Rows, friction, normal_impulse, impulse, batches
 ) -> float:
     """One sweep of the two tangent rows per contact, the impulse clamped to the disc μ λ_n.
 
+    ``rows`` hold both tangents: jacobian and response (c, 2, 12), mass (c, 2).
     Returns the largest tangential velocity change, m/s.
     """
     start = impulse.copy()
     for s in batches:
         index = pair_rows[s]
         twist = body_twist[index].reshape(-1, 12)
-        v1 = np.einsum("ij,ij->i", rows1.jacobian[s], twist)
-        v2 = np.einsum("ij,ij->i", rows2.jacobian[s], twist)
-        trial = impulse[s] - np.stack([rows1.mass[s] * v1, rows2.mass[s] * v2], axis=1)
+        trial = impulse[s] - rows.mass[s] * np.einsum("ikj,ij->ik", rows.jacobian[s], twist)
         limit = friction[s] * normal_impulse[s]
-        norm = np.linalg.norm(trial, axis=1)
-        scale = np.where(norm > limit, limit / np.maximum(norm, 1e-300), 1.0)
-        accumulated = trial * scale[:, None]
+        norm = np.sqrt(np.einsum("ik,ik->i", trial, trial))
+        accumulated = trial * np.minimum(1.0, limit / np.maximum(norm, TINY_IMPULSE))[:, None]
         delta = accumulated - impulse[s]
         impulse[s] = accumulated
-        twist += delta[:, :1] * rows1.response[s] + delta[:, 1:] * rows2.response[s]
+        twist += np.einsum("ik,ikj->ij", delta, rows.response[s])
         body_twist[index] = twist.reshape(-1, 2, 6)
-    change = np.abs(impulse - start) / np.stack([rows1.mass, rows2.mass], axis=1)
-    return float(np.max(change))
+    return float(np.max(np.abs(impulse - start) / rows.mass))
 
 
 class ContactSolution(NamedTuple):
@@ -323,15 +323,18 @@ def solve_contacts(
     _apply_impulses(body_twist, pair_rows, normal_rows.response, impulse, batches)
     if use_friction:
         t1, t2 = _tangents(contacts.normal)
-        tangent_rows = [
+        first, second = (
             _rows(t, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b)
             for t in (t1, t2)
-        ]
+        )
+        tangent_rows = _Rows(*(np.stack(pair, axis=1) for pair in zip(first, second, strict=True)))
         tangent_impulse = np.stack(
             [np.sum(previous_friction * t1, axis=1), np.sum(previous_friction * t2, axis=1)], axis=1
         )
-        for rows, column in zip(tangent_rows, tangent_impulse.T, strict=True):
-            _apply_impulses(body_twist, pair_rows, rows.response, column, batches)
+        for k in range(2):
+            _apply_impulses(
+                body_twist, pair_rows, tangent_rows.response[:, k], tangent_impulse[:, k], batches
+            )
 
     # sequential impulses: normal rows, then friction rows, colour by colour
     sweeps = 0
@@ -343,7 +346,7 @@ def solve_contacts(
                 _sweep_friction(
                     body_twist,
                     pair_rows,
-                    *tangent_rows,
+                    tangent_rows,
                     friction,
                     impulse,
                     tangent_impulse,

@@ -76,7 +76,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         rot,
         model.body_inertia,
         model.body_inv_inertia,
-        model.gyroscopic_bodies if settings.gyroscopic != "none" else moving[:0],
+        model.gyroscopic_bodies,
         settings.gyroscopic,
         dt,
     )

@@ -37,7 +37,9 @@ def documented_impulse(m_a, m_b, inv_i_a, inv_i_b, x_a, x_b, v_a, v_b, w_a, w_b,
     denominator = (
         1 / m_a
         + 1 / m_b
-        + np.dot(np.cross(inv_i_a @ np.cross(r_a, n), r_a) + np.cross(inv_i_b @ np.cross(r_b, n), r_b), n)
+        + np.dot(
+            np.cross(inv_i_a @ np.cross(r_a, n), r_a) + np.cross(inv_i_b @ np.cross(r_b, n), r_b), n
+        )
     )
     j = -(1 + e) * np.dot(v_rel, n) / denominator
     return (
@@ -80,8 +82,14 @@ def test_single_contact_impulse_equals_documented_formula(
     inertia = np.array([np.diag(shapes[:3]), np.diag(shapes[3:])]) * np.array(masses)[:, None, None]
     model, state = build_model(
         [
-            Body(Sphere(0.25), mass=masses[i], inertia=inertia[i], position=x, orientation=quat[i],
-                 restitution=e)
+            Body(
+                Sphere(0.25),
+                mass=masses[i],
+                inertia=inertia[i],
+                position=x,
+                orientation=quat[i],
+                restitution=e,
+            )
             for i, x in enumerate((x_a, x_b))
         ],
         gravity=(0.0, 0.0, 0.0),
@@ -107,18 +115,33 @@ def test_single_contact_impulse_equals_documented_formula(
     assert np.abs(p_after - p_before).max() < MOMENTUM_TOLERANCE * p_scale * 100, (
         f"momentum changed by {np.abs(p_after - p_before).max():.3e}"
     )
-    measured_e = -solution.report.normal_velocity_after[0] / solution.report.normal_velocity_before[0]
-    assert abs(measured_e - e) < FORMULA_TOLERANCE * 10, f"measured e {measured_e:.12f}, requested {e}"
+    measured_e = (
+        -solution.report.normal_velocity_after[0] / solution.report.normal_velocity_before[0]
+    )
+    assert abs(measured_e - e) < FORMULA_TOLERANCE * 10, (
+        f"measured e {measured_e:.12f}, requested {e}"
+    )
 
 
 def head_on(m1, m2, v1, v2, e, offset=(0.0, 0.0), spin=(0.0, 0.0, 0.0)):
     """Two spheres (r = 0.1) on the x axis, no gravity; state after the impact and the reports."""
     model, state = build_model(
         [
-            Body(Sphere(0.1), mass=m1, position=(-0.1005, 0.0, 0.0), velocity=(v1, *offset),
-                 angular_velocity=spin, restitution=e),
-            Body(Sphere(0.1), mass=m2, position=(0.1005, 0.0, 0.0), velocity=(v2, 0.0, 0.0),
-                 restitution=e),
+            Body(
+                Sphere(0.1),
+                mass=m1,
+                position=(-0.1005, 0.0, 0.0),
+                velocity=(v1, *offset),
+                angular_velocity=spin,
+                restitution=e,
+            ),
+            Body(
+                Sphere(0.1),
+                mass=m2,
+                position=(0.1005, 0.0, 0.0),
+                velocity=(v2, 0.0, 0.0),
+                restitution=e,
+            ),
         ],
         gravity=(0.0, 0.0, 0.0),
     )
@@ -171,7 +194,7 @@ def test_oblique_impact_with_spin_keeps_tangential_motion_and_spin():
     """Frictionless spheres: the impulse acts along the line of centres, so the tangential
     velocity and the spins are untouched and the normal components follow the 1-D law."""
     e = 0.5
-    model, initial, final, reports = head_on(
+    _model, initial, final, reports = head_on(
         1.0, 2.0, 1.0, 0.0, e, offset=(0.3, -0.2), spin=(5.0, -3.0, 2.0)
     )
     pushing = [r for r in reports if r.normal_impulse.any()]

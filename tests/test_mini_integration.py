@@ -198,7 +198,7 @@ def test_axisymmetric_body_precesses_at_closed_form_rate(gyroscopic):
     """Torque-free symmetric top: ω_perp turns in the body frame at Ω = (I3 - I1)/I1 · ω3."""
     inertia = (0.02, 0.02, 0.05)
     omega3 = 1.0
-    omega, momentum, _, _ = spin(gyroscopic, inertia, (0.3, 0.0, omega3), 4.0)
+    omega, _momentum, _, _ = spin(gyroscopic, inertia, (0.3, 0.0, omega3), 4.0)
     angle = np.unwrap(np.arctan2(omega[:, 1], omega[:, 0]))
     t = DT * np.arange(1, angle.size + 1)
     rate = np.polyfit(t, angle, 1)[0]
@@ -228,7 +228,7 @@ def test_gyroscopic_term_keeps_world_angular_momentum(gyroscopic):
 
 def test_documented_law_drifts_world_angular_momentum():
     """The harness must be able to show the documented law's error: L is not conserved."""
-    _, momentum, model, _ = spin("none", DZHANIBEKOV_INERTIA, (1.0, 2.0, 3.0), 2.0)
+    _, momentum, _model, _ = spin("none", DZHANIBEKOV_INERTIA, (1.0, 2.0, 3.0), 2.0)
     drift = np.linalg.norm(momentum[-1] - momentum[0]) / np.linalg.norm(momentum[0])
     assert drift > 0.1, f"|ΔL|/|L0| = {drift:.4f}; the documented law should drift"
 
@@ -239,7 +239,13 @@ def test_implicit_gyroscopic_dissipates_and_explicit_gains_energy():
     for mode in ("explicit", "implicit"):
         _, _, model, state = spin(mode, DZHANIBEKOV_INERTIA, (0.05, 10.0, 0.05), 10.0)
         _, start = build_model(
-            [Body(Box((0.1,) * 3), inertia=DZHANIBEKOV_INERTIA, angular_velocity=(0.05, 10.0, 0.05))],
+            [
+                Body(
+                    Box((0.1,) * 3),
+                    inertia=DZHANIBEKOV_INERTIA,
+                    angular_velocity=(0.05, 10.0, 0.05),
+                )
+            ],
             gravity=(0.0, 0.0, 0.0),
         )
         results[mode] = kinetic_energy(model, state)[0] / kinetic_energy(model, start)[0] - 1

@@ -1,0 +1,217 @@
+"""mini_engine speed, as ratios against MuJoCo and PyBullet on the same scene in one run.
+
+Scenes (issue 2's targets):
+
+1. **pile**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
+   (ground and walls are planes), dt = 2e-3 s, frictionless, e = 0. Each engine first
+   settles the pile for ``SETTLE_STEPS``, then its stepping alone is timed over
+   ``TIMED_STEPS`` (median of ``REPEATS`` blocks). Target: mini <= 10 ms per step at N = 1000
+   (MuJoCo with CG measured about 9.6 ms, engines.md 1.9).
+2. **copies**: the Gazebo tumbling box, 1 copy vs 1024 copies in one model; target: the
+   1024 copies advance at least 10x faster per body-step than one copy.
+
+Prints a table and writes ``benchmarks/results/mini_engine_speed.csv``. Not a test:
+wall-clock numbers depend on the machine; the ratios are what to compare.
+
+    python benchmarks/mini_engine_speed.py [--spheres 1 10 100 1000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+import pybullet
+
+from mini_engine import Settings, step
+from mini_engine.scenes import sphere_pile, tumbling_box
+
+PILE_DT = 2e-3
+"""s. engines.md 1.9 measured the reference engines at 2e-3 (1e-3 costs the same per step)."""
+
+SETTLE_STEPS = 750
+"""1.5 s of simulated time: the layers have landed and the pile is settling."""
+
+TIMED_STEPS = 50
+REPEATS = 3
+RESULTS = Path(__file__).parent / "results" / "mini_engine_speed.csv"
+
+
+def seconds_per_step(advance: Callable[[int], None]) -> float:
+    """Median over ``REPEATS`` blocks of ``TIMED_STEPS`` steps of the time per step, s."""
+    samples = []
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        advance(TIMED_STEPS)
+        samples.append((time.perf_counter() - start) / TIMED_STEPS)
+    return statistics.median(samples)
+
+
+# --- the pile in each engine -----------------------------------------------------------
+
+
+def mini_pile(count: int) -> tuple[float, int]:
+    model, state = sphere_pile(count)
+    cfg = Settings(dt=PILE_DT)
+    holder = {"state": state, "contacts": 0}
+
+    def advance(steps: int) -> None:
+        s = holder["state"]
+        for _ in range(steps):
+            s, report = step(model, s, cfg)
+        holder["state"], holder["contacts"] = s, report.contacts.count
+
+    advance(SETTLE_STEPS)
+    return seconds_per_step(advance), holder["contacts"]
+
+
+def _pile_positions(count: int) -> np.ndarray:
+    model, state = sphere_pile(count)
+    return state.pos[model.body_dynamic]
+
+
+PLANE_NORMALS = [
+    ((0, 0, 0), (0, 0, 1)),
+    ((-0.6, 0, 0), (1, 0, 0)),
+    ((0.6, 0, 0), (-1, 0, 0)),
+    ((0, -0.6, 0), (0, 1, 0)),
+    ((0, 0.6, 0), (0, -1, 0)),
+]
+"""The ground and the four walls of the 1.2 m box: (point, inward normal)."""
+
+
+def mujoco_pile(count: int) -> tuple[float, int]:
+    planes = "".join(
+        f'<geom type="plane" size="1 1 0.1" pos="{p[0]} {p[1]} {p[2]}" zaxis="{n[0]} {n[1]} {n[2]}"'
+        ' condim="1"/>'
+        for p, n in PLANE_NORMALS
+    )
+    bodies = "".join(
+        f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="0.05" mass="1" condim="1"/></body>'
+        for x, y, z in _pile_positions(count)
+    )
+    xml = (
+        f'<mujoco><option timestep="{PILE_DT}" integrator="implicitfast" solver="CG"/>'
+        f"<worldbody>{planes}{bodies}</worldbody></mujoco>"
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+
+    def advance(steps: int) -> None:
+        mujoco.mj_step(model, data, nstep=steps)
+
+    advance(SETTLE_STEPS)
+    return seconds_per_step(advance), int(data.ncon)
+
+
+def pybullet_pile(count: int) -> tuple[float, int]:
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        pybullet.setGravity(0, 0, -9.81, physicsClientId=client)
+        pybullet.setPhysicsEngineParameter(fixedTimeStep=PILE_DT, physicsClientId=client)
+        plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+        for point, normal in PLANE_NORMALS:
+            axis = np.cross((0, 0, 1), normal)
+            angle = np.arccos(np.clip(normal[2], -1, 1))
+            quat = pybullet.getQuaternionFromAxisAngle(axis if np.any(axis) else (1, 0, 0), angle)
+            pybullet.createMultiBody(
+                0, plane, basePosition=point, baseOrientation=quat, physicsClientId=client
+            )
+        sphere = pybullet.createCollisionShape(
+            pybullet.GEOM_SPHERE, radius=0.05, physicsClientId=client
+        )
+        for position in _pile_positions(count):
+            body = pybullet.createMultiBody(
+                1.0,
+                sphere,
+                basePosition=position.tolist(),
+                useMaximalCoordinates=True,
+                physicsClientId=client,
+            )
+            pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
+
+        def advance(steps: int) -> None:
+            for _ in range(steps):
+                pybullet.stepSimulation(physicsClientId=client)
+
+        advance(SETTLE_STEPS)
+        cost = seconds_per_step(advance)
+        contacts = len(pybullet.getContactPoints(physicsClientId=client))
+        return cost, contacts
+    finally:
+        pybullet.disconnect(client)
+
+
+PILE_ENGINES = {"mini": mini_pile, "mujoco(CG)": mujoco_pile, "pybullet(maximal)": pybullet_pile}
+
+
+# --- copies -------------------------------------------------------------------------------
+
+
+def mini_copies(copies: int) -> float:
+    """Seconds per body-step of ``copies`` tumbling boxes in one model (gyroscopic explicit)."""
+    model, state = tumbling_box(copies)
+    cfg = Settings(dt=1e-3, gyroscopic="explicit")
+    holder = {"state": state}
+
+    def advance(steps: int) -> None:
+        s = holder["state"]
+        for _ in range(steps):
+            s, _ = step(model, s, cfg)
+        holder["state"] = s
+
+    advance(10)
+    return seconds_per_step(advance) / copies
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spheres", type=int, nargs="*", default=[1, 10, 100, 1000])
+    args = parser.parse_args()
+    rows = []
+    for count in args.spheres:
+        costs = {}
+        for name, run in PILE_ENGINES.items():
+            cost, contacts = run(count)
+            costs[name] = cost
+            rows.append(
+                {
+                    "scene": f"pile_{count}",
+                    "engine": name,
+                    "ms_per_step": cost * 1e3,
+                    "contacts": contacts,
+                }
+            )
+        for row in rows[-len(PILE_ENGINES) :]:
+            row["ratio_to_mujoco"] = row["ms_per_step"] / (costs["mujoco(CG)"] * 1e3)
+            row["ratio_to_pybullet"] = row["ms_per_step"] / (costs["pybullet(maximal)"] * 1e3)
+    one, many = mini_copies(1), mini_copies(1024)
+    rows.append({"scene": "tumbling_box_x1", "engine": "mini", "ms_per_step": one * 1e3})
+    rows.append(
+        {
+            "scene": "tumbling_box_x1024",
+            "engine": "mini",
+            "ms_per_step": many * 1e3 * 1024,
+            "speedup_per_body_step": one / many,
+        }
+    )
+    table = pd.DataFrame(rows)
+    table["numpy"], table["mujoco"] = np.__version__, mujoco.__version__
+    table["pybullet_api"] = pybullet.getAPIVersion()
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    temporary = RESULTS.with_suffix(".tmp")
+    table.to_csv(temporary, index=False)
+    temporary.replace(RESULTS)
+    with pd.option_context("display.width", 160, "display.max_columns", 20):
+        print(table.drop(columns=["numpy", "mujoco", "pybullet_api"]).to_string(index=False))
+    print(f"numpy {np.__version__}, mujoco {mujoco.__version__}; results in {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()
