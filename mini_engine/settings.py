@@ -119,7 +119,7 @@ class Settings:
     """m. Extra radius added to bounding spheres in the broad phase (added to contact_margin)."""
 
     def __post_init__(self) -> None:
-        for name, allowed in _CHOICES.items():
+        for name, allowed in CHOICES.items():
             value = getattr(self, name)
             if value not in allowed:
                 raise ValueError(
@@ -151,7 +151,7 @@ class Settings:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-_CHOICES: dict[str, tuple[str, ...]] = {
+CHOICES: dict[str, tuple[str, ...]] = {
     "integrator": INTEGRATORS,
     "gyroscopic": GYROSCOPIC_MODES,
     "orientation_update": ORIENTATION_UPDATES,

@@ -1,0 +1,161 @@
+"""Strict YAML reading that remembers where every value came from.
+
+``yaml.safe_load`` semantics with three additions that a scenario format needs:
+
+- every value's position (line, column) is kept, keyed by its field path
+  (``("bodies", 1, "shape", "radius")``), so an error can point at the source;
+- duplicate keys are errors (PyYAML silently keeps the last one, which would let a
+  typo change the physics);
+- the document may expand to at most ``MAX_VALUES`` values, so an alias bomb
+  ("billion laughs") is refused instead of exhausting memory, and only the plain
+  YAML tags are accepted (no ``!!python/...`` or custom tags).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+MAX_VALUES = 200_000
+"""Values a scenario document may expand to (aliases counted at every use). The largest
+bundled scene (a 6x6x6 pile) has a few thousand; a billion-laughs bomb has 10⁹."""
+
+MAX_BYTES = 5 * 1024 * 1024
+"""Bytes a scenario file may have; a scene is a page of text, not a data set."""
+
+PLAIN_TAGS = {
+    "tag:yaml.org,2002:str",
+    "tag:yaml.org,2002:int",
+    "tag:yaml.org,2002:float",
+    "tag:yaml.org,2002:bool",
+    "tag:yaml.org,2002:null",
+    "tag:yaml.org,2002:seq",
+    "tag:yaml.org,2002:map",
+}
+"""The only tags a scenario may use: YAML's own scalars and collections."""
+
+Path_ = tuple[str | int, ...]
+
+
+class _ScenarioLoader(yaml.SafeLoader):
+    """SafeLoader that also reads ``1e-3`` and ``2E5`` as floats (YAML 1.2; YAML 1.1, and so
+    plain PyYAML, wants a dot in the mantissa and would read them as strings)."""
+
+
+_ScenarioLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+class YamlSourceError(ValueError):
+    """A document that is not acceptable YAML; ``line`` and ``column`` are 1-based or None."""
+
+    def __init__(self, message: str, line: int | None = None, column: int | None = None):
+        super().__init__(message)
+        self.message, self.line, self.column = message, line, column
+
+
+@dataclass
+class SourceMap:
+    """Where each field path of a document starts in its file (1-based line, column)."""
+
+    marks: dict[Path_, tuple[int, int]] = field(default_factory=dict)
+
+    def locate(self, path: Path_) -> tuple[int, int] | None:
+        """The position of ``path``, or of its nearest ancestor that has one."""
+        for end in range(len(path), -1, -1):
+            mark = self.marks.get(tuple(path[:end]))
+            if mark is not None:
+                return mark
+        return None
+
+
+def read_yaml(path: Path) -> tuple[object, SourceMap]:
+    """The Python value of the YAML file at ``path`` and its source map.
+
+    Raises ``YamlSourceError`` for unreadable files, syntax errors, duplicate keys,
+    non-plain tags and documents over the size limits.
+    """
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise YamlSourceError(f"cannot read the file: {error.strerror or error}") from None
+    if len(raw) > MAX_BYTES:
+        raise YamlSourceError(f"the file has {len(raw)} bytes; at most {MAX_BYTES} are accepted")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise YamlSourceError(f"not UTF-8 text (byte {error.start})") from None
+    try:
+        node = yaml.compose(text, Loader=_ScenarioLoader)
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark
+        what = error.problem or "not valid YAML"
+        raise YamlSourceError(
+            f"not valid YAML: {what}",
+            mark.line + 1 if mark else None,
+            mark.column + 1 if mark else None,
+        ) from None
+    except yaml.YAMLError as error:
+        raise YamlSourceError(f"not valid YAML: {error}") from None
+    source = SourceMap()
+    if node is None:
+        return None, source
+    builder = _Builder(source)
+    return builder.build(node, ()), source
+
+
+class _Builder:
+    """Turns a composed node graph into Python values, counting every value built."""
+
+    def __init__(self, source: SourceMap):
+        self.source = source
+        self.count = 0
+        self.constructor = _ScenarioLoader("")  # only for its scalar resolution rules
+
+    def build(self, node: yaml.Node, path: Path_) -> object:
+        self.count += 1
+        if self.count > MAX_VALUES:
+            raise YamlSourceError(
+                f"the document expands to more than {MAX_VALUES} values "
+                "(an alias bomb?); scenarios are far smaller",
+                node.start_mark.line + 1,
+                node.start_mark.column + 1,
+            )
+        self.source.marks.setdefault(path, (node.start_mark.line + 1, node.start_mark.column + 1))
+        if node.tag not in PLAIN_TAGS:
+            raise YamlSourceError(
+                f"the tag {node.tag!r} is not allowed; use plain YAML values",
+                node.start_mark.line + 1,
+                node.start_mark.column + 1,
+            )
+        if isinstance(node, yaml.MappingNode):
+            return self._mapping(node, path)
+        if isinstance(node, yaml.SequenceNode):
+            return [self.build(item, (*path, i)) for i, item in enumerate(node.value)]
+        return self.constructor.construct_object(node, deep=True)
+
+    def _mapping(self, node: yaml.MappingNode, path: Path_) -> dict:
+        self.constructor.flatten_mapping(node)  # resolves YAML merge keys (<<)
+        result: dict = {}
+        for key_node, value_node in node.value:
+            key = self.build(key_node, (*path, "<key>"))
+            if not isinstance(key, str | int | float | bool) and key is not None:
+                raise YamlSourceError(
+                    "a mapping key must be a plain value",
+                    key_node.start_mark.line + 1,
+                    key_node.start_mark.column + 1,
+                )
+            if key in result:
+                raise YamlSourceError(
+                    f"duplicate key {key!r}",
+                    key_node.start_mark.line + 1,
+                    key_node.start_mark.column + 1,
+                )
+            result[key] = self.build(value_node, (*path, key))
+        return result
