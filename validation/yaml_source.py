@@ -157,5 +157,8 @@ class _Builder:
                     key_node.start_mark.line + 1,
                     key_node.start_mark.column + 1,
                 )
+            # a field's position is its key's: that is where an editor should point
+            key_mark = key_node.start_mark
+            self.source.marks[(*path, key)] = (key_mark.line + 1, key_mark.column + 1)
             result[key] = self.build(value_node, (*path, key))
         return result

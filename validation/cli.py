@@ -1,0 +1,84 @@
+"""The ``physval`` command: one sub-command per job, picked from a registry.
+
+Exit codes: 0 all good, 1 checks failed (for ``run``, later), 2 bad input (a
+scenario, a flag, a value). Bad input prints one line per problem naming the
+file, line, field and what was expected, and never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from validation.scenario import check_scenario, json_schema, scenario_files
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+"""The library shipped with the project (the repository's scenarios/ folder)."""
+
+
+def default_scenario_paths() -> list[Path]:
+    """``./scenarios`` when run from a checkout, else the bundled library."""
+    local = Path("scenarios")
+    return [local if local.is_dir() else BUNDLED_SCENARIOS]
+
+
+def command_check(args: argparse.Namespace) -> int:
+    """Validate scenario files and folders; print every problem; 0 if all are valid, else 2."""
+    paths = args.paths or default_scenario_paths()
+    missing = [p for p in paths if not Path(p).exists()]
+    if missing:
+        for path in missing:
+            print(f"{path}: no such file or folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    files = scenario_files(paths)
+    if not files:
+        print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    invalid = warnings = 0
+    for file in files:
+        scenario, problems = check_scenario(file)
+        invalid += scenario is None
+        warnings += sum(p.warning for p in problems)
+        for problem in problems:
+            print(problem, file=sys.stderr if not problem.warning else sys.stdout)
+    valid = len(files) - invalid
+    print(f"{len(files)} files: {valid} valid, {invalid} invalid, {warnings} warnings")
+    return EXIT_OK if invalid == 0 else EXIT_BAD_INPUT
+
+
+def command_schema(args: argparse.Namespace) -> int:
+    """Print the JSON Schema of the scenario format (for editors)."""
+    print(json.dumps(json_schema(), indent=2))
+    return EXIT_OK
+
+
+COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
+    "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
+    "schema": (command_schema, "print the JSON Schema of the scenario format"),
+}
+
+
+def parser() -> argparse.ArgumentParser:
+    root = argparse.ArgumentParser(
+        prog="physval", description="Reference-validated rigid-body physics harness."
+    )
+    sub = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        command = sub.add_parser(name, help=help_text, description=help_text)
+        if name == "check":
+            command.add_argument("paths", nargs="*", type=Path, metavar="PATHS")
+    return root
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    return COMMANDS[args.command][0](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
