@@ -1,0 +1,236 @@
+"""Recording a run: a sampled ``Trajectory`` and the impact events, the same way for every engine.
+
+Impacts are found from the observed states alone, never from an engine's own contact
+reports, so that restitution is measured identically in mini_engine, MuJoCo and
+PyBullet: after every step the scene's shapes are placed at the observed poses and
+mini_engine's collision detection says which pairs touch. A pair that starts touching
+opens an event; its relative normal velocity *before* is taken from the last observed
+state before the touch, its velocity *after* from the first observed state after the
+shapes separate again. Pairs still touching at the end (resting contacts) give no event.
+
+Gravity keeps acting while the shapes touch (for a body-ground pair it changes the
+relative normal velocity by g·dt each step: 5 % of a 0.4 m/s impact per ms). So the
+velocities before and after are both carried ballistically to the same instant, the
+*impulse centroid* t*: the mean of the step end times weighted by each step's non-gravity
+change of the relative normal velocity. Then ``before = v_pre + a (t* - t_pre)`` and
+``after = v_post - a (t_post - t*)``, with ``a = (g_B - g_A)·n``. For an engine that
+resolves an impact within one semi-implicit step (mini_engine, MuJoCo Euler with the
+one-step damper, PyBullet) this recovers exactly the velocities its solver saw; for soft
+contacts lasting several steps it is the natural average. Springs are not carried (the
+library's spring scenes have no impacts).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mini_engine.collision import detect_contacts
+from mini_engine.rotation import quat_to_matrix
+from validation.engines.base import EngineAdapter, Snapshot
+from validation.mini_scene import GROUND, build_mini_model
+from validation.scenario import Scenario
+
+DETECTION_GAP = 1e-6
+"""m. Shapes closer than this count as touching (mini_engine's contact margin), so a body
+resting on another does not flicker in and out of contact on round-off."""
+
+IMPACT_MIN_SPEED = 1e-3
+"""m/s. A touch approaching slower than this is a resting contact settling, not an impact:
+no event. The library's slowest deliberate bounce approaches at about 0.05 m/s. A rebound
+must also be faster than gravity's change of velocity in one step (|a|·dt), or the body
+cannot leave the ground before it is pulled back: that too is settling."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Sampled states of the scene's bodies (s samples, n bodies, scenario order).
+
+    Attributes:
+        t: (s,) s. pos: (s, n, 3) m, world, centres of mass. quat: (s, n, 4) w x y z.
+        vel: (s, n, 3) m/s, world. ang_vel: (s, n, 3) rad/s, world.
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    vel: np.ndarray
+    ang_vel: np.ndarray
+
+    @staticmethod
+    def from_snapshots(snapshots: list[Snapshot]) -> Trajectory:
+        return Trajectory(
+            t=np.array([s.time for s in snapshots]),
+            pos=np.stack([s.pos for s in snapshots]),
+            quat=np.stack([s.quat for s in snapshots]),
+            vel=np.stack([s.vel for s in snapshots]),
+            ang_vel=np.stack([s.ang_vel for s in snapshots]),
+        )
+
+
+@dataclass(frozen=True)
+class ImpactEvent:
+    """One impact of two bodies (or a body and the ground).
+
+    Attributes:
+        body_a, body_b: names (``ground`` for the plane); the normal points from A to B.
+        time_start: s, the first observation in contact. time_end: s, the first one apart.
+        normal: (3,) unit, world frame, at first contact.
+        normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
+        normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
+    """
+
+    body_a: str
+    body_b: str
+    time_start: float
+    time_end: float
+    normal: tuple[float, float, float]
+    normal_velocity_before: float
+    normal_velocity_after: float
+
+    @property
+    def restitution(self) -> float:
+        """Measured e = -(v_rel'·n)/(v_rel·n) (formulas.md section 5)."""
+        return -self.normal_velocity_after / self.normal_velocity_before
+
+
+@dataclass
+class _OpenImpact:
+    start: float
+    point: np.ndarray
+    normal: np.ndarray
+    history: list[tuple[float, float]]
+    """(time s, relative normal velocity m/s) from the last observation before contact on."""
+
+
+@dataclass
+class ImpactDetector:
+    """Finds impacts in a sequence of snapshots of one scenario (any engine)."""
+
+    scenario: Scenario
+    events: list[ImpactEvent] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.model, self.state = build_mini_model(self.scenario)
+        self.count = len(self.scenario.bodies)
+        self.can_touch = self.model.can_touch
+        self.body_gravity = np.where(self.model.body_fixed[:, None], 0.0, self.model.gravity)
+        self.open: dict[tuple[int, int], _OpenImpact] = {}
+        self.previous: Snapshot | None = None
+        self.previous_touching: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def _full(self, snap: Snapshot, name: str) -> np.ndarray:
+        """Snapshot array for every model body (the ground keeps its initial value)."""
+        full = getattr(self.state, name).copy()
+        full[: self.count] = getattr(snap, name)
+        if name in ("vel", "ang_vel"):
+            full[self.count :] = 0.0
+        return full
+
+    def _touching(self, snap: Snapshot) -> dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]:
+        """Pairs in contact: (a, b) -> (deepest point, normal A→B)."""
+        pos, quat = self._full(snap, "pos"), self._full(snap, "quat")
+        contacts = detect_contacts(self.model, pos, quat_to_matrix(quat), DETECTION_GAP)
+        found: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]] = {}
+        for a, b, point, normal, depth in zip(*contacts, strict=True):
+            key = (int(a), int(b))
+            if key not in found or depth > found[key][2]:
+                found[key] = (point, normal, depth)
+        return {key: (p, n) for key, (p, n, _) in found.items()}
+
+    def _normal_velocity(self, snap: Snapshot, key, point, normal) -> float:
+        pos, vel, ang_vel = (
+            self._full(snap, "pos"),
+            self._full(snap, "vel"),
+            self._full(snap, "ang_vel"),
+        )
+        a, b = key
+        v_a = vel[a] + np.cross(ang_vel[a], point - pos[a])
+        v_b = vel[b] + np.cross(ang_vel[b], point - pos[b])
+        return float((v_b - v_a) @ normal)
+
+    def _event(self, key: tuple[int, int], impact: _OpenImpact, end: float) -> ImpactEvent | None:
+        """The impact with both velocities carried to the impulse centroid (module docstring)."""
+        times, speeds = np.array(impact.history).T
+        gravity = self.body_gravity[key[1]] - self.body_gravity[key[0]]
+        accel = float(gravity @ impact.normal)
+        pushed = np.diff(speeds) - accel * np.diff(times)  # non-gravity change per step
+        if pushed.sum() <= 0.0:
+            return None
+        centroid = float(np.sum(pushed * times[1:]) / pushed.sum())
+        after = float(speeds[-1] - accel * (times[-1] - centroid))
+        if after < max(IMPACT_MIN_SPEED, abs(accel) * float(np.min(np.diff(times)))):
+            return None  # too slow to leave within one step against gravity: settling, not a bounce
+        names = self.model.body_name
+        return ImpactEvent(
+            body_a=names[key[0]] if key[0] < self.count else GROUND,
+            body_b=names[key[1]] if key[1] < self.count else GROUND,
+            time_start=impact.start,
+            time_end=end,
+            normal=tuple(float(x) for x in impact.normal),
+            normal_velocity_before=float(speeds[0] + accel * (centroid - times[0])),
+            normal_velocity_after=after,
+        )
+
+    def update(self, snap: Snapshot) -> None:
+        """Feed the next observed state (every step while the scene can touch)."""
+        if not self.can_touch:
+            return
+        touching = self._touching(snap)
+        previous = self.previous
+        for key, (point, normal) in touching.items():
+            if key not in self.previous_touching and previous is not None and key not in self.open:
+                before = self._normal_velocity(previous, key, point, normal)
+                if before < -IMPACT_MIN_SPEED:
+                    self.open[key] = _OpenImpact(
+                        snap.time, point, normal, [(previous.time, before)]
+                    )
+        for key, impact in list(self.open.items()):
+            impact.history.append(
+                (snap.time, self._normal_velocity(snap, key, impact.point, impact.normal))
+            )
+            if key not in touching:
+                del self.open[key]
+                event = self._event(key, impact, snap.time)
+                if event is not None:
+                    self.events.append(event)
+        self.previous, self.previous_touching = snap, touching
+
+
+@dataclass
+class Recording:
+    """What one engine run produced."""
+
+    trajectory: Trajectory
+    impacts: list[ImpactEvent]
+    stepping_seconds: float
+    """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
+
+
+def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) -> Recording:
+    """Run the loaded ``adapter`` for the scene's duration; sample every ``sample_every`` steps.
+
+    Scenes that can touch are observed every step (for the impact detector); the others
+    only at the samples, so a contact-free scene pays for nothing it does not need.
+    """
+    detector = ImpactDetector(scenario)
+    every_step = detector.can_touch
+    first = adapter.observe()
+    detector.update(first)
+    samples = [first]
+    stepping = 0.0
+    done = 0
+    while done < scenario.steps:
+        chunk = 1 if every_step else min(sample_every, scenario.steps - done)
+        start = time.perf_counter()
+        adapter.advance(chunk)
+        stepping += time.perf_counter() - start
+        done += chunk
+        if every_step or done % sample_every == 0 or done == scenario.steps:
+            snap = adapter.observe()
+            detector.update(snap)
+            if done % sample_every == 0 or done == scenario.steps:
+                samples.append(snap)
+    return Recording(Trajectory.from_snapshots(samples), detector.events, stepping)
