@@ -1,0 +1,817 @@
+"""The PyBullet adapter: a ``Scenario`` as PyBullet 3.2.7 bodies, stepped and read back.
+
+Every fact this adapter relies on is measured in ``shared/docs/engines.md`` section 2; the
+numbers below name the subsection they come from.
+
+Boundary conventions (engines.md 2.1). PyBullet's base pose is its *inertial* frame (the
+centre of mass and the principal axes), quaternions are x y z w, and the base angular
+velocity is in the world frame. The scene's body frame has its origin at the centre of
+mass too, but its axes are the scene's, and a full 3x3 inertia is not diagonal in them.
+The adapter hands PyBullet the principal moments and puts the principal axes ``P`` (a
+rotation, body frame) into ``baseInertialFrameOrientation``; so
+
+    q_pybullet = q_body ⊗ q_P        (inertial frame to world)
+    q_body     = q_pybullet ⊗ q_P⁻¹   (what ``observe`` returns, w x y z)
+
+and positions and velocities need no conversion (both frames have their origin at the COM).
+
+Profiles (``ENGINE_OPTIONS["pybullet"]``):
+
+- ``matched`` (default): PyBullet set up to integrate the scene's model: zero damping, no
+  velocity clamp, no restitution threshold, and the contact recipe of engines.md 2.4
+  that keeps the requested restitution (maximal coordinates by default).
+- ``defaults``: what a new user gets (a btMultiBody with Bullet's damping, clamps and
+  contact settings), with the scene's masses, inertias, gravity, dt and contact values.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+import mmap
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+import pybullet
+
+from mini_engine.model import WORLD_ANCHOR
+from mini_engine.rotation import cross, quat_multiply, quat_to_matrix
+from mini_engine.shapes import solid_inertia
+from validation.engine_spec import EngineSpec
+from validation.engines.base import ModelReport, Provenance, Snapshot
+from validation.engines.reference import dynamic_bodies
+from validation.mini_scene import SHAPE_BUILDERS, build_mini_model
+from validation.scenario import BodySpec, Scenario
+
+# --- numbers and where they come from ---------------------------------------------------------
+
+MATCHED_CONTACT_BREAKING_THRESHOLD = 1e-6
+"""Bullet's ``gContactBreakingThreshold`` in the matched profile (dimensionless factor of a
+shape's bounding radius). engines.md 2.4: at Bullet's 0.02 a contact point appears ≈3.5 mm
+before a 0.1 m sphere touches and the speculative solve brakes it; 1e-6 removes the band
+(e = 0.4967–0.5001 and 1.0000–1.0003 over 25 drop heights with the recipe below)."""
+
+PYBULLET_CONTACT_BREAKING_THRESHOLD = 0.02
+"""Bullet's own default of ``gContactBreakingThreshold`` (engines.md 2.1 [SRC]). It is a
+process-wide C global, so the defaults profile must set it back explicitly."""
+
+SPLIT_IMPULSE_PENETRATION_THRESHOLD = 1.0
+"""m. Bullet splits the penetration impulse from the velocity solve only for contacts
+shallower than this (default −0.04: only deeper than 4 cm). A large positive value always
+splits, so penetration recovery never adds bounce velocity (engines.md 2.4 recipe)."""
+
+MULTIBODY_CONTACT_ERP = 0.0
+"""Matched profile with ``bodies=multibody``: btMultiBody ignores split impulse (engines.md
+2.4 [SRC]); its penetration recovery adds ≈0.08·depth/dt of bounce (up to +8 % in e). 0
+removes it (engines.md 2.4: cbt 1e-6 + contactERP 0 gave e = 0.498–0.502 and 1.002–1.005),
+as the scene's default ``position_correction: none`` does."""
+
+MAX_JOINT_VELOCITY = 1e4
+"""rad/s and m/s. btMultiBody clamps every base velocity component to ±100 even in free
+flight (engines.md 2.2); this lifts the clamp far above any scene. (Maximal bodies clamp
+|ω|·dt ≤ π/2 instead, 1571 rad/s at dt = 1e-3; no API changes that.)"""
+
+MATCHED_RESTITUTION_THRESHOLD = 0.0
+"""m/s. The scene has no restitution threshold; Bullet's default 0.2 zeroes every impact
+slower than 0.2 m/s (engines.md 2.4)."""
+
+PAIR_VALUE_TOLERANCE = 1e-12
+"""Relative. A pair whose product of per-body values differs from the scene's pair value by
+more than round-off is reported in the provenance notes."""
+
+FRICTION_CAP = 10.0
+"""Bullet caps the combined lateral friction μ_A·μ_B at 10 (engines.md 2.3 [SRC])."""
+
+NULL_SPACE_TOLERANCE = 1e-10
+"""Relative eigenvalue of a pair system's Gram matrix below which a direction is free
+(the matrices hold 0 and 1; their nonzero eigenvalues are O(1), far above this)."""
+
+MAX_PAIR_NOTES = 12
+"""Pairs listed one by one in the notes; the rest are counted (all are in the settings)."""
+
+
+GYROSCOPIC_TERM = {"maximal": "implicit (btRigidBody)", "multibody": "explicit (btMultiBody)"}
+"""engines.md 2.2: which gyroscopic integration each body mode uses (not selectable)."""
+
+GROUND = "ground"
+"""The name scene pairs use for the ground plane."""
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How one profile sets PyBullet up (see the module docstring)."""
+
+    bodies: str
+    """Body mode when the spec does not say: ``maximal`` (btRigidBody) or ``multibody``."""
+    zero_damping: bool
+    """Set linear and angular damping to 0 (btMultiBody defaults to 0.04 + 0.04|v|)."""
+    lift_velocity_clamp: bool
+    """Raise btMultiBody's ±100 velocity clamp to ``MAX_JOINT_VELOCITY``."""
+    contact_breaking_threshold: float
+    """Set explicitly on every load and before every ``advance`` (process-wide global)."""
+    world: dict[str, float | int] = field(default_factory=dict)
+    """Extra ``setPhysicsEngineParameter`` keywords for every body mode."""
+    multibody_world: dict[str, float | int] = field(default_factory=dict)
+    """Extra ``setPhysicsEngineParameter`` keywords when the bodies are btMultiBody."""
+
+
+PROFILES = {
+    "matched": Profile(
+        bodies="maximal",
+        zero_damping=True,
+        lift_velocity_clamp=True,
+        contact_breaking_threshold=MATCHED_CONTACT_BREAKING_THRESHOLD,
+        world={
+            "restitutionVelocityThreshold": MATCHED_RESTITUTION_THRESHOLD,
+            "useSplitImpulse": 1,
+            "splitImpulsePenetrationThreshold": SPLIT_IMPULSE_PENETRATION_THRESHOLD,
+        },
+        multibody_world={"contactERP": MULTIBODY_CONTACT_ERP},
+    ),
+    "defaults": Profile(
+        bodies="multibody",
+        zero_damping=False,
+        lift_velocity_clamp=False,
+        contact_breaking_threshold=PYBULLET_CONTACT_BREAKING_THRESHOLD,
+    ),
+}
+
+SHAPE_KEYWORDS = {
+    "sphere": lambda s: {"shapeType": pybullet.GEOM_SPHERE, "radius": s.radius},
+    "box": lambda s: {"shapeType": pybullet.GEOM_BOX, "halfExtents": list(s.half_extents)},
+    # PyBullet's capsule height is the cylinder's length along body z (engines.md 2.1).
+    "capsule": lambda s: {
+        "shapeType": pybullet.GEOM_CAPSULE,
+        "radius": s.radius,
+        "height": 2.0 * s.half_length,
+    },
+}
+"""Scene shape type -> ``createCollisionShape`` keywords (same size conventions)."""
+
+SCENE_PAIR_RULES = {
+    "restitution": lambda a, b: max(a, b),
+    "friction": lambda a, b: math.sqrt(a * b),
+}
+"""The scene's pair values when ``scenario.pairs`` does not override them (mini_engine's
+``restitution_mix: max`` and ``friction_mix: geometric_mean``, Box2D's rules)."""
+
+
+# --- frames ---------------------------------------------------------------------------------
+
+
+def body_inertia(spec: BodySpec) -> np.ndarray:
+    """(3, 3) kg·m², the scene's inertia about the COM in the scene's body frame."""
+    if spec.inertia_matrix is not None:
+        return spec.inertia_matrix
+    return solid_inertia(SHAPE_BUILDERS[spec.shape.type](spec.shape), spec.mass)
+
+
+def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
+    """(4,) unit quaternion w x y z of the rotation matrix ``rot (3, 3)`` (Shepperd's method)."""
+    trace = np.trace(rot)
+    diagonal = np.diag(rot)
+    k = int(np.argmax([trace, *diagonal]))
+    if k == 0:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        quat = [0.25 * s, (rot[2, 1] - rot[1, 2]) / s, (rot[0, 2] - rot[2, 0]) / s]
+        quat.append((rot[1, 0] - rot[0, 1]) / s)
+    else:
+        i = k - 1
+        j, m = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + rot[i, i] - rot[j, j] - rot[m, m])
+        vector = np.zeros(3)
+        vector[i] = 0.25 * s
+        vector[j] = (rot[j, i] + rot[i, j]) / s
+        vector[m] = (rot[m, i] + rot[i, m]) / s
+        quat = [(rot[m, j] - rot[j, m]) / s, *vector]
+    quat = np.asarray(quat)
+    return quat / np.linalg.norm(quat)
+
+
+def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments (3,) kg·m² and the principal-axes rotation q_P (4,) w x y z.
+
+    ``inertia = P diag(moments) Pᵀ`` with ``P = R(q_P)`` a proper rotation (body frame).
+    A diagonal tensor keeps its order and q_P = identity, so the common case passes
+    the scene's numbers to PyBullet untouched.
+    """
+    if not np.any(inertia - np.diag(np.diag(inertia))):
+        return np.diag(inertia).copy(), np.array([1.0, 0.0, 0.0, 0.0])
+    moments, axes = np.linalg.eigh(inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] = -axes[:, 2]
+    return moments, matrix_to_quat(axes)
+
+
+def to_xyzw(quat: np.ndarray) -> list[float]:
+    """w x y z -> PyBullet's x y z w."""
+    return [float(quat[1]), float(quat[2]), float(quat[3]), float(quat[0])]
+
+
+def from_xyzw(quat) -> np.ndarray:
+    """PyBullet's x y z w -> w x y z."""
+    return np.array([quat[3], quat[0], quat[1], quat[2]], dtype=float)
+
+
+def conjugate(quat: np.ndarray) -> np.ndarray:
+    """Inverse of unit quaternions (n, 4) w x y z."""
+    return quat * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+# --- contact values -----------------------------------------------------------------------
+
+
+PAIR_TIERS = ("stated in scenario.pairs", "with a static body", "between moving bodies")
+"""Priority of a pair's value when per-body products cannot give every pair its own: the
+pairs a scene states (its authors name the contacts that matter), then contacts with the
+ground or a fixed body (where everything lands), then the rest (often never meeting)."""
+
+
+@dataclass
+class PairSystem:
+    """The scene's pair values of one quantity over classes of interchangeable objects.
+
+    Objects are the bodies then the ground. Objects with the same own value, both static or
+    both moving, and not named in ``scenario.pairs`` are interchangeable: they get one
+    per-body value, which keeps the fit small for piles of identical bodies.
+
+    Attributes:
+        names: object names. static: object is a fixed body or the ground.
+        class_of: (objects,) class index of each object. members: objects of each class.
+        targets: {(class a, class b): scene pair value}, a <= b; pairs that can meet only
+            (two static objects never do).
+        tiers: {(a, b): index into ``PAIR_TIERS``}. counts: {(a, b): object pairs}.
+        anchor: the ground's class, or None.
+    """
+
+    names: list[str]
+    static: list[bool]
+    class_of: list[int]
+    members: list[list[int]]
+    targets: dict[tuple[int, int], float] = field(default_factory=dict)
+    tiers: dict[tuple[int, int], int] = field(default_factory=dict)
+    counts: dict[tuple[int, int], int] = field(default_factory=dict)
+    anchor: int | None = None
+
+    def label(self, cls: int) -> str:
+        first, size = self.names[self.members[cls][0]], len(self.members[cls])
+        return first if size == 1 else f"{first} (and {size - 1} like it)"
+
+
+def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
+    """``quantity`` (restitution or friction) per pair of object classes: the scene's rule
+    (``SCENE_PAIR_RULES``) unless ``scenario.pairs`` states the pair's value."""
+    objects = [*scenario.bodies, *([scenario.ground] if scenario.ground else [])]
+    names = [b.name for b in scenario.bodies] + ([GROUND] if scenario.ground else [])
+    static = [getattr(b, "fixed", True) for b in objects]
+    own = [float(getattr(b, quantity)) for b in objects]
+    stated = {name for pair in scenario.pairs for name in (pair.a, pair.b)}
+    keys: dict[tuple, int] = {}
+    class_of = [
+        keys.setdefault((own[i], static[i], names[i] if names[i] in stated else ""), len(keys))
+        for i in range(len(objects))
+    ]
+    members: list[list[int]] = [[] for _ in keys]
+    for i, cls in enumerate(class_of):
+        members[cls].append(i)
+    system = PairSystem(names, static, class_of, members)
+    system.anchor = class_of[-1] if scenario.ground else None
+    rule = SCENE_PAIR_RULES[quantity]
+    for a in range(len(members)):
+        for b in range(a, len(members)):
+            first_a, first_b = members[a][0], members[b][0]
+            size_a, size_b = len(members[a]), len(members[b])
+            count = size_a * (size_a - 1) // 2 if a == b else size_a * size_b
+            if count == 0 or (static[first_a] and static[first_b]):
+                continue
+            system.targets[(a, b)] = rule(own[first_a], own[first_b])
+            system.tiers[(a, b)] = 1 if static[first_a] or static[first_b] else 2
+            system.counts[(a, b)] = count
+    index = {name: i for i, name in enumerate(names)}
+    for override in scenario.pairs:
+        value = getattr(override, quantity)
+        key = tuple(sorted((class_of[index[override.a]], class_of[index[override.b]])))
+        if value is not None and key in system.targets:
+            system.targets[key], system.tiers[key] = value, 0
+    return system
+
+
+def _zero_objects(count: int, targets, tiers) -> np.ndarray:
+    """Objects set to 0 so that zero-valued pairs get 0, tier by tier: an object may be
+    zeroed only if no pair of an earlier or the same tier needs it positive; of the two,
+    the one with fewer positive pairs overall goes."""
+    zero, needed, positive_count = [False] * count, [False] * count, [0] * count
+    for (a, b), t in targets.items():
+        if t > 0:
+            positive_count[a] += 1
+            positive_count[b] += 1
+    for tier in range(len(PAIR_TIERS)):
+        pairs = [(pair, t) for pair, t in targets.items() if tiers[pair] == tier]
+        for (a, b), t in pairs:
+            if t > 0 and not (zero[a] or zero[b]):
+                needed[a] = needed[b] = True
+        for (a, b), t in pairs:
+            candidates = [i for i in (a, b) if not needed[i]]
+            if t == 0 and not (zero[a] or zero[b]) and candidates:
+                zero[min(candidates, key=positive_count.__getitem__)] = True
+    return np.array(zero, dtype=bool)
+
+
+def _null_space(matrix: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns) of the null space of ``matrix``, from its Gram matrix."""
+    gram = matrix.T @ matrix
+    moments, vectors = np.linalg.eigh(gram)
+    return vectors[:, moments <= NULL_SPACE_TOLERANCE * max(moments.max(initial=0.0), 1.0)]
+
+
+def _log_fit(
+    count: int, targets, tiers, weights, zero: np.ndarray, anchor: int | None
+) -> np.ndarray:
+    """log x (count,) fitting log x_a + log x_b = log t tier by tier (lexicographic least
+    squares: each tier is fitted within the freedom the earlier tiers leave), then the
+    ground pinned to 1 if still free (a ground–body pair then reads as the body's value)."""
+    log_x = np.zeros(count)
+    free = np.eye(count)
+    systems = []
+    for tier in range(len(PAIR_TIERS)):
+        rows = [(pair, t) for pair, t in targets.items() if tiers[pair] == tier and t > 0]
+        rows = [((a, b), t) for (a, b), t in rows if not (zero[a] or zero[b])]
+        matrix = np.zeros((len(rows), count))
+        scale = np.sqrt([weights[pair] for pair, _ in rows])
+        for k, ((a, b), _) in enumerate(rows):
+            matrix[k, a] += scale[k]
+            matrix[k, b] += scale[k]
+        systems.append((matrix, scale * np.log([t for _, t in rows])))
+    if anchor is not None:
+        systems.append((np.eye(count)[[anchor]], np.zeros(1)))
+    for matrix, rhs in systems:
+        if not len(rhs) or not free.shape[1]:
+            continue
+        reduced = matrix @ free
+        step = np.linalg.lstsq(reduced, rhs - matrix @ log_x, rcond=None)[0]
+        log_x = log_x + free @ step
+        free = free @ _null_space(reduced)
+    return log_x
+
+
+def per_object_values(count: int, targets, tiers, anchor: int | None, weights=None):
+    """Per-object values x with x_a·x_b = target for every pair where that is possible.
+
+    Args:
+        targets: {(a, b): the scene's pair value}, a <= b object (or class) indices.
+        tiers: {(a, b): index into ``PAIR_TIERS``}, the pair's priority.
+        anchor: the ground's index (kept at 1 when that costs nothing), or None.
+        weights: {(a, b): how many object pairs the entry stands for}; default 1 each.
+
+    Returns the values (count,) and ``{pair: product}`` for every pair that misses its
+    target. Exact whenever some assignment is (always for geometric-mean friction, and
+    for max-rule restitution unless pairs conflict); otherwise zero-valued pairs are met
+    by zeroing an object, and positive ones by least squares on log x, tier by tier.
+    """
+    zero = _zero_objects(count, targets, tiers)
+    weights = weights or dict.fromkeys(targets, 1)
+    log_x = _log_fit(count, targets, tiers, weights, zero, anchor)
+    values = np.where(zero, 0.0, np.exp(log_x))
+    misses = {
+        (a, b): float(values[a] * values[b])
+        for (a, b), t in targets.items()
+        if abs(values[a] * values[b] - t) > PAIR_VALUE_TOLERANCE * max(t, 1.0)
+    }
+    return values, misses
+
+
+# --- provenance helpers -----------------------------------------------------------------
+
+
+@cache
+def build_string() -> str:
+    """PyBullet's build time as its extension prints it on import ("Jan 29 2025 23:17:20").
+
+    The C module prints ``pybullet build time: __DATE__ __TIME__`` once, to stdout; the two
+    strings sit just before the format in its read-only data, which is where this reads them.
+    """
+    marker = b"\x00pybullet build time:"
+    try:
+        with (
+            open(pybullet.__file__, "rb") as handle,
+            mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data,
+        ):
+            end = data.find(marker)
+            if end < 0:
+                return "unknown"
+            time_text, date_text = data[max(0, end - 40) : end].split(b"\x00")[-2:]
+            return f"{date_text.decode()} {time_text.decode()}"
+    except (OSError, ValueError, UnicodeDecodeError):
+        return "unknown"
+
+
+# --- the adapter ----------------------------------------------------------------------------
+
+
+class PybulletAdapter:
+    """PyBullet as an ``EngineAdapter``: one DIRECT client per adapter, closed in ``close``.
+
+    Attributes (after ``load``):
+        client: the PyBullet physics client id (pass it as ``physicsClientId``).
+        ids: (n,) PyBullet body ids of the scene's bodies, scenario order.
+        ground: PyBullet body id of the ground plane, or None.
+    """
+
+    def __init__(self, spec: EngineSpec):
+        self.spec = spec
+        options = spec.as_dict()
+        self.profile_name = str(options.get("profile", "matched"))
+        self.profile = PROFILES[self.profile_name]
+        self.bodies_mode = str(options.get("bodies", self.profile.bodies))
+        self.solver_iterations = options.get("solver_iterations")
+        self.client: int | None = None
+
+    # -- loading ---------------------------------------------------------------------------
+
+    def load(self, scenario: Scenario) -> None:
+        """Build the scene in a fresh PyBullet world at the scene's dt and gravity."""
+        if self.client is None:
+            self.client = pybullet.connect(pybullet.DIRECT)
+        else:
+            pybullet.resetSimulation(physicsClientId=self.client)
+        self.scenario = scenario
+        self.steps_taken = 0
+        self.notes: list[str] = []
+        self._set_up_world(scenario)
+        self.ids = [self._create_body(spec) for spec in scenario.bodies]
+        self.ground = self._create_ground() if scenario.ground else None
+        self._set_contact_values(scenario)
+        self._filter_pairs(scenario)
+        self._set_up_springs(scenario)
+
+    def _world_parameters(self, scenario: Scenario) -> dict[str, float | int]:
+        parameters: dict[str, float | int] = {
+            "fixedTimeStep": scenario.dt,
+            "numSubSteps": 0,
+            "contactBreakingThreshold": self.profile.contact_breaking_threshold,
+            **self.profile.world,
+        }
+        if self.bodies_mode == "multibody":
+            parameters.update(self.profile.multibody_world)
+        if self.solver_iterations is not None:
+            parameters["numSolverIterations"] = int(self.solver_iterations)
+        return parameters
+
+    def _set_up_world(self, scenario: Scenario) -> None:
+        self.world_settings = self._world_parameters(scenario)
+        pybullet.setGravity(*scenario.gravity, physicsClientId=self.client)
+        pybullet.setPhysicsEngineParameter(**self.world_settings, physicsClientId=self.client)
+
+    def _create_body(self, spec: BodySpec) -> int:
+        """One scene body; its base pose is the COM with the principal axes (module docstring)."""
+        moments, q_principal = principal_axes(body_inertia(spec))
+        shape = pybullet.createCollisionShape(
+            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), physicsClientId=self.client
+        )
+        body = pybullet.createMultiBody(
+            baseMass=0.0 if spec.fixed else spec.mass,
+            baseCollisionShapeIndex=shape,
+            basePosition=list(spec.position),
+            baseOrientation=to_xyzw(np.asarray(spec.orientation)),
+            baseInertialFramePosition=[0.0, 0.0, 0.0],
+            baseInertialFrameOrientation=to_xyzw(q_principal),
+            useMaximalCoordinates=self.bodies_mode == "maximal",
+            physicsClientId=self.client,
+        )
+        if not spec.fixed:
+            self._set_mass_properties(body, spec.mass, moments)
+            pybullet.resetBaseVelocity(
+                body,
+                linearVelocity=list(spec.velocity),
+                angularVelocity=list(spec.angular_velocity),
+                physicsClientId=self.client,
+            )
+        return body
+
+    def _set_mass_properties(self, body: int, mass: float, moments: np.ndarray) -> None:
+        """Mass and principal moments in one call (engines.md 2.1: mass alone recomputes the
+        inertia from the shape; a diagonal alone zeroes a maximal body's mass); then the
+        profile's damping and velocity clamp."""
+        extra: dict[str, float] = {}
+        if self.profile.zero_damping:
+            extra.update(linearDamping=0.0, angularDamping=0.0)
+        if self.profile.lift_velocity_clamp:
+            extra["maxJointVelocity"] = MAX_JOINT_VELOCITY
+        pybullet.changeDynamics(
+            body,
+            -1,
+            mass=mass,
+            localInertiaDiagonal=[float(m) for m in moments],
+            **extra,
+            physicsClientId=self.client,
+        )
+
+    def _create_ground(self) -> int:
+        shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=self.client)
+        return pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=shape,
+            basePosition=[0.0, 0.0, 0.0],
+            useMaximalCoordinates=self.bodies_mode == "maximal",
+            physicsClientId=self.client,
+        )
+
+    def _objects(self) -> list[int]:
+        return [*self.ids, *([self.ground] if self.ground is not None else [])]
+
+    def _set_contact_values(self, scenario: Scenario) -> None:
+        """Per-body restitution and friction whose products are the scene's pair values
+        (PyBullet multiplies the two bodies' values, engines.md 2.3); every pair that
+        cannot get its value is recorded (settings and notes)."""
+        self.contact_values: dict[str, list[float]] = {}
+        self.contact_misses: list[dict[str, object]] = []
+        for quantity in SCENE_PAIR_RULES:
+            system = pair_system(scenario, quantity)
+            values, missed = per_object_values(
+                len(system.members), system.targets, system.tiers, system.anchor, system.counts
+            )
+            self.contact_values[quantity] = [float(values[c]) for c in system.class_of]
+            self.contact_misses += [
+                {
+                    "quantity": quantity,
+                    "pair": (system.label(a), system.label(b)),
+                    "object_pairs": system.counts[(a, b)],
+                    "scene": system.targets[(a, b)],
+                    "pybullet": got,
+                    "tier": PAIR_TIERS[system.tiers[(a, b)]],
+                }
+                for (a, b), got in sorted(missed.items(), key=lambda item: system.tiers[item[0]])
+            ]
+            self.contact_misses += [
+                {
+                    "quantity": quantity,
+                    "pair": (system.label(a), system.label(b)),
+                    "object_pairs": system.counts[(a, b)],
+                    "scene": t,
+                    "pybullet": FRICTION_CAP,
+                    "tier": "Bullet caps the combined friction",
+                }
+                for (a, b), t in system.targets.items()
+                if quantity == "friction" and t > FRICTION_CAP
+            ]
+        self.notes += self._contact_notes()
+        for k, body in enumerate(self._objects()):
+            pybullet.changeDynamics(
+                body,
+                -1,
+                restitution=self.contact_values["restitution"][k],
+                lateralFriction=self.contact_values["friction"][k],
+                rollingFriction=0.0,
+                spinningFriction=0.0,
+                physicsClientId=self.client,
+            )
+
+    def _contact_notes(self) -> list[str]:
+        """One note per missed pair (the first ``MAX_PAIR_NOTES``), then a count."""
+        if not self.contact_misses:
+            return []
+        notes = [
+            "PyBullet multiplies the two bodies' restitutions and frictions; no per-body "
+            "values give every pair the scene's value, so these pairs (if they meet) differ:"
+        ]
+        notes += [
+            f"  {m['quantity']} {m['pair'][0]}–{m['pair'][1]} ({m['tier']}, "
+            f"{m['object_pairs']} pair(s)): PyBullet {m['pybullet']:.6g}, scene {m['scene']:.6g}"
+            for m in self.contact_misses[:MAX_PAIR_NOTES]
+        ]
+        if len(self.contact_misses) > MAX_PAIR_NOTES:
+            notes.append(
+                f"  ... and {len(self.contact_misses) - MAX_PAIR_NOTES} more pairs "
+                "(settings['contact_misses'])"
+            )
+        return notes
+
+    def _filter_pairs(self, scenario: Scenario) -> None:
+        """No contact pair for two objects that can never meet: two static ones (fixed
+        bodies, the ground). Every pair with a moving body keeps its contacts."""
+        static = [b.fixed for b in scenario.bodies] + ([True] if scenario.ground else [])
+        objects = self._objects()
+        self.filtered_pairs = [
+            (i, j)
+            for i in range(len(objects))
+            for j in range(i + 1, len(objects))
+            if static[i] and static[j]
+        ]
+        for i, j in self.filtered_pairs:
+            pybullet.setCollisionFilterPair(
+                objects[i], objects[j], -1, -1, 0, physicsClientId=self.client
+            )
+
+    def _set_up_springs(self, scenario: Scenario) -> None:
+        """Spring arrays from the mini model (the same rest lengths: the anchors' distance
+        at t = 0 unless given); forces are applied explicitly before every step."""
+        model, _ = build_mini_model(scenario)
+        self.springs = {
+            "a": np.asarray(model.spring_body_a),
+            "b": np.asarray(model.spring_body_b),
+            "anchor_a": np.asarray(model.spring_anchor_a),
+            "anchor_b": np.asarray(model.spring_anchor_b),
+            "stiffness": np.asarray(model.spring_stiffness),
+            "damping": np.asarray(model.spring_damping),
+            "rest": np.asarray(model.spring_rest_length),
+        }
+        self.fixed = np.array([b.fixed for b in scenario.bodies])
+        self.scene_quat = np.array([b.orientation for b in scenario.bodies])
+        self.principal = np.array(
+            [principal_axes(body_inertia(b))[1] for b in scenario.bodies]
+        ).reshape(-1, 4)
+        if len(scenario.springs):
+            self.notes.append(
+                "springs: forces applied with applyExternalForce at the world anchor points "
+                "before every step, from the state at the start of the step (explicit in time)"
+            )
+
+    # -- reading back ----------------------------------------------------------------------
+
+    def _read_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """COM pos (n, 3), PyBullet inertial-frame quat (n, 4) w x y z, vel, world ω."""
+        n = len(self.ids)
+        pos, quat = np.zeros((n, 3)), np.zeros((n, 4))
+        vel, ang_vel = np.zeros((n, 3)), np.zeros((n, 3))
+        for i, body in enumerate(self.ids):
+            position, orientation = pybullet.getBasePositionAndOrientation(
+                body, physicsClientId=self.client
+            )
+            linear, angular = pybullet.getBaseVelocity(body, physicsClientId=self.client)
+            pos[i], quat[i], vel[i], ang_vel[i] = position, from_xyzw(orientation), linear, angular
+        vel[self.fixed] = 0.0
+        ang_vel[self.fixed] = 0.0
+        return pos, quat, vel, ang_vel
+
+    def _spring_geometry(self, pos: np.ndarray, rot: np.ndarray, vel, ang_vel):
+        """World anchor points, arms, anchor velocities, lengths and unit axes (a -> b)."""
+        s = self.springs
+        to_world = s["b"] == WORLD_ANCHOR
+        b = np.where(to_world, 0, s["b"])
+        arm_a = np.einsum("nij,nj->ni", rot[s["a"]], s["anchor_a"])
+        arm_b = np.where(to_world[:, None], 0.0, np.einsum("nij,nj->ni", rot[b], s["anchor_b"]))
+        point_a = pos[s["a"]] + arm_a
+        point_b = np.where(to_world[:, None], s["anchor_b"], pos[b] + arm_b)
+        vel_a = vel[s["a"]] + cross(ang_vel[s["a"]], arm_a)
+        vel_b = np.where(to_world[:, None], 0.0, vel[b] + cross(ang_vel[b], arm_b))
+        offset = point_b - point_a
+        length = np.linalg.norm(offset, axis=1)
+        axis = np.divide(
+            offset, length[:, None], out=np.zeros_like(offset), where=length[:, None] > 0
+        )
+        return point_a, point_b, vel_b - vel_a, length, axis
+
+    def _spring_energy(self, pos: np.ndarray, rot: np.ndarray) -> float:
+        """J, Σ ½ k (L − rest)², at the given COM positions and body-frame rotations."""
+        if not len(self.springs["a"]):
+            return 0.0
+        zeros = np.zeros_like(pos)
+        _, _, _, length, _ = self._spring_geometry(pos, rot, zeros, zeros)
+        s = self.springs
+        return float(np.sum(0.5 * s["stiffness"] * (length - s["rest"]) ** 2))
+
+    def _apply_spring_forces(self) -> None:
+        """mini_engine's law (``forces.spring_forces``): tension f = k (L − rest) + c (v_B −
+        v_A)·u; body a gets +f u at its anchor, body b −f u at its own (world frame)."""
+        pos, quat, vel, ang_vel = self._read_state()
+        rot = quat_to_matrix(self._body_quat(quat))
+        point_a, point_b, rel_vel, length, axis = self._spring_geometry(pos, rot, vel, ang_vel)
+        s = self.springs
+        tension = s["stiffness"] * (length - s["rest"]) + s["damping"] * np.sum(
+            rel_vel * axis, axis=1
+        )
+        force_on_a = tension[:, None] * axis
+        for k in range(len(tension)):
+            ends = [(s["a"][k], point_a[k], force_on_a[k])]
+            if s["b"][k] != WORLD_ANCHOR:
+                ends.append((s["b"][k], point_b[k], -force_on_a[k]))
+            for body, point, force in ends:
+                if not self.fixed[body]:
+                    pybullet.applyExternalForce(
+                        self.ids[body],
+                        -1,
+                        force.tolist(),
+                        point.tolist(),
+                        pybullet.WORLD_FRAME,
+                        physicsClientId=self.client,
+                    )
+
+    def _body_quat(self, inertial_quat: np.ndarray) -> np.ndarray:
+        """Scene body-frame orientations (n, 4) w x y z: q_body = q_pybullet ⊗ q_P⁻¹."""
+        quat = quat_multiply(inertial_quat, conjugate(self.principal))
+        return np.where(self.fixed[:, None], self.scene_quat, quat)
+
+    # -- the protocol ----------------------------------------------------------------------
+
+    def model_report(self) -> ModelReport:
+        """The dynamic bodies as PyBullet holds them: ``getDynamicsInfo`` mass and principal
+        moments, rotated to world with the base (inertial-frame) orientation, and the base
+        pose and velocities; energy and momenta from those readbacks."""
+        moving = dynamic_bodies(self.scenario)
+        pos, quat, vel, ang_vel = self._read_state()
+        info = [
+            pybullet.getDynamicsInfo(self.ids[i], -1, physicsClientId=self.client) for i in moving
+        ]
+        mass = np.array([item[0] for item in info])
+        moments = np.array([item[2] for item in info]).reshape(-1, 3)
+        inertial_rot = quat_to_matrix(quat[moving])
+        inertia = inertial_rot @ (moments[:, :, None] * inertial_rot.transpose(0, 2, 1))
+        gravity = np.array(
+            [self._engine_parameters()[f"gravityAcceleration{axis}"] for axis in ("X", "Y", "Z")]
+        )
+        spin = np.einsum("nij,nj->ni", inertia, ang_vel[moving])
+        kinetic = 0.5 * np.sum(mass * np.sum(vel[moving] ** 2, axis=1))
+        kinetic += 0.5 * np.sum(ang_vel[moving] * spin)
+        potential = -np.sum(mass * (pos[moving] @ gravity))
+        springs = self._spring_energy(pos, quat_to_matrix(self._body_quat(quat)))
+        total_mass = mass.sum()
+        centre = (mass @ pos[moving]) / total_mass if total_mass > 0 else np.zeros(3)
+        orbital = np.cross(pos[moving] - centre, mass[:, None] * vel[moving])
+        return ModelReport(
+            mass=mass,
+            com=pos[moving],
+            inertia_world=inertia,
+            energy=float(kinetic + potential + springs),
+            linear_momentum=mass @ vel[moving],
+            angular_momentum=np.sum(orbital + spin, axis=0),
+        )
+
+    def advance(self, steps: int) -> None:
+        """``steps`` fixed steps: spring forces (if any), then ``stepSimulation``, per step.
+
+        The process-wide contact breaking threshold is set again first: another adapter
+        may have changed it since this one loaded, and Bullet reads it whenever a new
+        contact manifold is created.
+        """
+        pybullet.setPhysicsEngineParameter(
+            contactBreakingThreshold=self.profile.contact_breaking_threshold,
+            physicsClientId=self.client,
+        )
+        has_springs = bool(len(self.springs["a"]))
+        for _ in range(steps):
+            if has_springs:
+                self._apply_spring_forces()
+            pybullet.stepSimulation(physicsClientId=self.client)
+        self.steps_taken += steps
+
+    def observe(self) -> Snapshot:
+        """World COM positions, body-frame quaternions w x y z, COM velocities, world ω."""
+        pos, quat, vel, ang_vel = self._read_state()
+        for i in np.flatnonzero(self.fixed):
+            pos[i] = self.scenario.bodies[i].position
+        return Snapshot(
+            self.steps_taken * self.scenario.dt, pos, self._body_quat(quat), vel, ang_vel
+        )
+
+    def _engine_parameters(self) -> dict[str, object]:
+        return dict(pybullet.getPhysicsEngineParameters(physicsClientId=self.client))
+
+    def provenance(self) -> Provenance:
+        """PyBullet's version, API and build, its reported parameters and everything set."""
+        settings: dict[str, object] = {
+            "api_version": pybullet.getAPIVersion(physicsClientId=self.client),
+            "build": build_string(),
+            "engine_parameters": self._engine_parameters(),
+            "profile": self.profile_name,
+            "bodies": self.bodies_mode,
+            "gyroscopic": GYROSCOPIC_TERM[self.bodies_mode],
+            "set_world_parameters": dict(self.world_settings),
+            "damping": (
+                {"linearDamping": 0.0, "angularDamping": 0.0}
+                if self.profile.zero_damping
+                else "PyBullet default (multibody 0.04 + 0.04|v|, maximal 0)"
+            ),
+            "maxJointVelocity": (
+                MAX_JOINT_VELOCITY
+                if self.profile.lift_velocity_clamp
+                else "PyBullet default (multibody ±100 per DOF)"
+            ),
+            "contact_values": self.contact_values,
+            "contact_misses": self.contact_misses,
+            "filtered_pairs": self.filtered_pairs,
+        }
+        notes = list(self.notes)
+        if self.bodies_mode == "maximal":
+            notes.append(
+                "maximal bodies: getDynamicsInfo reports no inertial frame (measured: zeros "
+                "or stale memory); the principal axes passed at load convert orientations"
+            )
+        return Provenance(
+            engine="pybullet",
+            version=importlib.metadata.version("pybullet"),
+            settings=settings,
+            notes=notes,
+        )
+
+    def close(self) -> None:
+        """Disconnect this adapter's client (idempotent)."""
+        if self.client is not None:
+            pybullet.disconnect(physicsClientId=self.client)
+            self.client = None
+
+    def __enter__(self) -> PybulletAdapter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
