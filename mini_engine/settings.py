@@ -85,6 +85,12 @@ class Settings:
     """Maximum sequential-impulse sweeps over all contacts per step (Box2D-Lite uses 10).
     One contact needs one sweep; piles and stacks need more."""
 
+    position_iterations: int = 50
+    """Maximum sweeps of the split-impulse pseudo-velocity solve. It starts from zero every
+    step (nothing to warm-start from), so it gets more than the velocity solve: with 10,
+    a box pushed out of a 4 cm overlap with another came out tilted and slid 7 cm sideways
+    in 2 s; with 50 it rests upright. Stops early at ``solver_tolerance``."""
+
     warm_start: bool = True
     """Start each contact's sequential impulses from the impulse of the matching contact
     of the previous step (Box2D, Bullet, qu3e all do). Without it a 5-box stack needs ~200
@@ -133,10 +139,10 @@ class Settings:
             value = getattr(self, name)
             if not value >= 0.0:
                 raise ValueError(f"Settings.{name}: expected a number >= 0; got {value!r}")
-        if not (isinstance(self.solver_iterations, int) and self.solver_iterations >= 1):
-            raise ValueError(
-                f"Settings.solver_iterations: expected an integer >= 1; got {self.solver_iterations!r}"
-            )
+        for name in ("solver_iterations", "position_iterations"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+                raise ValueError(f"Settings.{name}: expected an integer >= 1; got {value!r}")
 
     def replace(self, **changes: object) -> Settings:
         """A copy with some fields changed (validated again)."""

@@ -458,7 +458,7 @@ def _split_impulse(
     if not np.any(target > 0.0):
         return pseudo[:-1]
     impulse = np.zeros(depth.size)
-    for _ in range(settings.solver_iterations):
+    for _ in range(settings.position_iterations):
         change = _sweep_normal(pseudo, pair_rows, normal_rows, target, impulse, batches)
         if change <= settings.solver_tolerance:
             break

@@ -310,3 +310,22 @@ def test_box_dropped_flat_bounces_with_requested_e_and_no_spin(e):
             assert abs(ratio - e) < FLAT_BOX_RESTITUTION, f"rebound ratio {ratio:.12f}"
             assert spin < FLAT_BOX_SPIN, f"spurious spin {spin:.3e} rad/s"
     assert impacts >= 1, "the box never hit the ground"
+
+
+def test_split_impulse_pushes_a_box_out_of_a_box_upright_and_at_rest():
+    """A cube started 4 cm inside another (on the ground) ends on top, upright, not sliding:
+    the pseudo-velocity solve must converge, or the corner order tilts the box."""
+    model, state = build_model(
+        [
+            Body(Plane(), fixed=True),
+            Body(Box((0.1, 0.1, 0.1)), position=(0, 0, 0.1)),
+            Body(Box((0.1, 0.1, 0.1)), position=(0, 0, 0.26)),
+        ]
+    )
+    cfg = Settings(dt=1e-3, position_correction="split_impulse")
+    for _ in range(2000):
+        state, _ = step(model, state, cfg)
+    slop = cfg.penetration_slop
+    assert abs(state.pos[2, 2] - 0.3) <= slop * 1.01, f"upper box at z = {state.pos[2, 2]:.5f} m"
+    assert np.abs(state.pos[2, :2]).max() < 1e-4, f"slid to {state.pos[2, :2]} m"
+    assert np.abs(state.vel[2]).max() < 1e-4, f"still moving at {state.vel[2]} m/s"

@@ -2,19 +2,12 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from mini_engine import Body, Box, Capsule, PairProperties, Plane, Sphere, Spring, build_model
+from mini_engine import Body, PairProperties, Plane, Spring, build_model
 from mini_engine.collision import detect_contacts
 from mini_engine.model import Model, State
-from mini_engine.rotation import apply, quat_to_matrix
+from mini_engine.rotation import quat_to_matrix
 from validation.scenario import BodySpec, Scenario
-
-SHAPE_BUILDERS = {
-    "sphere": lambda s: Sphere(s.radius),
-    "box": lambda s: Box(tuple(s.half_extents)),
-    "capsule": lambda s: Capsule(s.radius, s.half_length),
-}
+from validation.scene_physics import SHAPE_BUILDERS, rest_length
 
 GROUND = "ground"
 """Name of the scene's ground plane in the model (always the last body)."""
@@ -61,7 +54,7 @@ def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
             anchor_b=s.anchor_b,
             stiffness=s.stiffness,
             damping=s.damping,
-            rest_length=_rest_length(scenario, s) if s.rest_length is None else s.rest_length,
+            rest_length=rest_length(scenario, s),
         )
         for s in scenario.springs
     ]
@@ -69,23 +62,6 @@ def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
         PairProperties(index[p.a], index[p.b], p.restitution, p.friction) for p in scenario.pairs
     ]
     return build_model(bodies, springs, gravity=scenario.gravity, pairs=pairs)
-
-
-def _rest_length(scenario: Scenario, spring) -> float:
-    """Distance between the spring's anchors at t = 0 (its default rest length)."""
-
-    def world_point(name: str, anchor) -> np.ndarray:
-        if name == "world":
-            return np.asarray(anchor, dtype=float)
-        body = scenario.body(name)
-        rot = quat_to_matrix(np.array([body.orientation]))
-        return np.asarray(body.position) + apply(rot, np.array([anchor]))[0]
-
-    return float(
-        np.linalg.norm(
-            world_point(spring.b, spring.anchor_b) - world_point(spring.a, spring.anchor_a)
-        )
-    )
 
 
 def initial_overlaps(scenario: Scenario) -> list[tuple[int, str]]:

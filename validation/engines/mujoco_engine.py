@@ -30,12 +30,11 @@ import mujoco
 import numpy as np
 
 from mini_engine.rotation import quat_to_matrix
-from mini_engine.shapes import solid_inertia
 from validation.engine_spec import EngineSpec
 from validation.engines.base import ModelReport, Provenance, Snapshot
 from validation.engines.reference import dynamic_bodies
-from validation.mini_scene import SHAPE_BUILDERS, _rest_length
 from validation.scenario import BodySpec, Scenario
+from validation.scene_physics import PAIR_RULES, body_inertia, rest_length
 
 # --- constants, each with where its number comes from ------------------------------------
 
@@ -128,17 +127,6 @@ def _fmt(values) -> str:
 # --- mass properties and geometry ---------------------------------------------------------
 
 
-def body_inertia(body: BodySpec) -> np.ndarray:
-    """(3, 3) kg·m², body frame about the centre of mass: the scene's, or the solid shape's.
-
-    The solid shape's comes from ``mini_engine.shapes`` so that MuJoCo and the scenario's
-    reference agree to round-off.
-    """
-    if body.inertia_matrix is not None:
-        return np.array(body.inertia_matrix, dtype=float)
-    return solid_inertia(SHAPE_BUILDERS[body.shape.type](body.shape), body.mass)
-
-
 GEOM_SIZES: dict[str, Callable[[object], tuple[float, ...]]] = {
     "sphere": lambda s: (s.radius,),
     "box": lambda s: tuple(s.half_extents),
@@ -203,8 +191,8 @@ def contact_pairs(scenario: Scenario) -> list[ContactPair]:
         if fixed_a and fixed_b:
             continue
         override = overrides.get(frozenset((name_a, name_b)))
-        e = max(e_a, e_b)
-        mu = float(np.sqrt(mu_a * mu_b))
+        e = PAIR_RULES["restitution"](e_a, e_b)
+        mu = PAIR_RULES["friction"](mu_a, mu_b)
         if override is not None and override.restitution is not None:
             e = override.restitution
         if override is not None and override.friction is not None:
@@ -337,7 +325,7 @@ def _add_springs(root: ET.Element, world: ET.Element, bodies: dict, scenario: Sc
         ET.SubElement(bodies[spring.a], "site", name=site_a, pos=_fmt(spring.anchor_a))
         parent_b = world if spring.b == WORLD else bodies[spring.b]
         ET.SubElement(parent_b, "site", name=site_b, pos=_fmt(spring.anchor_b))
-        rest = _rest_length(scenario, spring) if spring.rest_length is None else spring.rest_length
+        rest = rest_length(scenario, spring)
         tendon = ET.SubElement(
             tendons,
             "spatial",

@@ -37,12 +37,12 @@ import pybullet
 
 from mini_engine.model import WORLD_ANCHOR
 from mini_engine.rotation import cross, quat_multiply, quat_to_matrix
-from mini_engine.shapes import solid_inertia
 from validation.engine_spec import EngineSpec
 from validation.engines.base import ModelReport, Provenance, Snapshot
 from validation.engines.reference import dynamic_bodies
-from validation.mini_scene import SHAPE_BUILDERS, build_mini_model
+from validation.mini_scene import build_mini_model
 from validation.scenario import BodySpec, Scenario
+from validation.scene_physics import PAIR_RULES, body_inertia
 
 # --- numbers and where they come from ---------------------------------------------------------
 
@@ -149,22 +149,7 @@ SHAPE_KEYWORDS = {
 }
 """Scene shape type -> ``createCollisionShape`` keywords (same size conventions)."""
 
-SCENE_PAIR_RULES = {
-    "restitution": lambda a, b: max(a, b),
-    "friction": lambda a, b: math.sqrt(a * b),
-}
-"""The scene's pair values when ``scenario.pairs`` does not override them (mini_engine's
-``restitution_mix: max`` and ``friction_mix: geometric_mean``, Box2D's rules)."""
-
-
 # --- frames ---------------------------------------------------------------------------------
-
-
-def body_inertia(spec: BodySpec) -> np.ndarray:
-    """(3, 3) kg·m², the scene's inertia about the COM in the scene's body frame."""
-    if spec.inertia_matrix is not None:
-        return spec.inertia_matrix
-    return solid_inertia(SHAPE_BUILDERS[spec.shape.type](spec.shape), spec.mass)
 
 
 def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
@@ -261,7 +246,7 @@ class PairSystem:
 
 def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
     """``quantity`` (restitution or friction) per pair of object classes: the scene's rule
-    (``SCENE_PAIR_RULES``) unless ``scenario.pairs`` states the pair's value."""
+    (``PAIR_RULES``) unless ``scenario.pairs`` states the pair's value."""
     objects = [*scenario.bodies, *([scenario.ground] if scenario.ground else [])]
     names = [b.name for b in scenario.bodies] + ([GROUND] if scenario.ground else [])
     static = [getattr(b, "fixed", True) for b in objects]
@@ -277,7 +262,7 @@ def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
         members[cls].append(i)
     system = PairSystem(names, static, class_of, members)
     system.anchor = class_of[-1] if scenario.ground else None
-    rule = SCENE_PAIR_RULES[quantity]
+    rule = PAIR_RULES[quantity]
     for a in range(len(members)):
         for b in range(a, len(members)):
             first_a, first_b = members[a][0], members[b][0]
@@ -526,7 +511,7 @@ class PybulletAdapter:
         cannot get its value is recorded (settings and notes)."""
         self.contact_values: dict[str, list[float]] = {}
         self.contact_misses: list[dict[str, object]] = []
-        for quantity in SCENE_PAIR_RULES:
+        for quantity in PAIR_RULES:
             system = pair_system(scenario, quantity)
             values, missed = per_object_values(
                 len(system.members), system.targets, system.tiers, system.anchor, system.counts
