@@ -317,3 +317,33 @@ def test_readme_first_scenario_is_valid(tmp_path):
     scenario = load_scenario(write(tmp_path, block, "first_bounce.yaml"))
     assert scenario.expect[0].metric == "bounce_heights.ball"
     assert scenario.tolerance("bounce_heights.ball", "mini") == 0.005
+
+
+@pytest.mark.parametrize("case", ["billion laughs", "python tag", "not YAML"])
+def test_physval_check_as_a_process_exits_2_without_traceback(tmp_path, case):
+    """The installed command, as a user runs it: one line per problem, exit code 2."""
+    import subprocess
+    import sys
+
+    path = write(tmp_path, UNSAFE_YAML[case][0])
+    result = subprocess.run(
+        [sys.executable, "-m", "validation.cli", "check", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2, result
+    assert "Traceback" not in result.stderr and str(path) in result.stderr, result.stderr
+    assert UNSAFE_YAML[case][1] in result.stderr, result.stderr
+
+
+def test_engine_lists_split_at_top_level_commas():
+    from validation.engine_spec import split_engine_list
+
+    text = "mini(gyroscopic=implicit, solver_iterations=20), mujoco(integrator=RK4),pybullet"
+    assert split_engine_list(text) == [
+        "mini(gyroscopic=implicit, solver_iterations=20)",
+        "mujoco(integrator=RK4)",
+        "pybullet",
+    ]

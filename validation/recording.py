@@ -207,6 +207,12 @@ class Recording:
     impacts: list[ImpactEvent]
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
+    unstable: str | None = None
+    """Why the run stopped early (a non-finite state), or None when it ran to the end."""
+
+
+def _non_finite(snap: Snapshot) -> bool:
+    return not all(np.isfinite(a).all() for a in (snap.pos, snap.quat, snap.vel, snap.ang_vel))
 
 
 def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) -> Recording:
@@ -230,6 +236,12 @@ def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) ->
         done += chunk
         if every_step or done % sample_every == 0 or done == scenario.steps:
             snap = adapter.observe()
+            if _non_finite(snap):
+                samples.append(snap)
+                reason = f"non-finite state at t = {snap.time:.6g} s (step {done})"
+                return Recording(
+                    Trajectory.from_snapshots(samples), detector.events, stepping, reason
+                )
             detector.update(snap)
             if done % sample_every == 0 or done == scenario.steps:
                 samples.append(snap)

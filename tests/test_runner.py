@@ -1,0 +1,80 @@
+"""run_engine: a mismatching model, a crashing engine and an exploding one become statuses."""
+
+from __future__ import annotations
+
+import pytest
+
+from validation.engine_spec import parse_engine_spec
+from validation.engines import mujoco_engine
+from validation.runner import run_engine
+from validation.scenario import Scenario
+
+BALL = {
+    "name": "drop",
+    "dt": 0.001,
+    "duration": 0.2,
+    "ground": {"restitution": 0.5},
+    "bodies": [
+        {
+            "name": "ball",
+            "shape": {"type": "sphere", "radius": 0.1},
+            "mass": 1.0,
+            "position": [0, 0, 0.2],
+            "restitution": 0.5,
+        }
+    ],
+}
+
+
+@pytest.mark.parametrize("engine", ["mini", "mujoco", "pybullet"])
+def test_every_engine_runs_a_bounce_to_the_end(engine):
+    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec(engine), sample_every=10)
+    assert run.status == "ok", run.message
+    assert run.recording.trajectory.t[-1] == pytest.approx(0.2)
+    assert len(run.recording.impacts) >= 1, "no impact recorded"
+    assert abs(run.recording.impacts[0].restitution - 0.5) < 0.01, run.recording.impacts[0]
+    assert run.provenance is not None and run.provenance.version
+
+
+def test_wrong_inertia_gives_a_model_mismatch_naming_the_quantity(monkeypatch):
+    right = mujoco_engine.body_inertia
+    monkeypatch.setattr(mujoco_engine, "body_inertia", lambda body: right(body) * (1.0 + 1e-6))
+    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec("mujoco"))
+    assert run.status == "model_mismatch", run.status
+    assert "inertia_world of body 0" in run.message and run.recording is None, run.message
+
+
+def test_a_crashing_engine_becomes_an_error_row(monkeypatch):
+    from validation.engines import mini
+
+    def explode(self, steps):
+        raise RuntimeError("solver fell over")
+
+    monkeypatch.setattr(mini.MiniAdapter, "advance", explode)
+    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec("mini"))
+    assert run.status == "error" and "solver fell over" in run.message, run
+
+
+def test_an_exploding_engine_becomes_an_unstable_row_and_stops_early():
+    """Explicit Euler on an undamped k = 1e6 spring grows by (1 + (ω dt)²) per step: at
+    ω dt = 2 it overflows to inf within a few hundred steps."""
+    scene = {
+        "name": "boom",
+        "dt": 0.002,
+        "duration": 10.0,
+        "gravity": [0, 0, 0],
+        "bodies": [
+            {
+                "name": "m",
+                "shape": {"type": "sphere", "radius": 0.01},
+                "mass": 1.0,
+                "position": [0.01, 0, 0],
+            }
+        ],
+        "springs": [{"a": "m", "b": "world", "stiffness": 1.0e6, "rest_length": 0.0}],
+    }
+    run = run_engine(
+        Scenario.model_validate(scene), parse_engine_spec("mini(integrator=explicit_euler)"), 100
+    )
+    assert run.status == "unstable", run.status
+    assert "non-finite" in run.message and run.recording.trajectory.t[-1] < 10.0, run.message

@@ -1,0 +1,70 @@
+"""Running one scene in one engine, never letting an engine take the run down with it.
+
+``run_engine`` loads the scene, passes it through the parity gate, records it, and
+returns an ``EngineRun`` whose ``status`` says what happened:
+
+- ``ok``: the engine ran the whole scene;
+- ``model_mismatch``: its model differs from the scenario (the message names the
+  quantity and both values); it is not run, since its numbers would mean nothing;
+- ``unstable``: the state became non-finite (the run stops there, kept for the report);
+- ``error``: the engine raised; the message carries the exception.
+
+Metrics and the comparison with tolerances (``failed``) come on top of this (issue 5).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from validation.engine_spec import EngineSpec
+from validation.engines import create_adapter
+from validation.engines.base import Provenance
+from validation.engines.parity import Mismatch, compare
+from validation.engines.reference import reference_report
+from validation.recording import Recording, record
+from validation.scenario import Scenario
+
+STATUSES = ("ok", "failed", "unstable", "model_mismatch", "error", "unsupported")
+"""Every status a result row can carry (issue 5 fixes the names)."""
+
+
+@dataclass
+class EngineRun:
+    """One scene in one engine: the status, why, and what was recorded."""
+
+    scenario: str
+    engine: str
+    status: str
+    message: str = ""
+    recording: Recording | None = None
+    mismatches: list[Mismatch] = field(default_factory=list)
+    provenance: Provenance | None = None
+    wall_time_s: float = 0.0
+
+
+def run_engine(scenario: Scenario, spec: EngineSpec, sample_every: int = 1) -> EngineRun:
+    """Load, gate, record; every engine failure becomes a status, never an exception."""
+    start = time.perf_counter()
+    run = EngineRun(scenario.name or "", spec.label, "error")
+    adapter = create_adapter(spec)
+    try:
+        adapter.load(scenario)
+        run.provenance = adapter.provenance()
+        run.mismatches = compare(adapter.model_report(), reference_report(scenario))
+        if run.mismatches:
+            run.status = "model_mismatch"
+            run.message = "; ".join(str(m) for m in run.mismatches)
+            return run
+        with np.errstate(over="ignore", invalid="ignore"):  # an explosion is a status, not noise
+            run.recording = record(adapter, scenario, sample_every)
+        run.status = "unstable" if run.recording.unstable else "ok"
+        run.message = run.recording.unstable or ""
+    except Exception as error:  # an engine's crash is a result for the report, not the harness's
+        run.status, run.message = "error", f"{type(error).__name__}: {error}"
+    finally:
+        adapter.close()
+        run.wall_time_s = time.perf_counter() - start
+    return run
