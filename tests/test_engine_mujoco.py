@@ -404,3 +404,23 @@ def test_spring_oscillates_with_the_closed_form_period(integrator):
     assert len(periods) >= 4, crossings
     worst = np.abs(periods / expected - 1).max()
     assert worst < PERIOD_TOLERANCE, (integrator, periods, expected)
+
+
+def test_unused_gravity_and_contacts_are_switched_off():
+    """A lone body in zero gravity: MuJoCo is told to skip both phases (pay only for what the
+    scene uses); with a ground and gravity, neither flag is set."""
+
+    def flags(data: dict) -> list[str]:
+        adapter = create_adapter(parse_engine_spec("mujoco"))
+        adapter.load(
+            Scenario.model_validate({"name": "flags", "dt": 0.001, "duration": 0.01, **data})
+        )
+        settings = adapter.provenance().settings
+        adapter.close()
+        return settings.get("option", settings)["disableflags_names"]
+
+    ball = [{"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0}]
+    lone = flags({"gravity": [0, 0, 0], "bodies": ball})
+    assert {"mjDSBL_CONTACT", "mjDSBL_GRAVITY"} <= set(lone), lone
+    grounded = flags({"ground": {}, "bodies": ball})
+    assert not {"mjDSBL_CONTACT", "mjDSBL_GRAVITY"} & set(grounded), grounded

@@ -355,8 +355,9 @@ def build_mjcf(scenario: Scenario, settings: dict[str, object]) -> tuple[str, Co
         cone=choose_cone(str(settings["cone"]), settings, plan.pairs),
         iterations=str(int(settings["iterations"])),
     )
-    if plan.disable_contact:
-        ET.SubElement(option, "flag", contact="disable")
+    unused = {"contact": plan.disable_contact, "gravity": not any(scenario.gravity)}
+    if any(unused.values()):  # pay only for what the scene uses
+        ET.SubElement(option, "flag", **{name: "disable" for name, off in unused.items() if off})
     world = ET.SubElement(root, "worldbody")
     if scenario.ground is not None:
         ET.SubElement(world, "geom", name=GROUND, type="plane", size=_fmt(PLANE_SIZE), **plan.geom)

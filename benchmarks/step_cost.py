@@ -1,19 +1,23 @@
-"""mini_engine speed, as ratios against MuJoCo and PyBullet on the same scene in one run.
+"""Per-step cost of mini_engine, MuJoCo and PyBullet on the same scenes, in one run, as ratios.
 
-Scenes (issue 2's targets):
+Scenes (issues 2 and 4):
 
-1. **pile**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
+1. **pile_N**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
    (ground and walls are planes), dt = 2e-3 s, frictionless, e = 0. Each engine first
    settles the pile for ``SETTLE_STEPS``, then its stepping alone is timed over
    ``TIMED_STEPS`` (median of ``REPEATS`` blocks). Target: mini <= 10 ms per step at N = 1000
    (MuJoCo with CG measured about 9.6 ms, engines.md 1.9).
-2. **copies**: the Gazebo tumbling box, 1 copy vs 1024 copies in one model; target: the
-   1024 copies advance at least 10x faster per body-step than one copy.
+2. **tumbling_box_xK**: the Gazebo "complex" box (10 kg, 0.1 x 0.4 x 0.9 m, v0 = (-2, 2, 8),
+   ω0 = (0.1, 5, 0.1), g = 9.8, dt = 1e-3), K = 1 and K = 1024 independent copies in one
+   model (mini: one world each; MuJoCo and PyBullet: contacts off). Target: mini's 1024
+   copies advance at least 10x faster per body-step than one copy.
 
-Prints a table and writes ``benchmarks/results/mini_engine_speed.csv``. Not a test:
-wall-clock numbers depend on the machine; the ratios are what to compare.
+Every engine runs with the settings of the adapters' matched profile that matter for speed
+(MuJoCo Euler or implicitfast with CG for the pile; PyBullet maximal coordinates). Prints a
+table and writes ``benchmarks/results/step_cost.csv``. Not a test: wall-clock numbers
+depend on the machine; the ratios are what to compare.
 
-    python benchmarks/mini_engine_speed.py [--spheres 1 10 100 1000]
+    python benchmarks/step_cost.py [--spheres 1 10 100 1000] [--copies 1024]
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ import pandas as pd
 import pybullet
 
 from mini_engine import Settings, step
-from mini_engine.scenes import sphere_pile, tumbling_box
+from mini_engine.scenes import GAZEBO_BOX_HALF_EXTENTS, sphere_pile, tumbling_box
+from mini_engine.shapes import Box
 
 PILE_DT = 2e-3
 """s. engines.md 1.9 measured the reference engines at 2e-3 (1e-3 costs the same per step)."""
@@ -40,7 +45,7 @@ SETTLE_STEPS = 750
 
 TIMED_STEPS = 50
 REPEATS = 3
-RESULTS = Path(__file__).parent / "results" / "mini_engine_speed.csv"
+RESULTS = Path(__file__).parent / "results" / "step_cost.csv"
 
 
 def seconds_per_step(advance: Callable[[int], None]) -> float:
@@ -151,13 +156,24 @@ def pybullet_pile(count: int) -> tuple[float, int]:
 PILE_ENGINES = {"mini": mini_pile, "mujoco(CG)": mujoco_pile, "pybullet(maximal)": pybullet_pile}
 
 
-# --- copies -------------------------------------------------------------------------------
+# --- copies of the tumbling box ---------------------------------------------------------------
+
+BOX_DT = 1e-3
+BOX_MASS = 10.0
+BOX_VELOCITY = (-2.0, 2.0, 8.0)
+BOX_SPIN = (0.1, 5.0, 0.1)
+BOX_GRAVITY = (0.0, 0.0, -9.8)
+
+
+def _box_inertia() -> np.ndarray:
+    """Principal moments (3,) kg·m² of the Gazebo box (body axes are principal)."""
+    return np.diag(Box(GAZEBO_BOX_HALF_EXTENTS).unit_inertia()) * BOX_MASS
 
 
 def mini_copies(copies: int) -> float:
-    """Seconds per body-step of ``copies`` tumbling boxes in one model (gyroscopic explicit)."""
+    """Seconds per step of ``copies`` tumbling boxes in one model (gyroscopic explicit)."""
     model, state = tumbling_box(copies)
-    cfg = Settings(dt=1e-3, gyroscopic="explicit")
+    cfg = Settings(dt=BOX_DT, gyroscopic="explicit")
     holder = {"state": state}
 
     def advance(steps: int) -> None:
@@ -167,20 +183,92 @@ def mini_copies(copies: int) -> float:
         holder["state"] = s
 
     advance(10)
-    return seconds_per_step(advance) / copies
+    return seconds_per_step(advance)
+
+
+def mujoco_copies(copies: int) -> float:
+    inertia = " ".join(repr(float(v)) for v in _box_inertia())
+    size = " ".join(repr(v) for v in GAZEBO_BOX_HALF_EXTENTS)
+    bodies = "".join(
+        f'<body pos="{3.0 * k} 0 0"><freejoint/><inertial pos="0 0 0" mass="{BOX_MASS}"'
+        f' diaginertia="{inertia}"/><geom type="box" size="{size}"/></body>'
+        for k in range(copies)
+    )
+    xml = (
+        f'<mujoco><option timestep="{BOX_DT}" integrator="Euler" gravity="0 0 -9.8">'
+        f'<flag contact="disable"/></option><worldbody>{bodies}</worldbody></mujoco>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.tile([*BOX_VELOCITY, *BOX_SPIN], copies)  # identity pose: body ω = world ω
+
+    def advance(steps: int) -> None:
+        mujoco.mj_step(model, data, nstep=steps)
+
+    advance(10)
+    return seconds_per_step(advance)
+
+
+def pybullet_copies(copies: int) -> float:
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        pybullet.setGravity(*BOX_GRAVITY, physicsClientId=client)
+        pybullet.setPhysicsEngineParameter(fixedTimeStep=BOX_DT, physicsClientId=client)
+        for k in range(copies):  # no collision shape: contacts cost nothing, as in MuJoCo's run
+            body = pybullet.createMultiBody(
+                BOX_MASS,
+                -1,
+                basePosition=[3.0 * k, 0, 0],
+                useMaximalCoordinates=True,
+                physicsClientId=client,
+            )
+            pybullet.changeDynamics(
+                body,
+                -1,
+                mass=BOX_MASS,
+                localInertiaDiagonal=_box_inertia().tolist(),
+                linearDamping=0.0,
+                angularDamping=0.0,
+                physicsClientId=client,
+            )
+            pybullet.resetBaseVelocity(body, BOX_VELOCITY, BOX_SPIN, physicsClientId=client)
+
+        def advance(steps: int) -> None:
+            for _ in range(steps):
+                pybullet.stepSimulation(physicsClientId=client)
+
+        advance(10)
+        return seconds_per_step(advance)
+    finally:
+        pybullet.disconnect(client)
+
+
+COPY_ENGINES = {
+    "mini": mini_copies,
+    "mujoco(CG)": mujoco_copies,
+    "pybullet(maximal)": pybullet_copies,
+}
+
+
+def _with_ratios(rows: list[dict]) -> None:
+    """Add mini/MuJoCo and mini/PyBullet ratios to the rows of one scene."""
+    cost = {row["engine"]: row["ms_per_step"] for row in rows}
+    for row in rows:
+        row["ratio_to_mujoco"] = row["ms_per_step"] / cost["mujoco(CG)"]
+        row["ratio_to_pybullet"] = row["ms_per_step"] / cost["pybullet(maximal)"]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", type=int, nargs="*", default=[1, 10, 100, 1000])
+    parser.add_argument("--copies", type=int, default=1024)
     args = parser.parse_args()
-    rows = []
+    rows: list[dict] = []
     for count in args.spheres:
-        costs = {}
+        scene = []
         for name, run in PILE_ENGINES.items():
             cost, contacts = run(count)
-            costs[name] = cost
-            rows.append(
+            scene.append(
                 {
                     "scene": f"pile_{count}",
                     "engine": name,
@@ -188,19 +276,24 @@ def main() -> None:
                     "contacts": contacts,
                 }
             )
-        for row in rows[-len(PILE_ENGINES) :]:
-            row["ratio_to_mujoco"] = row["ms_per_step"] / (costs["mujoco(CG)"] * 1e3)
-            row["ratio_to_pybullet"] = row["ms_per_step"] / (costs["pybullet(maximal)"] * 1e3)
-    one, many = mini_copies(1), mini_copies(1024)
-    rows.append({"scene": "tumbling_box_x1", "engine": "mini", "ms_per_step": one * 1e3})
-    rows.append(
-        {
-            "scene": "tumbling_box_x1024",
-            "engine": "mini",
-            "ms_per_step": many * 1e3 * 1024,
-            "speedup_per_body_step": one / many,
-        }
-    )
+        _with_ratios(scene)
+        rows += scene
+    single = {}
+    for copies in (1, args.copies):
+        scene = []
+        for name, run in COPY_ENGINES.items():
+            cost = run(copies)
+            single.setdefault(name, cost)
+            scene.append(
+                {
+                    "scene": f"tumbling_box_x{copies}",
+                    "engine": name,
+                    "ms_per_step": cost * 1e3,
+                    "speedup_per_body_step": single[name] * copies / cost,
+                }
+            )
+        _with_ratios(scene)
+        rows += scene
     table = pd.DataFrame(rows)
     table["numpy"], table["mujoco"] = np.__version__, mujoco.__version__
     table["pybullet_api"] = pybullet.getAPIVersion()
