@@ -249,10 +249,11 @@ def pybullet_copies(copies: int) -> float:
 
 
 COPY_ENGINES = {
-    "mini": mini_copies,
-    "mujoco(CG)": mujoco_copies,
-    "pybullet(maximal)": pybullet_copies,
+    "mini": (mini_copies, "gyroscopic explicit, one world per copy"),
+    "mujoco": (mujoco_copies, "Euler, contacts disabled"),
+    "pybullet": (pybullet_copies, "maximal coordinates, no collision shapes"),
 }
+"""Engine -> (copies runner, the settings it runs with, for the table)."""
 
 
 def _with_ratios(rows: list[dict]) -> None:
@@ -263,6 +264,16 @@ def _with_ratios(rows: list[dict]) -> None:
         row["ratio_to_pybullet"] = row["ms_per_step"] / cost["pybullet"]
 
 
+def _row(scene: str, engine: str, seconds: float, settings: str, **extra: float) -> dict:
+    return {
+        "scene": scene,
+        "engine": engine,
+        "ms_per_step": seconds * 1e3,
+        **extra,
+        "settings": settings,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", type=int, nargs="*", default=[1, 10, 100, 1000])
@@ -271,31 +282,20 @@ def main() -> None:
     rows: list[dict] = []
     for count in args.spheres:
         scene = []
-        for name, run in PILE_ENGINES.items():
+        for name, (run, settings) in PILE_ENGINES.items():
             cost, contacts = run(count)
-            scene.append(
-                {
-                    "scene": f"pile_{count}",
-                    "engine": name,
-                    "ms_per_step": cost * 1e3,
-                    "contacts": contacts,
-                }
-            )
+            scene.append(_row(f"pile_{count}", name, cost, settings, contacts=contacts))
         _with_ratios(scene)
         rows += scene
-    single = {}
+    single: dict[str, float] = {}
     for copies in (1, args.copies):
         scene = []
-        for name, run in COPY_ENGINES.items():
+        for name, (run, settings) in COPY_ENGINES.items():
             cost = run(copies)
             single.setdefault(name, cost)
+            speedup = single[name] * copies / cost
             scene.append(
-                {
-                    "scene": f"tumbling_box_x{copies}",
-                    "engine": name,
-                    "ms_per_step": cost * 1e3,
-                    "speedup_per_body_step": single[name] * copies / cost,
-                }
+                _row(f"tumbling_box_x{copies}", name, cost, settings, speedup_per_body_step=speedup)
             )
         _with_ratios(scene)
         rows += scene
