@@ -130,7 +130,8 @@ def _grid_pairs(
     cell_size = 2.0 * radius.max()
     cell = np.floor((centre - centre.min(axis=0)) / cell_size).astype(np.int64) + 1
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
-    key = np.ravel_multi_index(cell.T, dims)
+    strides = np.array([dims[1] * dims[2], dims[2], 1])
+    key = cell @ strides  # row-major cell index; the empty border keeps cell + offset inside
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     rank = np.empty(m, dtype=np.int64)
@@ -152,7 +153,7 @@ def _grid_pairs(
 
     firsts, seconds = [], []
     for offset in HALF_NEIGHBOURHOOD:
-        start, end = run(np.ravel_multi_index((cell + offset).T, dims))
+        start, end = run(key + int(offset @ strides))
         if not offset.any():
             start = np.maximum(start, rank + 1)  # own cell: each pair once
         count = np.maximum(end - start, 0)
