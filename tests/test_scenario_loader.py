@@ -52,7 +52,7 @@ def test_near_unit_quaternion_is_normalised(tmp_path):
     assert abs(sum(q * q for q in scenario.bodies[0].orientation) - 1.0) < 1e-15
 
 
-def test_per_engine_tolerances_resolve_by_spec_then_name_then_default(tmp_path):
+def test_per_engine_tolerances_apply_to_exactly_that_spec(tmp_path):
     text = MINIMAL + textwrap.dedent("""\
         engines: [mini, "mini(gyroscopic=implicit)", pybullet]
         checks:

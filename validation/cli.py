@@ -51,6 +51,30 @@ def command_check(args: argparse.Namespace) -> int:
     return EXIT_OK if invalid == 0 else EXIT_BAD_INPUT
 
 
+def command_run(args: argparse.Namespace) -> int:
+    """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
+    from validation.run import run_main
+
+    return run_main(
+        args.paths or default_scenario_paths(),
+        args.engines,
+        args.out,
+        args.dt,
+        args.only,
+        args.argv,
+    )
+
+
+def command_report(args: argparse.Namespace) -> int:
+    """Re-render report.html of a run folder from its files, without re-running."""
+    try:
+        from validation.report import report_command
+    except ImportError:
+        print("physval report: the HTML renderer is not installed", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return report_command(args.folder)
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -58,6 +82,8 @@ def command_schema(args: argparse.Namespace) -> int:
 
 
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
+    "run": (command_run, "run scenes in engines and write results.csv and report.html"),
+    "report": (command_report, "re-render report.html of a run folder"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
 }
@@ -70,13 +96,48 @@ def parser() -> argparse.ArgumentParser:
     sub = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, help_text) in COMMANDS.items():
         command = sub.add_parser(name, help=help_text, description=help_text)
-        if name == "check":
-            command.add_argument("paths", nargs="*", type=Path, metavar="PATHS")
+        ARGUMENTS.get(name, lambda _: None)(command)
     return root
 
 
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a number of seconds > 0; got {text!r}"
+        ) from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0; got {text!r}")
+    return value
+
+
+def _run_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "paths", nargs="*", type=Path, metavar="PATHS", help="scenario files or folders"
+    )
+    command.add_argument("--engines", metavar="SPECS", help='e.g. "mini, mujoco(integrator=RK4)"')
+    command.add_argument(
+        "--out", type=Path, metavar="DIR", help="run folder (default reports/latest)"
+    )
+    command.add_argument(
+        "--dt", type=_positive_seconds, metavar="SECONDS", help="override every scene's dt"
+    )
+    command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
+
+
+ARGUMENTS = {
+    "run": _run_arguments,
+    "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
+    "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+}
+"""Sub-command -> a function adding its arguments."""
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(argv)
+    args.argv = argv
     return COMMANDS[args.command][0](args)
 
 

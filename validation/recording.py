@@ -44,6 +44,12 @@ must also be faster than gravity's change of velocity in one step (|a|·dt), or 
 cannot leave the ground before it is pulled back: that too is settling."""
 
 
+PLASTIC_OBSERVATIONS = 3
+"""Consecutive observations in contact with |relative normal velocity| below
+``IMPACT_MIN_SPEED`` that close an impact as plastic (e = 0) while the shapes still touch.
+Three, so that a soft contact passing through zero relative speed mid-bounce is not cut."""
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Sampled states of the scene's bodies (s samples, n bodies, scenario order).
@@ -151,8 +157,14 @@ class ImpactDetector:
         v_b = vel[b] + np.cross(ang_vel[b], point - pos[b])
         return float((v_b - v_a) @ normal)
 
-    def _event(self, key: tuple[int, int], impact: _OpenImpact, end: float) -> ImpactEvent | None:
-        """The impact with both velocities carried to the impulse centroid (module docstring)."""
+    def _event(
+        self, key: tuple[int, int], impact: _OpenImpact, end: float, separated: bool
+    ) -> ImpactEvent | None:
+        """The impact with both velocities carried to the impulse centroid (module docstring).
+
+        ``separated``: the shapes came apart (a bounce); otherwise they stayed together
+        with no relative normal motion (a plastic impact, e = 0).
+        """
         times, speeds = np.array(impact.history).T
         gravity = self.body_gravity[key[1]] - self.body_gravity[key[0]]
         accel = float(gravity @ impact.normal)
@@ -161,7 +173,8 @@ class ImpactDetector:
             return None
         centroid = float(np.sum(pushed * times[1:]) / pushed.sum())
         after = float(speeds[-1] - accel * (times[-1] - centroid))
-        if after < max(IMPACT_MIN_SPEED, abs(accel) * float(np.min(np.diff(times)))):
+        too_slow = after < max(IMPACT_MIN_SPEED, abs(accel) * float(np.min(np.diff(times))))
+        if separated and too_slow:
             return None  # too slow to leave within one step against gravity: settling, not a bounce
         names = self.model.body_name
         return ImpactEvent(
@@ -172,6 +185,14 @@ class ImpactDetector:
             normal=tuple(float(x) for x in impact.normal),
             normal_velocity_before=float(speeds[0] + accel * (centroid - times[0])),
             normal_velocity_after=after,
+        )
+
+    def _stuck(self, impact: _OpenImpact) -> bool:
+        """Still touching, with no relative normal motion for ``PLASTIC_OBSERVATIONS``
+        observations: the impulse is over and the bodies move together (e = 0)."""
+        recent = [speed for _, speed in impact.history[-PLASTIC_OBSERVATIONS:]]
+        return len(impact.history) > PLASTIC_OBSERVATIONS and all(
+            abs(speed) <= IMPACT_MIN_SPEED for speed in recent
         )
 
     def update(self, snap: Snapshot) -> None:
@@ -191,9 +212,10 @@ class ImpactDetector:
             impact.history.append(
                 (snap.time, self._normal_velocity(snap, key, impact.point, impact.normal))
             )
-            if key not in touching:
+            separated = key not in touching
+            if separated or self._stuck(impact):
                 del self.open[key]
-                event = self._event(key, impact, snap.time)
+                event = self._event(key, impact, snap.time, separated)
                 if event is not None:
                     self.events.append(event)
         self.previous, self.previous_touching = snap, touching

@@ -290,7 +290,9 @@ class Scenario(_Strict):
     pairs: list[PairSpec] = Field(default=[], description="per-pair restitution/friction overrides")
     expect: list[Expectation] = Field(default=[], description="analytic expectations")
     checks: dict[str, Tolerance] = Field(
-        default={}, description="tolerance per metric: one number, or {default: x, <engine>: y}"
+        default={},
+        description="tolerance per metric: one number, or {default: x, <engine spec>: y} "
+        "(an engine entry applies to exactly that spec as written in engines)",
     )
     source: str = Field(default="", exclude=True, description="the file it was loaded from")
 
@@ -306,12 +308,15 @@ class Scenario(_Strict):
         return next(b for b in self.bodies if b.name == name)
 
     def tolerance(self, metric: str, engine: str) -> float | None:
-        """The tolerance of ``metric`` for engine spec label ``engine`` (or its name), or None."""
+        """The tolerance of ``metric`` for the engine spec labelled ``engine``, or None.
+
+        A per-engine entry applies to exactly that spec (``mini`` is the plain mini, not
+        ``mini(gyroscopic=explicit)``); every other spec takes ``default``.
+        """
         value = self.checks.get(metric)
         if value is None or isinstance(value, float | int):
             return value
-        base = engine.split("(", 1)[0]
-        return value.get(engine, value.get(base, value.get("default")))
+        return value.get(engine, value.get("default"))
 
 
 # --- problems ------------------------------------------------------------------------------
@@ -496,8 +501,7 @@ def _cross_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Pr
     engine_labels: set[str] = set()
     for i, text in enumerate(scenario.engines):
         try:
-            spec = parse_engine_spec(text)
-            engine_labels.update((spec.name, spec.label))
+            engine_labels.add(parse_engine_spec(text).label)
         except EngineSpecError as error:
             problems.append((("engines", i), str(error)))
     for metric, tolerance in scenario.checks.items():

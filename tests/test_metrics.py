@@ -1,0 +1,132 @@
+"""Metrics against hand-computed cases, and the comparator's pass / fail / no-tolerance rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from validation.comparator import COLUMNS, compare_scene
+from validation.metrics import METRICS, Context, measure
+from validation.recording import ImpactEvent, Recording, Trajectory
+from validation.runner import EngineRun
+from validation.scenario import Scenario
+
+G = 9.81
+
+
+def scene(**extra) -> Scenario:
+    data = {
+        "name": "hand",
+        "dt": 0.1,
+        "duration": 1.0,
+        "bodies": [
+            {
+                "name": "b",
+                "shape": {"type": "sphere", "radius": 0.1},
+                "mass": 2.0,
+                "velocity": [1.0, 0.0, 0.0],
+            }
+        ],
+    }
+    return Scenario.model_validate({**data, **extra})
+
+
+def trajectory(pos, vel) -> Trajectory:
+    """One sphere, identity orientation, no spin; ``pos``/``vel`` are (s, 3)."""
+    pos, vel = np.asarray(pos, float)[:, None, :], np.asarray(vel, float)[:, None, :]
+    samples = pos.shape[0]
+    quat = np.tile([1.0, 0, 0, 0], (samples, 1, 1))
+    return Trajectory(np.arange(samples) * 0.1, pos, quat, vel, np.zeros_like(vel))
+
+
+def context(scenario, pos, vel, impacts=()) -> Context:
+    return Context(scenario, Recording(trajectory(pos, vel), list(impacts), 0.0))
+
+
+def test_energy_drift_by_hand():
+    """m = 2 kg, no gravity: speeds 1, 1, 1.1 m/s give E = 1, 1, 1.21 J: drift 0.21."""
+    ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 3, [[1, 0, 0], [0, 1, 0], [1.1, 0, 0]])
+    result = METRICS["energy_drift"](ctx)
+    assert result.value == pytest.approx(0.21) and result.expected == pytest.approx(1.0)
+    assert result.expected_kind == "conserved"
+
+
+def test_energy_drift_is_absolute_when_the_initial_energy_is_zero():
+    ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 2, [[0, 0, 0], [1, 0, 0]])
+    result = METRICS["energy_drift"](ctx)
+    assert result.value == pytest.approx(1.0) and "absolute" in result.message
+
+
+def test_ballistic_errors_are_zero_on_the_parabola_and_measure_an_offset():
+    t = np.arange(11) * 0.1
+    pos = np.stack([t, 0 * t, -0.5 * G * t**2], axis=1)
+    vel = np.stack([np.ones_like(t), 0 * t, -G * t], axis=1)
+    exact = context(scene(), pos, vel)
+    assert METRICS["position_error"](exact).value == pytest.approx(0.0, abs=1e-12)
+    assert METRICS["velocity_error"](exact).value == pytest.approx(0.0, abs=1e-12)
+    shifted = context(scene(), pos + np.array([0.0, 0.0, 0.003]), vel)
+    assert METRICS["position_error"](shifted).value == pytest.approx(0.003)
+
+
+def test_linear_momentum_drift_follows_gravity_and_is_undefined_with_a_ground():
+    t = np.arange(11) * 0.1
+    vel = np.stack([np.ones_like(t), 0 * t, -G * t], axis=1)
+    free = context(scene(), np.zeros((11, 3)), vel)
+    assert METRICS["linear_momentum_drift"](free).value == pytest.approx(0.0, abs=1e-12)
+    grounded = context(scene(ground={}), np.zeros((11, 3)), vel)
+    assert METRICS["linear_momentum_drift"](grounded) is None
+    assert METRICS["angular_momentum_drift"](grounded) is None
+    assert METRICS["position_error"](grounded) is None, "bodies can touch the ground"
+
+
+def test_restitution_error_is_the_worst_impact_and_undefined_without_impacts():
+    ground = scene(ground={"restitution": 0.5})
+    impacts = [
+        ImpactEvent("ground", "b", 0.1, 0.2, (0, 0, 1), -2.0, 1.0),  # e = 0.5
+        ImpactEvent("ground", "b", 0.5, 0.6, (0, 0, 1), -1.0, 0.45),  # e = 0.45
+    ]
+    ctx = context(ground, np.zeros((3, 3)), np.zeros((3, 3)), impacts)
+    result = METRICS["restitution_error"](ctx)
+    assert result.value == pytest.approx(0.05) and result.expected == 0.5
+    assert METRICS["restitution_error"](context(ground, np.zeros((3, 3)), np.zeros((3, 3)))) is None
+
+
+def run_of(scenario, pos, vel) -> EngineRun:
+    return EngineRun(
+        scenario.name, "mini", "ok", recording=Recording(trajectory(pos, vel), [], 0.0)
+    )
+
+
+def test_comparator_rows_pass_fail_and_no_tolerance():
+    t = np.arange(11) * 0.1
+    pos = np.stack([t, 0 * t, -0.5 * G * t**2], axis=1)
+    vel = np.stack([np.ones_like(t), 0 * t, -G * t], axis=1)
+    checked = scene(
+        checks={"position_error": 0.001, "velocity_error": {"default": 1e-9, "mini": 0.0}}
+    )
+    rows = compare_scene(checked, [run_of(checked, pos + np.array([0.0, 0.0, 0.003]), vel)])
+    by_metric = {row["metric"]: row for row in rows}
+    assert set(rows[0]) == set(COLUMNS)
+    assert (
+        by_metric["position_error"]["passed"] is False
+        and by_metric["position_error"]["status"] == "failed"
+    )
+    assert (
+        by_metric["velocity_error"]["passed"] is True
+        and by_metric["velocity_error"]["tolerance"] == 0.0
+    )
+    assert by_metric["energy_drift"]["passed"] is None, "no tolerance: passed must stay empty"
+    assert "restitution_error" not in by_metric and "penetration_max" not in by_metric
+    assert set(by_metric) <= set(METRICS) | {"divergence"}
+
+
+def test_measure_lists_only_definable_metrics_for_a_free_body():
+    ctx = context(scene(), np.zeros((3, 3)), np.tile([1.0, 0, 0], (3, 1)))
+    names = {m.metric for m in measure(ctx)}
+    assert names == {
+        "energy_drift",
+        "angular_momentum_drift",
+        "linear_momentum_drift",
+        "position_error",
+        "velocity_error",
+    }, names

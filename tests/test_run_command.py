@@ -1,0 +1,118 @@
+"""``physval run`` end to end: real scenes in the three engines, files, exit codes, statuses."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from validation.cli import BUNDLED_SCENARIOS, main
+from validation.comparator import COLUMNS
+
+TWO_PASSING_SCENES = [
+    BUNDLED_SCENARIOS / "formulas" / "head_on_ratio_10.yaml",
+    BUNDLED_SCENARIOS / "rotation" / "torque_free_symmetric_top.yaml",
+]
+
+
+def test_two_bundled_scenes_in_three_engines(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(
+        [
+            "run",
+            *map(str, TWO_PASSING_SCENES),
+            "--engines",
+            "mini(gyroscopic=implicit), mujoco, pybullet",
+            "--out",
+            str(out),
+        ]
+    )
+    printed = capsys.readouterr().out
+    results = pd.read_csv(out / "results.csv")
+    assert list(results.columns) == list(COLUMNS)
+    assert set(results["engine"]) == {"mini(gyroscopic=implicit)", "mujoco", "pybullet"}
+    assert set(results["scenario"]) == {"head_on_ratio_10", "torque_free_symmetric_top"}
+    bad = results[results["status"] != "ok"]
+    assert code == (1 if len(bad) else 0), (
+        code,
+        bad[["scenario", "engine", "metric", "error", "tolerance"]],
+    )
+    assert "precession_rate.top" in set(results["metric"]) or "precession_rate" in " ".join(
+        results["metric"]
+    )
+    provenance = json.loads((out / "provenance.json").read_text())
+    assert set(provenance["engines"]) == {"mini(gyroscopic=implicit)", "mujoco", "pybullet"}
+    assert provenance["git_commit"] and provenance["command"].startswith("physval run")
+    assert (out / "series.csv").exists() and (out / "impacts.csv").exists()
+    assert "head_on_ratio_10" in printed
+    assert not list(tmp_path.glob(".run-staging-*")), "a staging folder was left behind"
+
+
+def scene_file(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_a_failed_check_exits_1(tmp_path):
+    path = scene_file(
+        tmp_path,
+        """\
+dt: 0.001
+duration: 0.5
+bodies: [{name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0}]
+checks: {position_error: 1.0e-6}   # semi-implicit Euler is off by g·dt·t/2 = 2.5 mm
+""",
+    )
+    assert main(["run", str(path), "--engines", "mini", "--out", str(tmp_path / "out")]) == 1
+    row = pd.read_csv(tmp_path / "out" / "results.csv").set_index("metric").loc["position_error"]
+    assert row["status"] == "failed" and row["error"] == pytest.approx(
+        9.81 * 0.001 * 0.5 / 2, rel=1e-6
+    )
+
+
+def test_an_exploding_scene_gives_an_unstable_row_and_the_run_completes(tmp_path):
+    path = scene_file(
+        tmp_path,
+        """\
+dt: 0.001
+duration: 2.0
+gravity: [0, 0, 0]
+engines: ["mini(integrator=explicit_euler)", mini]   # ω·dt = 1: explicit grows 2x per step
+bodies: [{name: m, shape: {type: sphere, radius: 0.01}, mass: 1.0, position: [0.01, 0, 0]}]
+springs: [{a: m, b: world, stiffness: 1.0e6, rest_length: 0.0}]
+""",
+    )
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 1
+    results = pd.read_csv(tmp_path / "out" / "results.csv")
+    statuses = results.groupby("engine")["status"].agg(set)
+    assert "unstable" in statuses["mini(integrator=explicit_euler)"], statuses
+    assert "unstable" not in statuses["mini"], statuses
+
+
+def exit_code(argv: list[str]) -> int:
+    """``main``'s exit code, whether it returns it or argparse exits with it."""
+    try:
+        return main(argv)
+    except SystemExit as stop:
+        return int(stop.code)
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--engines", "mujocoo"],
+        ["--dt", "0"],
+        ["--dt", "abc"],
+        ["--only", "no_such_scene*"],
+        ["missing.yaml"],
+    ],
+)
+def test_bad_input_exits_2_and_writes_nothing(tmp_path, arguments, capsys):
+    out = tmp_path / "out"
+    paths = [] if arguments == ["missing.yaml"] else [str(TWO_PASSING_SCENES[0])]
+    assert exit_code(["run", *paths, *arguments, "--out", str(out)]) == 2
+    assert not out.exists(), "bad input must not write a report"
+    assert "Traceback" not in capsys.readouterr().err

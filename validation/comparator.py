@@ -1,0 +1,126 @@
+"""The comparator: engine runs and their measurements become the long-format result rows.
+
+One row per (scenario, engine spec, metric), with the columns of ``COLUMNS``. A metric
+with a tolerance in the scene's ``checks`` gets ``passed``; one without gets ``passed``
+empty (never a guessed tolerance). An engine that did not produce metrics (model
+mismatch, error) gets one row with metric ``status`` and its message.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from validation.metrics import Context, Measurement, divergence, measure
+from validation.runner import EngineRun
+from validation.scenario import Scenario
+
+COLUMNS = (
+    "scenario",
+    "engine",
+    "metric",
+    "value",
+    "expected",
+    "expected_kind",
+    "error",
+    "tolerance",
+    "passed",
+    "status",
+    "dt",
+    "steps",
+    "wall_time_s",
+    "engine_version",
+    "settings",
+    "message",
+)
+"""The columns of results.csv, in order (issue 5 fixes the first fifteen names)."""
+
+BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
+"""Row statuses that make ``physval run`` exit 1."""
+
+ENERGY_BLOW_UP = 1e3
+"""Relative energy drift beyond which a run that stayed finite still counts as unstable:
+a thousand times the initial energy is an explosion, not an integration error."""
+
+
+def _common(scenario: Scenario, run: EngineRun) -> dict:
+    provenance = run.provenance
+    return {
+        "scenario": scenario.name,
+        "engine": run.engine,
+        "dt": scenario.dt,
+        "steps": scenario.steps,
+        "wall_time_s": round(run.wall_time_s, 6),
+        "engine_version": provenance.version if provenance else "",
+        "settings": json.dumps(
+            provenance.settings if provenance else {}, sort_keys=True, default=str
+        ),
+    }
+
+
+def _row(scenario: Scenario, run: EngineRun, result: Measurement, status: str) -> dict:
+    tolerance = scenario.tolerance(result.metric, run.engine)
+    passed = (
+        None
+        if tolerance is None
+        else bool(math.isfinite(result.error) and result.error <= tolerance)
+    )
+    if status == "ok" and passed is False:
+        status = "failed"
+    return {
+        **_common(scenario, run),
+        "metric": result.metric,
+        "value": result.value,
+        "expected": result.expected,
+        "expected_kind": result.expected_kind,
+        "error": result.error,
+        "tolerance": tolerance,
+        "passed": passed,
+        "status": status,
+        "message": result.message,
+    }
+
+
+def _status_row(scenario: Scenario, run: EngineRun) -> dict:
+    return {
+        **_common(scenario, run),
+        "metric": "status",
+        "value": None,
+        "expected": None,
+        "expected_kind": "",
+        "error": None,
+        "tolerance": None,
+        "passed": False,
+        "status": run.status,
+        "message": run.message,
+    }
+
+
+def compare_scene(scenario: Scenario, runs: list[EngineRun]) -> list[dict]:
+    """Rows for every engine run of one scene; the first engine that ran is the reference
+    of ``divergence`` for the others."""
+    rows: list[dict] = []
+    contexts = {
+        run.engine: Context(scenario, run.recording) for run in runs if run.recording is not None
+    }
+    reference = next(iter(contexts), None)
+    for run in runs:
+        if run.recording is None:
+            rows.append(_status_row(scenario, run))
+            continue
+        ctx = contexts[run.engine]
+        results = measure(ctx)
+        if reference is not None and run.engine != reference:
+            found = divergence(ctx, contexts[reference], reference)
+            results += [found] if found is not None else []
+        status = run.status
+        energy = next((r for r in results if r.metric == "energy_drift"), None)
+        if status == "ok" and energy is not None and energy.value > ENERGY_BLOW_UP:
+            status, run.message = (
+                "unstable",
+                f"energy grew {energy.value:.3g} times its initial value",
+            )
+        rows += [_row(scenario, run, result, status) for result in results]
+        if run.status != "ok" or status == "unstable":
+            rows.append(_status_row(scenario, EngineRun(**{**run.__dict__, "status": status})))
+    return rows

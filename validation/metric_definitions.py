@@ -1,0 +1,41 @@
+"""One line per metric: the definition the report's legend prints (issue 5 fixes the names).
+
+The code that computes each metric is in ``validation.metrics``; this table is its
+contract, kept apart so that a report can be rendered without importing any engine.
+"""
+
+from __future__ import annotations
+
+METRIC_DEFINITIONS: dict[str, str] = {
+    "energy_drift": "max over t of |E(t) - E(0)| / |E(0)|, E = kinetic (translational + rotational) "
+    "+ gravitational potential + spring energy; absolute (J) when E(0) = 0",
+    "angular_momentum_drift": "max over t of |L(t) - L(0)| / |L(0)|, L of all bodies about the "
+    "system's centre of mass, world frame; absolute when L(0) = 0; defined only while no fixed "
+    "body, ground or spring to the world acts",
+    "linear_momentum_drift": "max over t of |p(t) - p(0) - M g t| / max(|p(0)|, M |g| t_end); defined "
+    "only while no fixed body, ground or spring to the world acts",
+    "position_error": "max over t and bodies of the distance (m) from the analytic ballistic "
+    "trajectory; only for scenes where nothing can touch and no spring acts",
+    "velocity_error": "max over t and bodies of the distance (m/s) from the analytic ballistic "
+    "velocity; only for scenes where nothing can touch and no spring acts",
+    "restitution_error": "max over impacts of |e_measured - e_requested|, e_measured = "
+    "-(v_rel'·n)/(v_rel·n) from the impact events (velocities carried to the impulse centroid)",
+    "penetration_max": "the deepest overlap (m) of any two shapes over the sampled states",
+    "divergence": "max over t of the centre-of-mass distance (m) between this engine and the "
+    "reference engine of the scene (the first engine listed) on the same scene",
+}
+"""Metric name -> the one-line definition shown in the report legend."""
+
+EXPECTATION_DEFINITIONS: dict[str, str] = {
+    "velocity_after_impact": "|v(after the body's first impact) - expected| (m/s)",
+    "position_at": "|x(time) - expected| (m), the sample nearest the stated time",
+    "velocity_at": "|v(time) - expected| (m/s), the sample nearest the stated time",
+    "bounce_heights": "max over bounces of |apex height of the COM - expected| (m)",
+    "precession_rate": "|fitted body-frame precession rate - expected| (rad/s)",
+    "flips": "|number of sign changes of the body-axis angular velocity - expected|",
+}
+"""Expectation kind -> the definition of its metric (named ``<kind>.<body>``)."""
+
+EXPECTED_KINDS = ("analytic", "conserved", "engine")
+"""What a row was compared against: a closed form, a conserved quantity's initial value,
+or another engine (written ``engine:<spec>``)."""

@@ -1,0 +1,335 @@
+"""``physval run``: every scene in every engine, measured, compared, written as a report.
+
+The run folder (``reports/latest/`` by default, plus a timestamped copy under
+``reports/runs/``) holds ``results.csv`` (the record), ``series.csv``, ``impacts.csv``,
+``provenance.json`` and ``report.html`` (rendered from the others). It is assembled in a
+staging folder next to its destination and moved into place at the end, so an
+interrupted run never leaves a half-written report.
+"""
+
+from __future__ import annotations
+
+import datetime as dt_module
+import fnmatch
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from validation.comparator import BAD_STATUSES, COLUMNS, compare_scene
+from validation.engine_spec import EngineSpec, EngineSpecError, parse_engine_spec, split_engine_list
+from validation.metrics import Context
+from validation.runner import EngineRun, run_engine
+from validation.scenario import Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scene_physics import pair_value
+
+MAX_SAMPLES = 5000
+"""Trajectory samples kept per run: every step for the library's impact scenes (at most a few
+thousand steps), every k-th step for long ones, so metrics see impacts and apexes."""
+
+MAX_SERIES_POINTS = 1000
+"""Points per (scene, engine) written to series.csv for the report's plots."""
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+@dataclass
+class Plan:
+    """What to run: validated scenes, each with its engine specs."""
+
+    scenes: list[tuple[Scenario, list[EngineSpec]]]
+
+
+class BadInputError(ValueError):
+    """User input that stops the run before anything is written (exit code 2)."""
+
+
+def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
+    """Load and validate everything first; raises ``BadInputError`` listing every problem."""
+    problems: list[str] = []
+    overrides: list[EngineSpec] | None = None
+    if engines is not None:
+        overrides = []
+        for text in split_engine_list(engines) or [""]:
+            try:
+                overrides.append(parse_engine_spec(text))
+            except EngineSpecError as error:
+                problems.append(f"--engines: {error}")
+    if dt is not None and not (np.isfinite(dt) and dt > 0):
+        problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
+    missing = [p for p in paths if not p.exists()]
+    problems += [f"{p}: no such file or folder" for p in missing]
+    scenes: list[tuple[Scenario, list[EngineSpec]]] = []
+    for file in scenario_files([p for p in paths if p.exists()]):
+        try:
+            scenario = load_scenario(file)
+        except ScenarioError as error:
+            problems += [str(p) for p in error.problems]
+            continue
+        if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
+            continue
+        if dt is not None and not problems:
+            try:
+                scenario = Scenario.model_validate(
+                    {**scenario.model_dump(), "dt": dt, "source": scenario.source}
+                )
+            except ValueError as error:
+                problems.append(f"--dt {dt} for {file}: {error}")
+                continue
+            if scenario.steps < 1 or scenario.duration / dt > 5_000_000:
+                problems.append(
+                    f"--dt {dt} for {file}: {scenario.duration / dt:.3g} steps is out of range"
+                )
+                continue
+        scenes.append((scenario, overrides or list(scenario.engine_specs)))
+    if not scenes and not problems:
+        problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
+    if problems:
+        raise BadInputError("\n".join(problems))
+    return Plan(scenes)
+
+
+def _sample_every(scenario: Scenario) -> int:
+    return max(1, -(-scenario.steps // MAX_SAMPLES))
+
+
+class Progress:
+    """A one-line progress bar on a terminal; silent when stderr is not one."""
+
+    def __init__(self, total: int):
+        self.total, self.done = total, 0
+        self.active = sys.stderr.isatty()
+
+    def step(self, label: str) -> None:
+        self.done += 1
+        if self.active:
+            width = 30
+            filled = width * self.done // self.total
+            sys.stderr.write(
+                f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {label[:60]:<60}"
+            )
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.active:
+            sys.stderr.write("\n")
+
+
+def _series_rows(scenario: Scenario, run: EngineRun) -> pd.DataFrame:
+    series = Context(scenario, run.recording).series
+    keep = np.unique(
+        np.linspace(0, series.t.size - 1, min(series.t.size, MAX_SERIES_POINTS)).astype(int)
+    )
+    frame = pd.DataFrame(
+        {
+            "t": series.t[keep],
+            "energy": series.energy[keep],
+            **{f"p{axis}": series.momentum[keep, i] for i, axis in enumerate("xyz")},
+            **{f"L{axis}": series.angular_momentum[keep, i] for i, axis in enumerate("xyz")},
+        }
+    )
+    frame.insert(0, "engine", run.engine)
+    frame.insert(0, "scenario", scenario.name)
+    return frame
+
+
+def _impact_rows(scenario: Scenario, run: EngineRun) -> list[dict]:
+    return [
+        {
+            "scenario": scenario.name,
+            "engine": run.engine,
+            "body_a": event.body_a,
+            "body_b": event.body_b,
+            "time": event.time_start,
+            "e_requested": pair_value(scenario, event.body_a, event.body_b, "restitution"),
+            "e_measured": event.restitution,
+            "normal_velocity_before": event.normal_velocity_before,
+            "normal_velocity_after": event.normal_velocity_after,
+        }
+        for event in run.recording.impacts
+    ]
+
+
+def _git_commit() -> str:
+    try:
+        found = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=False,
+            cwd=Path(__file__).resolve().parent,
+        )
+        return found.stdout.strip() or "unknown"
+    except OSError:
+        return "unknown"
+
+
+def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
+    engines = {}
+    for run in runs:
+        if run.provenance is not None and run.engine not in engines:
+            p = run.provenance
+            engines[run.engine] = {
+                "engine": p.engine,
+                "version": p.version,
+                "settings": p.settings,
+                "notes": p.notes,
+            }
+    return {
+        "command": " ".join(["physval", *argv]),
+        "git_commit": _git_commit(),
+        "created": dt_module.datetime.now(dt_module.UTC).isoformat(timespec="seconds"),
+        "machine": {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(),
+            "numpy": np.__version__,
+        },
+        "engines": engines,
+    }
+
+
+def execute(plan: Plan) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
+    """Run every (scene, engine); returns rows, series frames, impact rows and the runs."""
+    progress = Progress(sum(len(specs) for _, specs in plan.scenes))
+    rows, series, impacts, all_runs = [], [], [], []
+    for scenario, specs in plan.scenes:
+        runs = []
+        for spec in specs:
+            progress.step(f"{scenario.name} · {spec.label}")
+            runs.append(run_engine(scenario, spec, _sample_every(scenario)))
+        rows += compare_scene(scenario, runs)
+        for run in runs:
+            if run.recording is not None:
+                series.append(_series_rows(scenario, run))
+                impacts += _impact_rows(scenario, run)
+        all_runs += runs
+    progress.close()
+    return rows, series, impacts, all_runs
+
+
+def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
+    """The record files of one run into ``folder`` (which must exist)."""
+    results = pd.DataFrame(rows, columns=list(COLUMNS))
+    results.to_csv(folder / "results.csv", index=False)
+    frames = [f for f in series if not f.empty]
+    if frames:
+        pd.concat(frames, ignore_index=True).to_csv(folder / "series.csv", index=False)
+    pd.DataFrame(
+        impacts,
+        columns=[
+            "scenario",
+            "engine",
+            "body_a",
+            "body_b",
+            "time",
+            "e_requested",
+            "e_measured",
+            "normal_velocity_before",
+            "normal_velocity_after",
+        ],
+    ).to_csv(folder / "impacts.csv", index=False)
+    (folder / "provenance.json").write_text(json.dumps(provenance, indent=2, default=str))
+
+
+def publish(stage: Path, destination: Path) -> None:
+    """Move the finished ``stage`` folder to ``destination``, replacing an older run."""
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    old = None
+    if destination.exists():
+        old = destination.with_name(f".{destination.name}.old-{os.getpid()}")
+        os.replace(destination, old)
+    os.replace(stage, destination)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def render_html(folder: Path) -> str:
+    """Render report.html; returns a note when the renderer is not available or fails."""
+    try:
+        from validation.report import render_report
+    except ImportError:
+        return "report.html not rendered: the HTML renderer is not installed"
+    render_report(folder)
+    return ""
+
+
+def summary(rows: list[dict]) -> str:
+    """Scenes x engines: PASS, FAIL or the status, with the worst error/tolerance ratio."""
+    table = pd.DataFrame(rows, columns=list(COLUMNS))
+    if table.empty:
+        return "(no rows)"
+    cells = {}
+    for (scene, engine), group in table.groupby(["scenario", "engine"], sort=False):
+        statuses = set(group["status"])
+        bad = [s for s in BAD_STATUSES if s in statuses]
+        checked = group.dropna(subset=["tolerance"])
+        ratio = (
+            (
+                checked["error"].astype(float)
+                / checked["tolerance"].astype(float).clip(lower=1e-300)
+            ).max()
+            if not checked.empty
+            else None
+        )
+        word = (
+            (bad[0] if bad[0] != "failed" else "FAIL")
+            if bad
+            else ("PASS" if not checked.empty else "-")
+        )
+        cells[(scene, engine)] = (
+            word if ratio is None or not np.isfinite(ratio) else f"{word} {ratio:.2g}"
+        )
+    scenes = list(dict.fromkeys(table["scenario"]))
+    engines = list(dict.fromkeys(table["engine"]))
+    grid = pd.DataFrame(
+        [[cells.get((s, e), "") for e in engines] for s in scenes], index=scenes, columns=engines
+    )
+    return grid.to_string()
+
+
+def run_main(
+    paths: list[Path],
+    engines: str | None,
+    out: Path | None,
+    dt: float | None,
+    only: str | None,
+    argv: list[str],
+) -> int:
+    """The whole job; returns the exit code (0 all passed, 1 any failed or unstable, 2 bad input)."""
+    try:
+        plan = plan_run(paths, engines, dt, only)
+    except BadInputError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    rows, series, impacts, runs = execute(plan)
+    destination = out or Path("reports") / "latest"
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{destination.name}-staging-", dir=destination.parent))
+    try:
+        write_run(stage, rows, series, impacts, _provenance(runs, argv))
+        note = render_html(stage)
+        publish(stage, destination)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    if out is None:  # the default run also keeps a timestamped copy
+        stamp = dt_module.datetime.now(dt_module.UTC).strftime("%Y%m%d-%H%M%S")
+        shutil.copytree(destination, destination.parent / "runs" / stamp, dirs_exist_ok=True)
+    print(summary(rows))
+    bad = sum(row["status"] in BAD_STATUSES for row in rows)
+    print(
+        f"{len(rows)} rows, {bad} failed or unstable -> {destination / 'results.csv'}"
+        + (f"; {note}" if note else "")
+    )
+    return EXIT_FAILED if bad else EXIT_OK
