@@ -255,12 +255,14 @@ def publish(stage: Path, destination: Path) -> None:
 
 
 def render_html(folder: Path) -> str:
-    """Render report.html; returns a note when the renderer is not available or fails."""
+    """Render report.html; returns a note instead of failing the run when rendering fails
+    (results.csv is the record; ``physval report DIR`` can render it again later)."""
+    from validation.report import render_report
+
     try:
-        from validation.report import render_report
-    except ImportError:
-        return "report.html not rendered: the HTML renderer is not installed"
-    render_report(folder)
+        render_report(folder)
+    except Exception as error:  # a rendering bug must not lose the run's record
+        return f"report.html not rendered ({type(error).__name__}: {error}); try physval report"
     return ""
 
 
