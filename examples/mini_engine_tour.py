@@ -2,7 +2,7 @@
 
 Runs a handful of scenes with the documented formulas and their named options,
 compares each measured number with its closed form, prints a table and writes
-``reports/latest/mini_engine_tour.csv`` (atomically). Exit code 0 when every
+``reports/tour/mini_engine_tour.csv`` (atomically). Exit code 0 when every
 check passed, 1 otherwise.
 
     python examples/mini_engine_tour.py [--out DIR]
@@ -145,7 +145,7 @@ def write_atomically(table: pd.DataFrame, path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("reports/latest"), help="output folder")
+    parser.add_argument("--out", type=Path, default=Path("reports/tour"), help="output folder")
     args = parser.parse_args(argv)
     rows = [r for demo in DEMONSTRATIONS.values() for r in demo()]
     table = pd.DataFrame(rows)

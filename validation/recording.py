@@ -105,8 +105,10 @@ class ImpactEvent:
 @dataclass
 class _OpenImpact:
     start: float
-    point: np.ndarray
     normal: np.ndarray
+    arm_a: np.ndarray
+    """(3,) m, world frame: contact point minus A's centre at first contact."""
+    arm_b: np.ndarray
     history: list[tuple[float, float]]
     """(time s, relative normal velocity m/s) from the last observation before contact on."""
 
@@ -125,7 +127,7 @@ class ImpactDetector:
         self.body_gravity = np.where(self.model.body_fixed[:, None], 0.0, self.model.gravity)
         self.open: dict[tuple[int, int], _OpenImpact] = {}
         self.previous: Snapshot | None = None
-        self.previous_touching: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self.previous_touching: dict = {}
 
     def _full(self, snap: Snapshot, name: str) -> np.ndarray:
         """Snapshot array for every model body (the ground keeps its initial value)."""
@@ -135,27 +137,28 @@ class ImpactDetector:
             full[self.count :] = 0.0
         return full
 
-    def _touching(self, snap: Snapshot) -> dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]:
-        """Pairs in contact: (a, b) -> (deepest point, normal A→B)."""
+    def _touching(
+        self, snap: Snapshot
+    ) -> dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]]:
+        """Pairs in contact: (a, b) -> (deepest point, normal A→B, depth)."""
         pos, quat = self._full(snap, "pos"), self._full(snap, "quat")
         contacts = detect_contacts(self.model, pos, quat_to_matrix(quat), DETECTION_GAP)
         found: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]] = {}
         for a, b, point, normal, depth in zip(*contacts, strict=True):
             key = (int(a), int(b))
             if key not in found or depth > found[key][2]:
-                found[key] = (point, normal, depth)
-        return {key: (p, n) for key, (p, n, _) in found.items()}
+                found[key] = (point, normal, float(depth))
+        return found
 
-    def _normal_velocity(self, snap: Snapshot, key, point, normal) -> float:
-        pos, vel, ang_vel = (
-            self._full(snap, "pos"),
-            self._full(snap, "vel"),
-            self._full(snap, "ang_vel"),
-        )
+    def _normal_velocity(self, snap: Snapshot, key, impact: _OpenImpact) -> float:
+        """(v_PB - v_PA)·n with the arms and normal frozen at first contact, so every
+        observation of one impact is measured along the impulse's own direction (for
+        spinning spheres the arms stay on the line of centres: ω × r adds nothing)."""
+        vel, ang_vel = self._full(snap, "vel"), self._full(snap, "ang_vel")
         a, b = key
-        v_a = vel[a] + np.cross(ang_vel[a], point - pos[a])
-        v_b = vel[b] + np.cross(ang_vel[b], point - pos[b])
-        return float((v_b - v_a) @ normal)
+        v_a = vel[a] + np.cross(ang_vel[a], impact.arm_a)
+        v_b = vel[b] + np.cross(ang_vel[b], impact.arm_b)
+        return float((v_b - v_a) @ impact.normal)
 
     def _event(
         self, key: tuple[int, int], impact: _OpenImpact, end: float, separated: bool
@@ -201,17 +204,18 @@ class ImpactDetector:
             return
         touching = self._touching(snap)
         previous = self.previous
-        for key, (point, normal) in touching.items():
+        pos = self._full(snap, "pos")
+        for key, (point, normal, _) in touching.items():
             if key not in self.previous_touching and previous is not None and key not in self.open:
-                before = self._normal_velocity(previous, key, point, normal)
+                impact = _OpenImpact(
+                    snap.time, normal, point - pos[key[0]], point - pos[key[1]], []
+                )
+                before = self._normal_velocity(previous, key, impact)
                 if before < -IMPACT_MIN_SPEED:
-                    self.open[key] = _OpenImpact(
-                        snap.time, point, normal, [(previous.time, before)]
-                    )
+                    impact.history.append((previous.time, before))
+                    self.open[key] = impact
         for key, impact in list(self.open.items()):
-            impact.history.append(
-                (snap.time, self._normal_velocity(snap, key, impact.point, impact.normal))
-            )
+            impact.history.append((snap.time, self._normal_velocity(snap, key, impact)))
             separated = key not in touching
             if separated or self._stuck(impact):
                 del self.open[key]
