@@ -10,14 +10,16 @@ shapes separate again. Pairs still touching at the end (resting contacts) give n
 
 Gravity keeps acting while the shapes touch (for a body-ground pair it changes the
 relative normal velocity by g·dt each step: 5 % of a 0.4 m/s impact per ms). So the
-velocities before and after are both carried ballistically to the same instant, the
-*impulse centroid* t*: the mean of the step end times weighted by each step's non-gravity
-change of the relative normal velocity. Then ``before = v_pre + a (t* - t_pre)`` and
-``after = v_post - a (t_post - t*)``, with ``a = (g_B - g_A)·n``. For an engine that
+velocities before and after are both carried to the same instant, the *impulse
+centroid* t*: the mean of the step end times weighted by each step's change of the
+relative normal velocity beyond the approach acceleration ``a``. Then
+``before = v_pre + a (t* - t_pre)`` and ``after = v_post - a (t_post - t*)``. ``a`` is
+measured from the two observations before contact (so a ball landing on a ball that
+rests on the ground is carried by g, not by the free fall of both). For an engine that
 resolves an impact within one semi-implicit step (mini_engine, MuJoCo Euler with the
 one-step damper, PyBullet) this recovers exactly the velocities its solver saw; for soft
-contacts lasting several steps it is the natural average. Springs are not carried (the
-library's spring scenes have no impacts).
+contacts lasting several steps it is the natural average. Arms and normal are frozen at
+first contact, so every observation is measured along the impulse's own direction.
 """
 
 from __future__ import annotations
@@ -110,6 +112,8 @@ class _OpenImpact:
     """(3,) m, world frame: contact point minus A's centre at first contact."""
     arm_b: np.ndarray
     history: list[tuple[float, float]]
+    accel: float = 0.0
+    """m/s², relative normal acceleration before contact (what acts besides the impulse)."""
     """(time s, relative normal velocity m/s) from the last observation before contact on."""
 
 
@@ -127,6 +131,7 @@ class ImpactDetector:
         self.body_gravity = np.where(self.model.body_fixed[:, None], 0.0, self.model.gravity)
         self.open: dict[tuple[int, int], _OpenImpact] = {}
         self.previous: Snapshot | None = None
+        self.before_previous: Snapshot | None = None
         self.previous_touching: dict = {}
 
     def _full(self, snap: Snapshot, name: str) -> np.ndarray:
@@ -169,8 +174,7 @@ class ImpactDetector:
         with no relative normal motion (a plastic impact, e = 0).
         """
         times, speeds = np.array(impact.history).T
-        gravity = self.body_gravity[key[1]] - self.body_gravity[key[0]]
-        accel = float(gravity @ impact.normal)
+        accel = impact.accel
         pushed = np.diff(speeds) - accel * np.diff(times)  # non-gravity change per step
         if pushed.sum() <= 0.0:
             return None
@@ -189,6 +193,18 @@ class ImpactDetector:
             normal_velocity_before=float(speeds[0] + accel * (centroid - times[0])),
             normal_velocity_after=after,
         )
+
+    def _approach_acceleration(self, key, impact: _OpenImpact, before: float) -> float:
+        """Relative normal acceleration (m/s²) just before contact, from the two observations
+        before it: whatever acts (gravity, a support under the other body, springs). Without
+        two earlier observations: free fall of both bodies, (g_B - g_A)·n."""
+        earlier = self.before_previous
+        if earlier is not None and self.previous is not None and self.previous.time > earlier.time:
+            return (before - self._normal_velocity(earlier, key, impact)) / (
+                self.previous.time - earlier.time
+            )
+        gravity = self.body_gravity[key[1]] - self.body_gravity[key[0]]
+        return float(gravity @ impact.normal)
 
     def _stuck(self, impact: _OpenImpact) -> bool:
         """Still touching, with no relative normal motion for ``PLASTIC_OBSERVATIONS``
@@ -213,6 +229,7 @@ class ImpactDetector:
                 before = self._normal_velocity(previous, key, impact)
                 if before < -IMPACT_MIN_SPEED:
                     impact.history.append((previous.time, before))
+                    impact.accel = self._approach_acceleration(key, impact, before)
                     self.open[key] = impact
         for key, impact in list(self.open.items()):
             impact.history.append((snap.time, self._normal_velocity(snap, key, impact)))
@@ -222,7 +239,7 @@ class ImpactDetector:
                 event = self._event(key, impact, snap.time, separated)
                 if event is not None:
                     self.events.append(event)
-        self.previous, self.previous_touching = snap, touching
+        self.before_previous, self.previous, self.previous_touching = self.previous, snap, touching
 
 
 @dataclass
