@@ -28,9 +28,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
-import mmap
 from dataclasses import dataclass, field
-from functools import cache
 
 import numpy as np
 import pybullet
@@ -367,28 +365,6 @@ def per_object_values(count: int, targets, tiers, anchor: int | None, weights=No
 
 
 # --- provenance helpers -----------------------------------------------------------------
-
-
-@cache
-def build_string() -> str:
-    """PyBullet's build time as its extension prints it on import ("Jan 29 2025 23:17:20").
-
-    The C module prints ``pybullet build time: __DATE__ __TIME__`` once, to stdout; the two
-    strings sit just before the format in its read-only data, which is where this reads them.
-    """
-    marker = b"\x00pybullet build time:"
-    try:
-        with (
-            open(pybullet.__file__, "rb") as handle,
-            mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data,
-        ):
-            end = data.find(marker)
-            if end < 0:
-                return "unknown"
-            time_text, date_text = data[max(0, end - 40) : end].split(b"\x00")[-2:]
-            return f"{date_text.decode()} {time_text.decode()}"
-    except (OSError, ValueError, UnicodeDecodeError):
-        return "unknown"
 
 
 # --- the adapter ----------------------------------------------------------------------------
@@ -756,7 +732,6 @@ class PybulletAdapter:
         """PyBullet's version, API and build, its reported parameters and everything set."""
         settings: dict[str, object] = {
             "api_version": pybullet.getAPIVersion(physicsClientId=self.client),
-            "build": build_string(),
             "engine_parameters": self._engine_parameters(),
             "profile": self.profile_name,
             "bodies": self.bodies_mode,
