@@ -130,3 +130,53 @@ def test_measure_lists_only_definable_metrics_for_a_free_body():
         "position_error",
         "velocity_error",
     }, names
+
+
+def test_angular_momentum_drift_by_hand():
+    """Two 2 kg spheres at x = ±1 m moving ±1 m/s along y: L about their centre = 4 kg·m²/s
+    along z; moving them to ±1.1 m/s gives 4.4: drift 0.1."""
+    two = scene(
+        gravity=[0, 0, 0],
+        bodies=[
+            {
+                "name": "a",
+                "shape": {"type": "sphere", "radius": 0.1},
+                "mass": 2.0,
+                "position": [1, 0, 0],
+            },
+            {
+                "name": "b",
+                "shape": {"type": "sphere", "radius": 0.1},
+                "mass": 2.0,
+                "position": [-1, 0, 0],
+            },
+        ],
+    )
+    pos = np.array([[[1.0, 0, 0], [-1.0, 0, 0]]] * 2)
+    vel = np.array([[[0, 1.0, 0], [0, -1.0, 0]], [[0, 1.1, 0], [0, -1.1, 0]]])
+    traj = Trajectory(
+        np.array([0.0, 0.1]), pos, np.tile([1.0, 0, 0, 0], (2, 2, 1)), vel, np.zeros_like(vel)
+    )
+    result = METRICS["angular_momentum_drift"](Context(two, Recording(traj, [], 0.0)))
+    assert result.value == pytest.approx(0.1) and result.expected == pytest.approx(4.0)
+
+
+def test_penetration_max_is_the_deepest_overlap_over_the_samples():
+    """A 0.1 m sphere at heights 0.2, 0.097, 0.099 m above the ground: 3 mm deepest."""
+    grounded = scene(ground={})
+    pos = [[0, 0, 0.2], [0, 0, 0.097], [0, 0, 0.099]]
+    result = METRICS["penetration_max"](context(grounded, pos, np.zeros((3, 3))))
+    assert result.value == pytest.approx(0.003)
+    assert METRICS["penetration_max"](context(scene(), pos, np.zeros((3, 3)))) is None, (
+        "nothing can touch"
+    )
+
+
+def test_divergence_is_the_largest_centre_of_mass_distance_to_the_reference():
+    from validation.metrics import divergence
+
+    base = scene()
+    reference = context(base, [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0]], np.zeros((3, 3)))
+    other = context(base, [[0, 0, 0], [0.1, 0.004, 0], [0.2, 0, 0.002]], np.zeros((3, 3)))
+    result = divergence(other, reference, "mini")
+    assert result.value == pytest.approx(0.004) and result.expected_kind == "engine:mini"
