@@ -75,6 +75,24 @@ def command_report(args: argparse.Namespace) -> int:
     return report_command(args.folder)
 
 
+def command_stability(args: argparse.Namespace) -> int:
+    """Largest stable dt per scene and engine, by bisection; writes stability.csv."""
+    from validation.run import BadInputError, plan_run, write_table
+    from validation.stability import stability_limit
+
+    try:
+        plan = plan_run(args.paths or default_scenario_paths(), args.engines, None, args.only)
+    except BadInputError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    limits = [stability_limit(scenario, spec) for scenario, specs in plan.scenes for spec in specs]
+    for limit in limits:
+        print(limit.sentence())
+    rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
+    write_table(rows, args.out or Path("reports") / "stability.csv")
+    return EXIT_OK
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -84,6 +102,7 @@ def command_schema(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "run": (command_run, "run scenes in engines and write results.csv and report.html"),
     "report": (command_report, "re-render report.html of a run folder"),
+    "stability": (command_stability, "find the largest stable dt per scene and engine"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
 }
@@ -126,8 +145,20 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
 
 
+def _stability_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "paths", nargs="*", type=Path, metavar="PATHS", help="scenario files or folders"
+    )
+    command.add_argument("--engines", metavar="SPECS", help='e.g. "mini, mujoco(integrator=RK4)"')
+    command.add_argument(
+        "--out", type=Path, metavar="FILE", help="CSV (default reports/stability.csv)"
+    )
+    command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
+
+
 ARGUMENTS = {
     "run": _run_arguments,
+    "stability": _stability_arguments,
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
 }

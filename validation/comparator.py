@@ -38,10 +38,6 @@ COLUMNS = (
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 """Row statuses that make ``physval run`` exit 1."""
 
-ENERGY_BLOW_UP = 1e3
-"""Relative energy drift beyond which a run that stayed finite still counts as unstable:
-a thousand times the initial energy is an explosion, not an integration error."""
-
 
 def _common(scenario: Scenario, run: EngineRun) -> dict:
     provenance = run.provenance
@@ -113,14 +109,7 @@ def compare_scene(scenario: Scenario, runs: list[EngineRun]) -> list[dict]:
         if reference is not None and run.engine != reference:
             found = divergence(ctx, contexts[reference], reference)
             results += [found] if found is not None else []
-        status = run.status
-        energy = next((r for r in results if r.metric == "energy_drift"), None)
-        if status == "ok" and energy is not None and energy.value > ENERGY_BLOW_UP:
-            status, run.message = (
-                "unstable",
-                f"energy grew {energy.value:.3g} times its initial value",
-            )
-        rows += [_row(scenario, run, result, status) for result in results]
-        if run.status != "ok" or status == "unstable":
-            rows.append(_status_row(scenario, EngineRun(**{**run.__dict__, "status": status})))
+        rows += [_row(scenario, run, result, run.status) for result in results]
+        if run.status != "ok":
+            rows.append(_status_row(scenario, run))
     return rows

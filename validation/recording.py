@@ -34,6 +34,7 @@ from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import EngineAdapter, Snapshot
 from validation.mini_scene import GROUND, build_mini_model
 from validation.scenario import Scenario
+from validation.stability import StabilityMonitor
 
 DETECTION_GAP = 1e-6
 """m. Shapes closer than this count as touching (mini_engine's contact margin), so a body
@@ -132,6 +133,7 @@ class ImpactDetector:
         self.open: dict[tuple[int, int], _OpenImpact] = {}
         self.previous: Snapshot | None = None
         self.before_previous: Snapshot | None = None
+        self.deepest: tuple[float, float] = (0.0, float("inf"))
         self.previous_touching: dict = {}
 
     def _full(self, snap: Snapshot, name: str) -> np.ndarray:
@@ -194,6 +196,14 @@ class ImpactDetector:
             normal_velocity_after=after,
         )
 
+    def _deepest(self, touching) -> tuple[float, float]:
+        """(deepest overlap m, smaller bounding radius m of that pair) in ``touching``."""
+        if not touching:
+            return 0.0, float("inf")
+        (a, b), (_, _, depth) = max(touching.items(), key=lambda item: item[1][2])
+        radius = min(self.model.body_bound_radius[a], self.model.body_bound_radius[b])
+        return max(depth, 0.0), float(radius)
+
     def _approach_acceleration(self, key, impact: _OpenImpact, before: float) -> float:
         """Relative normal acceleration (m/s²) just before contact, from the two observations
         before it: whatever acts (gravity, a support under the other body, springs). Without
@@ -219,6 +229,7 @@ class ImpactDetector:
         if not self.can_touch:
             return
         touching = self._touching(snap)
+        self.deepest = self._deepest(touching)
         previous = self.previous
         pos = self._full(snap, "pos")
         for key, (point, normal, _) in touching.items():
@@ -251,27 +262,27 @@ class Recording:
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     unstable: str | None = None
-    """Why the run stopped early (a non-finite state), or None when it ran to the end."""
-
-
-def _non_finite(snap: Snapshot) -> bool:
-    return not all(np.isfinite(a).all() for a in (snap.pos, snap.quat, snap.vel, snap.ang_vel))
+    """Why the run failed (``kind: detail``, kinds in ``stability.KINDS``), or None."""
 
 
 def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) -> Recording:
     """Run the loaded ``adapter`` for the scene's duration; sample every ``sample_every`` steps.
 
     Scenes that can touch are observed every step (for the impact detector); the others
-    only at the samples, so a contact-free scene pays for nothing it does not need.
+    only at the samples, so a contact-free scene pays for nothing it does not need. Every
+    observation goes through the stability taxonomy; the first failure ends the run
+    (``Recording.unstable`` names its kind).
     """
     detector = ImpactDetector(scenario)
+    monitor = StabilityMonitor(scenario)
     every_step = detector.can_touch
     first = adapter.observe()
     detector.update(first)
     samples = [first]
     stepping = 0.0
     done = 0
-    while done < scenario.steps:
+    failure = monitor.check(first)
+    while done < scenario.steps and failure is None:
         chunk = 1 if every_step else min(sample_every, scenario.steps - done)
         start = time.perf_counter()
         adapter.advance(chunk)
@@ -279,13 +290,13 @@ def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) ->
         done += chunk
         if every_step or done % sample_every == 0 or done == scenario.steps:
             snap = adapter.observe()
-            if _non_finite(snap):
+            failure = monitor.check(snap)
+            if failure is None:
+                detector.update(snap)
+                failure = monitor.check_overlap(*detector.deepest, snap.time)
+            if failure is not None or done % sample_every == 0 or done == scenario.steps:
                 samples.append(snap)
-                reason = f"non-finite state at t = {snap.time:.6g} s (step {done})"
-                return Recording(
-                    Trajectory.from_snapshots(samples), detector.events, stepping, reason
-                )
-            detector.update(snap)
-            if done % sample_every == 0 or done == scenario.steps:
-                samples.append(snap)
-    return Recording(Trajectory.from_snapshots(samples), detector.events, stepping)
+    warnings = getattr(adapter, "instability_warnings", list)()
+    if failure is None and warnings:
+        failure = "engine_warning: " + "; ".join(warnings)
+    return Recording(Trajectory.from_snapshots(samples), detector.events, stepping, failure)

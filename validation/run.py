@@ -242,6 +242,19 @@ def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
     (folder / "provenance.json").write_text(json.dumps(provenance, indent=2, default=str))
 
 
+def write_table(rows: list[dict], path: Path) -> None:
+    """A CSV written to a temporary name beside ``path``, then renamed over it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(handle)
+    try:
+        pd.DataFrame(rows).to_csv(temporary, index=False)
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.remove(temporary)
+
+
 def publish(stage: Path, destination: Path) -> None:
     """Move the finished ``stage`` folder to ``destination``, replacing an older run."""
     destination.parent.mkdir(parents=True, exist_ok=True)

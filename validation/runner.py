@@ -6,7 +6,9 @@ returns an ``EngineRun`` whose ``status`` says what happened:
 - ``ok``: the engine ran the whole scene;
 - ``model_mismatch``: its model differs from the scenario (the message names the
   quantity and both values); it is not run, since its numbers would mean nothing;
-- ``unstable``: the state became non-finite (the run stops there, kept for the report);
+- ``unstable``: the run failed one of the stability checks (``stability.KINDS``: non-finite
+  state, energy blow-up, quaternion drift, tunnelling, impossible speed, the engine's own
+  instability warning); the run stops there and is kept for the report;
 - ``error``: the engine raised; the message carries the exception.
 
 Metrics and the comparison with tolerances (``failed``) come on top of this (issue 5).

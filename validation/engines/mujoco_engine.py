@@ -374,6 +374,16 @@ def build_mjcf(scenario: Scenario, settings: dict[str, object]) -> tuple[str, Co
 
 # --- provenance helpers -------------------------------------------------------------------
 
+INSTABILITY_WARNINGS = (
+    "mjWARN_BADQACC",
+    "mjWARN_BADQPOS",
+    "mjWARN_BADQVEL",
+    "mjWARN_CNSTRFULL",
+    "mjWARN_CONTACTFULL",
+)
+"""MuJoCo warnings that mean the simulation broke down (it resets the state on bad
+qacc/qpos/qvel, which would otherwise hide an explosion) or silently lost contacts."""
+
 OPTION_ENUMS: dict[str, type] = {
     "integrator": mujoco.mjtIntegrator,
     "solver": mujoco.mjtSolver,
@@ -549,6 +559,16 @@ class MujocoAdapter:
                 "pushed off the ground at ≈ μ|v_t| (measured 0.8 m/s at 2 m/s, μ = 0.5)"
             )
         return caveats
+
+    def instability_warnings(self) -> list[str]:
+        """MuJoCo's own instability warnings raised so far (bad qacc/qpos/qvel: it reset the
+        state; full constraint or contact buffers: it dropped contacts), as text."""
+        found = []
+        for name in INSTABILITY_WARNINGS:
+            count = self.data.warning[int(getattr(mujoco.mjtWarning, name))].number
+            if count:
+                found.append(f"MuJoCo {name} x{count}")
+        return found
 
     def close(self) -> None:
         """Drop the model and data (MuJoCo frees them with the Python objects)."""

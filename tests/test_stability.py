@@ -1,0 +1,106 @@
+"""Stability taxonomy and the largest stable step, on the canonical stiff case."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from validation.engine_spec import parse_engine_spec
+from validation.scenario import Scenario
+from validation.stability import (
+    BISECTION_RATIO,
+    StabilityMonitor,
+    largest_stable_dt,
+    stability_limit,
+)
+
+STIFFNESS, MASS = 1.0e6, 1.0
+OMEGA = math.sqrt(STIFFNESS / MASS)
+
+
+def oscillator(dt: float = 1e-3, duration: float = 2.0) -> Scenario:
+    """An undamped k = 1e6 N/m oscillator (ω = 1000 rad/s), released 1 cm out, no gravity."""
+    return Scenario.model_validate(
+        {
+            "name": "stiff_oscillator",
+            "dt": dt,
+            "duration": duration,
+            "gravity": [0, 0, 0],
+            "bodies": [
+                {
+                    "name": "m",
+                    "shape": {"type": "sphere", "radius": 0.01},
+                    "mass": MASS,
+                    "position": [0.01, 0, 0],
+                }
+            ],
+            "springs": [{"a": "m", "b": "world", "stiffness": STIFFNESS, "rest_length": 0.0}],
+        }
+    )
+
+
+def test_bisection_finds_the_semi_implicit_limit_two_over_omega():
+    """Semi-implicit Euler is stable exactly while ω·dt < 2: the bracket must hold 2/ω and be
+    one bisection step wide."""
+    limit = stability_limit(oscillator(), parse_engine_spec("mini"))
+    exact = 2.0 / OMEGA
+    assert limit.stable_dt is not None and limit.unstable_dt is not None, limit
+    assert limit.stable_dt <= exact * (1 + 1e-3) and limit.unstable_dt >= exact * (1 - 1e-3), limit
+    assert limit.unstable_dt / limit.stable_dt <= BISECTION_RATIO, limit
+    assert "unstable above dt" in limit.sentence(), limit.sentence()
+
+
+def test_explicit_euler_is_unstable_at_every_dt_tried():
+    limit = stability_limit(oscillator(), parse_engine_spec("mini(integrator=explicit_euler)"))
+    assert limit.stable_dt is None, limit
+    assert limit.unstable_dt <= oscillator().dt / 16 * (1 + 1e-9), limit
+    assert limit.reason.split(":")[0] in ("energy_blow_up", "non_finite", "speed_limit"), limit.reason
+
+
+def test_bracketing_and_bisection_on_a_known_threshold():
+    calls = []
+
+    def threshold(dt: float) -> tuple[bool, str]:
+        calls.append(dt)
+        return dt < 0.0123, "above"
+
+    stable, unstable, reason = largest_stable_dt(threshold, 1e-3, 1e-6, 1.0)
+    assert (
+        stable < 0.0123 <= unstable and unstable / stable <= BISECTION_RATIO and reason == "above"
+    )
+    assert len(calls) < 20, calls
+
+
+def test_monitor_names_each_kind():
+    scene = oscillator()
+    monitor = StabilityMonitor(scene)
+    from validation.engines.base import Snapshot
+
+    def snap(pos=(0.01, 0, 0), quat=(1.0, 0, 0, 0), vel=(0, 0, 0)):
+        return Snapshot(
+            0.0, np.array([pos]), np.array([quat]), np.array([vel], float), np.zeros((1, 3))
+        )
+
+    assert monitor.check(snap()) is None
+    assert monitor.check(snap(pos=(np.nan, 0, 0))).startswith("non_finite")
+    assert monitor.check(snap(quat=(1.1, 0, 0, 0))).startswith("quaternion_drift")
+    assert monitor.check(snap(vel=(1.0e9, 0, 0))).startswith(("energy_blow_up", "speed_limit"))
+    assert monitor.check_overlap(0.05, 0.01, 1.0).startswith("deep_penetration")
+    assert monitor.check_overlap(0.001, 0.01, 1.0) is None
+
+
+@pytest.mark.parametrize("engine", ["mujoco"])
+def test_foreign_engine_instability_warnings_are_read(engine):
+    """MuJoCo resets an exploding state and only warns: the adapter must surface it."""
+    from validation.engines import create_adapter
+
+    adapter = create_adapter(parse_engine_spec(engine))
+    adapter.load(oscillator(dt=5e-3, duration=1.0))  # ω·dt = 5: MuJoCo Euler explodes
+    adapter.advance(200)
+    warnings = adapter.instability_warnings()
+    state = adapter.observe()
+    adapter.close()
+    exploded = not np.isfinite(state.pos).all() or np.abs(state.pos).max() > 1.0
+    assert warnings or exploded, f"no warning and a bounded state {state.pos}"
