@@ -56,7 +56,9 @@ def test_explicit_euler_is_unstable_at_every_dt_tried():
     limit = stability_limit(oscillator(), parse_engine_spec("mini(integrator=explicit_euler)"))
     assert limit.stable_dt is None, limit
     assert limit.unstable_dt <= oscillator().dt / 16 * (1 + 1e-9), limit
-    assert limit.reason.split(":")[0] in ("energy_blow_up", "non_finite", "speed_limit"), limit.reason
+    assert limit.reason.split(":")[0] in ("energy_blow_up", "non_finite", "speed_limit"), (
+        limit.reason
+    )
 
 
 def test_bracketing_and_bisection_on_a_known_threshold():

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -93,6 +94,28 @@ def command_stability(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def command_sweep(args: argparse.Namespace) -> int:
+    """Error against run time over a dt sweep; writes sweep.csv and sweep.html."""
+    from validation.run import BadInputError, plan_run, write_table
+    from validation.sweep import GridError, parse_dt_grid, run_sweep
+    from validation.sweep_report import render_sweep
+
+    try:
+        grid = parse_dt_grid(args.dt)
+        plan = plan_run(args.paths or default_scenario_paths(), args.engines, None, args.only)
+    except (BadInputError, GridError) as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    jobs = [(scenario, spec, grid) for scenario, specs in plan.scenes for spec in specs]
+    rows = run_sweep(jobs, args.jobs)
+    out = args.out or Path("reports") / "sweep"
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(rows, out / "sweep.csv")
+    render_sweep(rows, out / "sweep.html")
+    print(f"{len(rows)} rows -> {out / 'sweep.csv'}, {out / 'sweep.html'}")
+    return EXIT_OK
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -103,6 +126,7 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "run": (command_run, "run scenes in engines and write results.csv and report.html"),
     "report": (command_report, "re-render report.html of a run folder"),
     "stability": (command_stability, "find the largest stable dt per scene and engine"),
+    "sweep": (command_sweep, "error against run time over a timestep sweep"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
 }
@@ -156,8 +180,20 @@ def _stability_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
 
 
+def _sweep_arguments(command: argparse.ArgumentParser) -> None:
+    _stability_arguments(command)
+    command.add_argument(
+        "--dt",
+        default="1e-2:1e-4:5",
+        metavar="GRID",
+        help="START:STOP:COUNT (log-spaced) or a comma list (default 1e-2:1e-4:5)",
+    )
+    command.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel processes")
+
+
 ARGUMENTS = {
     "run": _run_arguments,
+    "sweep": _sweep_arguments,
     "stability": _stability_arguments,
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),

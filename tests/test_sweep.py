@@ -1,0 +1,95 @@
+"""physval sweep: convergence order, failed points kept, timing of the stepping alone."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from validation.cli import BUNDLED_SCENARIOS, main
+from validation.engine_spec import parse_engine_spec
+from validation.engines import create_adapter
+from validation.recording import record
+from validation.scenario import Scenario, load_scenario
+from validation.sweep import GridError, parse_dt_grid, run_sweep
+
+ORDER_TOLERANCE = 0.05
+"""Semi-implicit Euler's position error on a parabola is exactly g·dt·t/2, first order: the
+fitted slope is 1 to round-off (measured 0.99997); 0.05 leaves room for the sampling."""
+
+
+def test_semi_implicit_euler_converges_at_first_order_on_the_projectile():
+    scenario = load_scenario(BUNDLED_SCENARIOS / "formulas" / "projectile.yaml")
+    rows = run_sweep(
+        [(scenario, parse_engine_spec("mini"), parse_dt_grid("4e-3:2.5e-4:4"))], workers=1
+    )
+    order = next(r["value"] for r in rows if r["metric"] == "convergence_order")
+    assert abs(order - 1.0) < ORDER_TOLERANCE, f"fitted order {order:.4f}"
+    assert all(r["expected_kind"] == "analytic:position_error" for r in rows)
+
+
+def test_an_exploding_point_is_kept_as_unstable_in_the_csv_and_the_plot(tmp_path):
+    out = tmp_path / "sweep"
+    path = BUNDLED_SCENARIOS / "stiff" / "stiff_spring_oscillator.yaml"
+    code = main(
+        [
+            "sweep",
+            str(path),
+            "--engines",
+            "mini",
+            "--dt",
+            "4e-3,1e-3,5e-4",
+            "--out",
+            str(out),
+            "--jobs",
+            "1",
+        ]
+    )
+    assert code == 0
+    table = pd.read_csv(out / "sweep.csv")
+    points = table[table["metric"] == "sweep_error"].set_index("dt")
+    assert points.loc[4e-3, "status"] == "unstable", points  # ω·dt = 4 > 2
+    assert (points.loc[[1e-3, 5e-4], "status"] == "ok").all(), points
+    page = (out / "sweep.html").read_text()
+    assert "unstable" in page and "<svg" in page
+    assert "#c0392b" in page, "the failed point's red cross is missing from the chart"
+
+
+def test_stepping_time_excludes_recording():
+    """Sampling every step or every 50th changes the observation work, not the stepping time
+    (compared with each other, never with a wall-clock bound)."""
+    scenario = Scenario.model_validate(
+        {
+            "name": "fly",
+            "dt": 0.001,
+            "duration": 1.0,
+            "bodies": [
+                {
+                    "name": "b",
+                    "shape": {"type": "box", "half_extents": [0.1, 0.2, 0.3]},
+                    "mass": 1.0,
+                    "angular_velocity": [1, 2, 3],
+                }
+            ],
+        }
+    )
+    times = {}
+    for every in (1, 50):
+        adapter = create_adapter(parse_engine_spec("mujoco"))
+        adapter.load(scenario)
+        times[every] = min(record(adapter, scenario, every).stepping_seconds for _ in range(1))
+        adapter.close()
+    dense, sparse = times[1], times[50]
+    assert dense / sparse < 5.0, (
+        f"stepping time {dense:.4f} s (every step) vs {sparse:.4f} s (every 50th)"
+    )
+
+
+@pytest.mark.parametrize("text", ["abc", "1e-3:1e-4", "0,1e-3", "-1e-3", ""])
+def test_bad_grids_are_rejected(text):
+    with pytest.raises(GridError):
+        parse_dt_grid(text)
+
+
+def test_grid_forms():
+    assert parse_dt_grid("1e-1:1e-3:3") == pytest.approx([1e-1, 1e-2, 1e-3])
+    assert parse_dt_grid("1e-3, 5e-4") == [1e-3, 5e-4]

@@ -1,0 +1,216 @@
+"""``physval sweep``: error against run time over a timestep sweep, for any scene and engine.
+
+For each scene, engine spec and dt the sweep records the scene's error against its
+best available reference, the wall time of stepping alone, steps per second, the
+real-time factor and the status (unstable points are kept, never dropped). References,
+in order of preference, named in every row's ``expected_kind``:
+
+1. ``analytic``: the ballistic trajectory (``position_error``) where nothing touches and
+   no spring acts, else the scene's first analytic expectation;
+2. ``engine:mujoco(integrator=RK4)@<dt>``: for scenes without contact, MuJoCo's RK4 at a
+   tenth of the smallest swept step (4th order: far below the first-order errors swept);
+3. ``self:<spec>@<dt>``: the same engine at a quarter of the smallest swept step, compared
+   over the first ``1 / SEGMENTS`` of the run only, before chaotic divergence of the two
+   runs would be counted as error (Erez, Tassa and Todorov restart the fine run from the
+   coarse one at each segment; the adapters cannot set a state yet, so one segment).
+
+Stepping time: a separate pass per point: load, ``WARMUP_STEPS``, then the median of
+``REPEATS`` blocks of ``BLOCK_STEPS`` (recording and observation excluded).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from validation.engine_spec import EngineSpec, parse_engine_spec
+from validation.engines import create_adapter
+from validation.metrics import Context, measure
+from validation.runner import EngineRun, run_engine
+from validation.scenario import MAX_STEPS, Scenario
+from validation.stability import scene_at
+
+WARMUP_STEPS = 20
+BLOCK_STEPS = 100
+REPEATS = 5
+"""Timing: after 20 warm-up steps, the median of 5 blocks of 100 steps (or of the whole run
+when it is shorter), so one slow block on a shared machine does not move the point."""
+
+SAMPLES = 500
+"""Trajectory samples per point: enough for the metrics, cheap to keep."""
+
+REFINE_SELF = 4.0
+REFINE_REFERENCE = 10.0
+SEGMENTS = 4
+
+HIGH_ACCURACY = "mujoco(integrator=RK4)"
+
+
+class GridError(ValueError):
+    """A --dt grid that cannot be read."""
+
+
+def parse_dt_grid(text: str) -> list[float]:
+    """``"1e-1:1e-5:9"`` -> 9 log-spaced steps from 0.1 to 1e-5 s; ``"1e-3,5e-4"`` -> a list."""
+    try:
+        if ":" in text:
+            start, stop, count = text.split(":")
+            values = np.logspace(
+                math.log10(float(start)), math.log10(float(stop)), int(count)
+            ).tolist()
+        else:
+            values = [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise GridError(
+            f"--dt: expected START:STOP:COUNT or a comma list of seconds; got {text!r}"
+        ) from None
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise GridError(f"--dt: expected positive finite steps; got {text!r}")
+    return values
+
+
+@dataclass(frozen=True)
+class Reference:
+    """What a sweep point's error is measured against."""
+
+    kind: str
+    run: EngineRun | None = None
+    horizon: float = math.inf
+
+
+def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
+    """Wall time (s) of the stepping alone for the whole run, from a separate timed pass."""
+    adapter = create_adapter(spec)
+    try:
+        adapter.load(scenario)
+        adapter.advance(min(WARMUP_STEPS, scenario.steps))
+        block = min(BLOCK_STEPS, scenario.steps)
+        samples = []
+        for _ in range(REPEATS):
+            start = time.perf_counter()
+            adapter.advance(block)
+            samples.append((time.perf_counter() - start) / block)
+        return statistics.median(samples) * scenario.steps
+    finally:
+        adapter.close()
+
+
+def _can_touch(scenario: Scenario) -> bool:
+    from validation.mini_scene import build_mini_model
+
+    return build_mini_model(scenario)[0].can_touch
+
+
+def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -> Reference:
+    """The best reference this scene offers (module docstring)."""
+    if not _can_touch(scenario) and not scenario.springs:
+        return Reference("analytic:position_error")
+    if scenario.expect:
+        return Reference(f"analytic:{scenario.expect[0].metric}")
+    if not _can_touch(scenario):
+        dt = max(smallest_dt / REFINE_REFERENCE, scenario.duration / MAX_STEPS)
+        fine = run_engine(
+            scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt)
+        )
+        return Reference(f"engine:{HIGH_ACCURACY}@{dt:.3g}", fine)
+    dt = max(smallest_dt / REFINE_SELF, scenario.duration / MAX_STEPS)
+    fine = run_engine(scene_at(scenario, dt), spec, _every(scenario, dt))
+    return Reference(f"self:{spec.label}@{dt:.3g}", fine, scenario.duration / SEGMENTS)
+
+
+def _every(scenario: Scenario, dt: float) -> int:
+    return max(1, round(scenario.duration / dt) // SAMPLES)
+
+
+def point_error(scenario: Scenario, run: EngineRun, reference: Reference) -> float:
+    """The error of one sweep point against ``reference`` (units of the reference's metric)."""
+    if reference.kind.startswith("analytic:"):
+        metric = reference.kind.split(":", 1)[1]
+        found = [m for m in measure(Context(scenario, run.recording)) if m.metric == metric]
+        return found[0].error if found else math.nan
+    if reference.run is None or reference.run.recording is None:
+        return math.nan
+    mine, theirs = run.recording.trajectory, reference.run.recording.trajectory
+    times = mine.t[mine.t <= reference.horizon + 1e-12]
+    if times.size == 0:
+        return math.nan
+    error = 0.0
+    for axis in range(3):  # interpolate the reference at this run's sample times, body by body
+        for body in range(mine.pos.shape[1]):
+            theirs_at = np.interp(times, theirs.t, theirs.pos[:, body, axis])
+            error = max(error, float(np.abs(mine.pos[: times.size, body, axis] - theirs_at).max()))
+    return error
+
+
+def sweep_point(scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference) -> dict:
+    """One row: the scene at ``dt`` in ``spec``."""
+    probe = scene_at(scenario, dt)
+    row = {
+        "scenario": scenario.name,
+        "engine": spec.label,
+        "dt": dt,
+        "steps": probe.steps,
+        "metric": "sweep_error",
+        "expected_kind": reference.kind,
+    }
+    if probe.steps < 1 or probe.steps > MAX_STEPS:
+        return {**row, "status": "unsupported", "message": f"{probe.steps} steps is out of range"}
+    run = run_engine(probe, spec, _every(probe, dt))
+    seconds = stepping_seconds(probe, spec) if run.status in ("ok",) else run.wall_time_s
+    error = point_error(probe, run, reference) if run.recording is not None else math.nan
+    return {
+        **row,
+        "value": error,
+        "error": error,
+        "status": run.status,
+        "wall_time_s": seconds,
+        "steps_per_second": probe.steps / seconds if seconds > 0 else math.nan,
+        "real_time_factor": probe.duration / seconds if seconds > 0 else math.nan,
+        "engine_version": run.provenance.version if run.provenance else "",
+        "message": run.message,
+    }
+
+
+def convergence_order(rows: list[dict]) -> float:
+    """Least-squares slope of log(error) against log(dt) over the stable, non-zero points."""
+    points = [
+        (r["dt"], r["error"])
+        for r in rows
+        if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan)) and r["error"] > 0
+    ]
+    if len(points) < 2:
+        return math.nan
+    dts, errors = np.log(np.array(points)).T
+    return float(np.polyfit(dts, errors, 1)[0])
+
+
+def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
+    """Every dt of one (scene, engine) pair, plus its fitted convergence order."""
+    scenario, spec, dts = job
+    reference = choose_reference(scenario, spec, min(dts))
+    rows = [sweep_point(scenario, spec, dt, reference) for dt in dts]
+    order = convergence_order(rows)
+    rows.append(
+        {
+            "scenario": scenario.name,
+            "engine": spec.label,
+            "metric": "convergence_order",
+            "value": order,
+            "expected_kind": reference.kind,
+            "status": "ok" if np.isfinite(order) else "unsupported",
+        }
+    )
+    return rows
+
+
+def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int) -> list[dict]:
+    """All jobs, in parallel over ``workers`` processes (one engine instance per process)."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [row for job in jobs for row in sweep_scene(job)]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        return [row for rows in pool.map(sweep_scene, jobs) for row in rows]
