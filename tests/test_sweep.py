@@ -93,3 +93,53 @@ def test_bad_grids_are_rejected(text):
 def test_grid_forms():
     assert parse_dt_grid("1e-1:1e-3:3") == pytest.approx([1e-1, 1e-2, 1e-3])
     assert parse_dt_grid("1e-3, 5e-4") == [1e-3, 5e-4]
+
+
+def test_scenes_without_a_closed_form_use_restarted_segments_or_rk4():
+    """A bounce has no expectation here: self-consistency over restarted segments, whose error
+    shrinks with dt; a spring chain without contact: MuJoCo RK4 as the reference."""
+    bounce = Scenario.model_validate(
+        {
+            "name": "bounce",
+            "dt": 0.002,
+            "duration": 0.6,
+            "ground": {"restitution": 0.5},
+            "bodies": [
+                {
+                    "name": "b",
+                    "shape": {"type": "sphere", "radius": 0.1},
+                    "mass": 1.0,
+                    "position": [0, 0, 0.5],
+                    "velocity": [0.3, 0, 0],
+                    "restitution": 0.5,
+                }
+            ],
+        }
+    )
+    rows = run_sweep([(bounce, parse_engine_spec("mini"), [4e-3, 1e-3])], workers=1)
+    points = [r for r in rows if r["metric"] == "sweep_error"]
+    assert all(r["expected_kind"].startswith("self:mini@") for r in points), points
+    assert points[0]["error"] > points[1]["error"] > 0, points
+
+    spring = Scenario.model_validate(
+        {
+            "name": "chain",
+            "dt": 0.001,
+            "duration": 0.2,
+            "gravity": [0, 0, 0],
+            "bodies": [
+                {
+                    "name": "a",
+                    "shape": {"type": "sphere", "radius": 0.01},
+                    "mass": 1.0,
+                    "position": [0.01, 0, 0],
+                }
+            ],
+            "springs": [{"a": "a", "b": "world", "stiffness": 100.0, "rest_length": 0.0}],
+        }
+    )
+    rows = run_sweep([(spring, parse_engine_spec("mini"), [2e-3, 1e-3])], workers=1)
+    kinds = {r["expected_kind"] for r in rows}
+    assert kinds == {"engine:mujoco(integrator=RK4)@0.0001"}, kinds
+    order = next(r["value"] for r in rows if r["metric"] == "convergence_order")
+    assert 0.8 < order < 2.2, f"fitted order {order}"

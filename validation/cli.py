@@ -97,12 +97,13 @@ def command_stability(args: argparse.Namespace) -> int:
 def command_sweep(args: argparse.Namespace) -> int:
     """Error against run time over a dt sweep; writes sweep.csv and sweep.html."""
     from validation.run import BadInputError, plan_run, write_table
-    from validation.sweep import GridError, parse_dt_grid, run_sweep
+    from validation.sweep import DEFAULT_ENGINES, GridError, parse_dt_grid, run_sweep
     from validation.sweep_report import render_sweep
 
     try:
         grid = parse_dt_grid(args.dt)
-        plan = plan_run(args.paths or default_scenario_paths(), args.engines, None, args.only)
+        engines = args.engines or DEFAULT_ENGINES
+        plan = plan_run(args.paths or default_scenario_paths(), engines, None, args.only)
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
