@@ -28,6 +28,11 @@ LARGE_BODY_FACTOR = 4.0
 tested against all bodies directly instead of inflating the grid cell; 4 keeps the grid
 cell small for piles of equal spheres while walls and big boxes go to the direct test."""
 
+GRID_SPAN_LIMIT = 1e6
+"""Cells along one axis beyond which the bodies are too spread for a grid (an exploded
+state, or bodies kilometres apart): every pair is tested directly instead, and int64 cell
+keys can never overflow."""
+
 CELL_TABLE_LIMIT = 1 << 20
 """Grids with at most this many cells (8 MiB of int64) get a dense cell-start table;
 sparser grids fall back to binary search. Sized for piles of thousands of bodies."""
@@ -128,6 +133,10 @@ def _grid_pairs(
     if m < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     cell_size = 2.0 * radius.max()
+    span = (centre.max(axis=0) - centre.min(axis=0)) / cell_size
+    if not np.isfinite(span).all() or span.max() > GRID_SPAN_LIMIT:  # exploded: no grid fits
+        first, second = np.triu_indices(m, k=1)
+        return body[first], body[second]
     cell = np.floor((centre - centre.min(axis=0)) / cell_size).astype(np.int64) + 1
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
     strides = np.array([dims[1] * dims[2], dims[2], 1])

@@ -19,12 +19,16 @@ class UnsupportedShapePairError(ValueError):
     """Two shapes that may touch but have no narrow-phase function."""
 
 
-def detect_contacts(model: Model, pos: np.ndarray, rot: np.ndarray, margin: float) -> Contacts:
+def detect_contacts(
+    model: Model, pos: np.ndarray, rot: np.ndarray, margin: float, padding: float = 0.0
+) -> Contacts:
     """All contacts (depth >= -margin) between bodies at poses ``pos (n, 3)``, ``rot (n, 3, 3)``.
 
-    Normals point from ``body_a`` to ``body_b``; ``body_a`` has the lower shape code.
+    ``padding`` (m) only enlarges the broad phase's bounding spheres; the contacts reported
+    are those within ``margin``. Normals point from ``body_a`` to ``body_b``; ``body_a`` has
+    the lower shape code.
     """
-    a, b = candidate_pairs(model, pos, rot, margin)
+    a, b = candidate_pairs(model, pos, rot, margin + padding)
     if a.size == 0:
         return Contacts.empty()
     swap = model.body_shape[a] > model.body_shape[b]

@@ -31,6 +31,10 @@ ISOTROPY_TOLERANCE = 1e-12
 """Relative spread of the principal moments below which a body counts as isotropic
 (ω × Iω = 0 exactly, so the gyroscopic phase skips it); round-off level."""
 
+SYMMETRY_TOLERANCE = 1e-9
+"""Relative asymmetry of an explicit inertia accepted as round-off (then symmetrised); the
+scenario format uses the same value."""
+
 UNIT_QUATERNION_TOLERANCE = 1e-6
 """An orientation whose norm is within this of 1 is normalised; further away it is an
 error (a typo, not round-off). The scenario format uses the same rule."""
@@ -292,8 +296,11 @@ def _body_inertia(body: Body, label: str) -> np.ndarray:
         raise ValueError(
             f"{label}.inertia: expected 3 moments or a 3x3 matrix; got {body.inertia!r}"
         )
-    if not np.allclose(inertia, inertia.T, rtol=0.0, atol=1e-12 * np.abs(inertia).max()):
+    if not np.allclose(
+        inertia, inertia.T, rtol=0.0, atol=SYMMETRY_TOLERANCE * np.abs(inertia).max()
+    ):
         raise ValueError(f"{label}.inertia: expected a symmetric matrix; got {inertia.tolist()}")
+    inertia = 0.5 * (inertia + inertia.T)
     if np.linalg.eigvalsh(inertia).min() <= 0.0:
         raise ValueError(f"{label}.inertia: expected positive definite; got {inertia.tolist()}")
     return inertia

@@ -55,9 +55,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
 
     # 1. collision detection at the start-of-step poses (broad phase, then narrow phase)
     contacts = (
-        detect_contacts(
-            model, state.pos, rot, settings.contact_margin + settings.broadphase_padding
-        )
+        detect_contacts(model, state.pos, rot, settings.contact_margin, settings.broadphase_padding)
         if model.can_touch
         else Contacts.empty()
     )

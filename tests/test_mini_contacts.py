@@ -329,3 +329,16 @@ def test_split_impulse_pushes_a_box_out_of_a_box_upright_and_at_rest():
     assert abs(state.pos[2, 2] - 0.3) <= slop * 1.01, f"upper box at z = {state.pos[2, 2]:.5f} m"
     assert np.abs(state.pos[2, :2]).max() < 1e-4, f"slid to {state.pos[2, :2]} m"
     assert np.abs(state.vel[2]).max() < 1e-4, f"still moving at {state.vel[2]} m/s"
+
+
+def test_broadphase_padding_never_makes_bodies_hover():
+    """Padding only widens the broad phase; a resting sphere sits where it would without it."""
+    heights = {}
+    for padding in (0.0, 0.05):
+        model, state = build_model(
+            [Body(Plane(), fixed=True), Body(Sphere(0.1), position=(0, 0, 0.3))]
+        )
+        for _ in range(1000):
+            state, _ = step(model, state, Settings(dt=1e-3, broadphase_padding=padding))
+        heights[padding] = state.pos[1, 2]
+    assert heights[0.05] == heights[0.0], heights

@@ -100,3 +100,30 @@ def test_spinning_oblique_impact_is_measured_along_the_impulse_direction():
     adapter.load(scenario)
     (event,) = record(adapter, scenario).impacts
     assert abs(event.restitution - 0.8) < MINI_EVENT_RESTITUTION, f"e = {event.restitution:.9f}"
+
+
+@pytest.mark.parametrize("speed", [1.0, 0.3, 0.1])
+def test_a_plastic_impact_measures_e_zero(speed):
+    """e = 0 on the ground: the event closes while the ball rests, at exactly e = 0 (the
+    resting steps after the impulse are the support cancelling gravity, not the impact)."""
+    scenario = Scenario.model_validate(
+        {
+            "name": "plastic",
+            "dt": 0.001,
+            "duration": 0.3,
+            "ground": {},
+            "bodies": [
+                {
+                    "name": "b",
+                    "shape": {"type": "sphere", "radius": 0.1},
+                    "mass": 1.0,
+                    "position": [0, 0, 0.15],
+                    "velocity": [0, 0, -speed],
+                }
+            ],
+        }
+    )
+    adapter = create_adapter(parse_engine_spec("mini"))
+    adapter.load(scenario)
+    (event,) = record(adapter, scenario).impacts
+    assert abs(event.restitution) < MINI_EVENT_RESTITUTION, f"e = {event.restitution:.3e}"

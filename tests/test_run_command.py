@@ -116,3 +116,49 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, arguments, capsys):
     assert exit_code(["run", *paths, *arguments, "--out", str(out)]) == 2
     assert not out.exists(), "bad input must not write a report"
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_an_exploded_trajectory_gives_rows_not_a_traceback(tmp_path):
+    """k = 1e40 N/m: the state overflows; metrics on what was recorded must not crash."""
+    path = scene_file(
+        tmp_path,
+        """\
+dt: 0.001
+duration: 0.5
+ground: {}
+bodies:
+  - {name: a, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [0, 0, 0.5]}
+  - {name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [1, 0, 0.5]}
+springs: [{a: a, b: world, anchor_b: [0, 0, 1.0], stiffness: 1.0e40}]
+engines: [mini]
+""",
+    )
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 1
+    results = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert "unstable" in set(results["status"]), results
+
+
+def test_null_name_and_duplicate_engines(tmp_path, capsys):
+    path = scene_file(
+        tmp_path,
+        "name: null\ndt: 0.001\nduration: 0.01\nbodies: [{name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0}]\n",
+    )
+    assert (
+        main(
+            [
+                "run",
+                str(path),
+                "--only",
+                "scene*",
+                "--engines",
+                "mini",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        exit_code(["run", str(path), "--engines", "mini, mini", "--out", str(tmp_path / "p")]) == 2
+    )
+    assert "listed twice" in capsys.readouterr().err

@@ -347,3 +347,13 @@ def test_engine_lists_split_at_top_level_commas():
         "mujoco(integrator=RK4)",
         "pybullet",
     ]
+
+
+def test_round_off_asymmetric_inertia_is_accepted_and_symmetrised(tmp_path):
+    text = MINIMAL + "    inertia: [[0.004, 1.0e-12, 0], [0, 0.004, 0], [0, 0, 0.004]]\n"
+    scenario = load_scenario(write(tmp_path, text))
+    inertia = scenario.bodies[0].inertia_matrix
+    assert (inertia == inertia.T).all()
+    from validation.mini_scene import build_mini_model
+
+    build_mini_model(scenario)  # the engine accepts what the loader accepted

@@ -106,3 +106,34 @@ def test_foreign_engine_instability_warnings_are_read(engine):
     adapter.close()
     exploded = not np.isfinite(state.pos).all() or np.abs(state.pos).max() > 1.0
     assert warnings or exploded, f"no warning and a bounded state {state.pos}"
+
+
+def test_a_stable_spring_with_a_large_stored_energy_is_not_flagged():
+    """15 cm out on k = 1e6 N/m is 11 kJ released at 150 m/s: stable at ω·dt = 0.1."""
+    from validation.runner import run_engine
+
+    scene = Scenario.model_validate(
+        {
+            **oscillator(dt=1e-4, duration=0.05).model_dump(),
+            "bodies": [
+                {
+                    "name": "m",
+                    "shape": {"type": "sphere", "radius": 0.01},
+                    "mass": 1.0,
+                    "position": [0.15, 0, 0],
+                }
+            ],
+        }
+    )
+    run = run_engine(scene, parse_engine_spec("mini"), 10)
+    assert run.status == "ok", run.message
+
+
+def test_a_model_mismatch_is_reported_as_not_run(monkeypatch):
+    from validation.engines import mujoco_engine
+
+    right = mujoco_engine.body_inertia
+    monkeypatch.setattr(mujoco_engine, "body_inertia", lambda body: right(body) * 1.01)
+    limit = stability_limit(oscillator(duration=0.1), parse_engine_spec("mujoco"))
+    assert limit.stable_dt is None and limit.unstable_dt is None, limit
+    assert "was not run" in limit.sentence() and "model_mismatch" in limit.reason

@@ -9,6 +9,7 @@ the report prints are in ``validation.metric_definitions``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -349,13 +350,26 @@ EXPECTATIONS: dict[str, Callable] = {
 """Expectation kind -> its metric function (named ``<kind>.<body>`` or by its ``name``)."""
 
 
+def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measurement | None:
+    """A metric's result, or a NaN measurement carrying the exception: one broken metric
+    (on an exploded trajectory, say) must not take the other rows down with it."""
+    try:
+        return compute()
+    except Exception as error:  # reported in the row's message
+        return Measurement(
+            name,
+            math.nan,
+            None,
+            "analytic",
+            math.nan,
+            f"not computed: {type(error).__name__}: {error}",
+        )
+
+
 def measure(ctx: Context) -> list[Measurement]:
     """Every metric the scene can define for this recording (divergence excluded)."""
-    scenario = ctx.scenario
-    found = [result for metric in METRICS.values() if (result := metric(ctx)) is not None]
+    found = [_guarded(name, lambda metric=metric: metric(ctx)) for name, metric in METRICS.items()]
     found += [
-        result
-        for expectation in scenario.expect
-        if (result := EXPECTATIONS[expectation.kind](ctx, expectation)) is not None
+        _guarded(e.metric, lambda e=e: EXPECTATIONS[e.kind](ctx, e)) for e in ctx.scenario.expect
     ]
-    return found
+    return [result for result in found if result is not None]

@@ -85,7 +85,8 @@ class ImpactEvent:
 
     Attributes:
         body_a, body_b: names (``ground`` for the plane); the normal points from A to B.
-        time_start: s, the first observation in contact. time_end: s, the first one apart.
+        time_start: s, the first observation in contact. time_end: s, the first one apart
+            (for a plastic impact, e = 0: the observation that closed it while still touching).
         normal: (3,) unit, world frame, at first contact.
         normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
         normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
@@ -113,9 +114,9 @@ class _OpenImpact:
     """(3,) m, world frame: contact point minus A's centre at first contact."""
     arm_b: np.ndarray
     history: list[tuple[float, float]]
+    """(time s, relative normal velocity m/s) from the last observation before contact on."""
     accel: float = 0.0
     """m/s², relative normal acceleration before contact (what acts besides the impulse)."""
-    """(time s, relative normal velocity m/s) from the last observation before contact on."""
 
 
 @dataclass
@@ -176,6 +177,11 @@ class ImpactDetector:
         with no relative normal motion (a plastic impact, e = 0).
         """
         times, speeds = np.array(impact.history).T
+        if not separated:  # plastic: the impulse ends at the first observation at rest; the
+            # resting steps after it are the support cancelling gravity, not the impact
+            rest = np.flatnonzero(speeds[1:] >= -IMPACT_MIN_SPEED)
+            end = rest[0] + 2 if rest.size else speeds.size
+            times, speeds = times[:end], speeds[:end]
         accel = impact.accel
         pushed = np.diff(speeds) - accel * np.diff(times)  # non-gravity change per step
         if pushed.sum() <= 0.0:
@@ -294,8 +300,11 @@ def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) ->
             if failure is None:
                 detector.update(snap)
                 failure = monitor.check_overlap(*detector.deepest, snap.time)
-            if failure is not None or done % sample_every == 0 or done == scenario.steps:
-                samples.append(snap)
+            finite = not failure or not failure.startswith("non_finite")
+            if finite and (
+                failure is not None or done % sample_every == 0 or done == scenario.steps
+            ):
+                samples.append(snap)  # a non-finite state is named in the message, not kept
     warnings = getattr(adapter, "instability_warnings", list)()
     if failure is None and warnings:
         failure = "engine_warning: " + "; ".join(warnings)

@@ -60,9 +60,13 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         overrides = []
         for text in split_engine_list(engines) or [""]:
             try:
-                overrides.append(parse_engine_spec(text))
+                spec = parse_engine_spec(text)
             except EngineSpecError as error:
                 problems.append(f"--engines: {error}")
+                continue
+            if spec in overrides:
+                problems.append(f"--engines: {spec.label!r} is listed twice")
+            overrides.append(spec)
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
     missing = [p for p in paths if not p.exists()]

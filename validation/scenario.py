@@ -31,6 +31,7 @@ from pydantic import (
     field_validator,
 )
 
+import mini_engine.model as _model
 from validation.engine_spec import DEFAULT_ENGINES, EngineSpec, EngineSpecError, parse_engine_spec
 from validation.yaml_source import SourceMap, YamlSourceError, read_yaml
 
@@ -40,11 +41,10 @@ MAX_STEPS = 5_000_000
 """Largest duration / dt a scenario may ask for: 50 s at dt = 1e-5, or about an hour of
 mini_engine time for a one-body scene. Longer runs are a typo (dt: 1e-7) more often than not."""
 
-UNIT_QUATERNION_TOLERANCE = 1e-6
-"""An orientation whose norm is within this of 1 is normalised; further away is an error."""
-
-SYMMETRY_TOLERANCE = 1e-9
-"""Relative asymmetry of an explicit 3x3 inertia tolerated as round-off in the YAML numbers."""
+# One definition each, shared with mini_engine's model builder: an orientation within 1e-6
+# of unit norm is normalised, an inertia within 1e-9 (relative) of symmetric is symmetrised.
+UNIT_QUATERNION_TOLERANCE = _model.UNIT_QUATERNION_TOLERANCE
+SYMMETRY_TOLERANCE = _model.SYMMETRY_TOLERANCE
 
 METRIC_NAMES = (
     "energy_drift",
@@ -113,6 +113,7 @@ def _inertia_matrix(value: Any) -> np.ndarray:
         raise ValueError(f"expected {expected}; got {value!r}")
     if np.abs(array - array.T).max() > SYMMETRY_TOLERANCE * np.abs(array).max():
         raise ValueError(f"expected a symmetric matrix; got {array.tolist()}")
+    array = 0.5 * (array + array.T)  # the accepted round-off asymmetry removed, once, here
     moments = np.linalg.eigvalsh(array)
     if moments.min() <= 0:
         raise ValueError(
@@ -501,9 +502,13 @@ def _cross_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Pr
     engine_labels: set[str] = set()
     for i, text in enumerate(scenario.engines):
         try:
-            engine_labels.add(parse_engine_spec(text).label)
+            label = parse_engine_spec(text).label
         except EngineSpecError as error:
             problems.append((("engines", i), str(error)))
+            continue
+        if label in engine_labels:
+            problems.append((("engines", i), f"engine {label!r} is listed twice"))
+        engine_labels.add(label)
     for metric, tolerance in scenario.checks.items():
         if metric not in metrics:
             close = difflib.get_close_matches(metric, sorted(metrics), n=1, cutoff=0.5)
@@ -549,7 +554,9 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
         return None, [
             Problem(file, "", f"expected a mapping of scenario fields; got {_found(data)}", 1, 1)
         ]
-    data = {"name": path.stem, **data, "source": file}
+    data = {**data, "source": file}
+    if data.get("name") is None:
+        data["name"] = path.stem
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:

@@ -64,7 +64,17 @@ class StabilityMonitor:
         speed = max(np.linalg.norm(b.velocity) for b in bodies)
         spin = max(np.linalg.norm(b.angular_velocity) * _size(b) for b in bodies)
         fall = float(np.linalg.norm(self.gravity)) * self.scenario.duration
-        self.speed_limit = SPEED_FACTOR * (1.0 + speed + spin + fall)
+        self.springs = None
+        stored = 0.0
+        if self.scenario.springs:  # spring energy counts, in the energy and the speed scale
+            from validation.mini_scene import build_mini_model
+
+            self.springs = build_mini_model(self.scenario)
+            stored = self._spring_energy(self.springs[1].pos, self.springs[1].quat)
+        release = math.sqrt(
+            2.0 * stored / max(self.mass[self.moving].min(initial=math.inf), 1e-300)
+        )
+        self.speed_limit = SPEED_FACTOR * (1.0 + speed + spin + fall + release)
         self.energy0: float | None = None
         self.energy_scale = 1.0
 
@@ -73,7 +83,25 @@ class StabilityMonitor:
         spin = np.einsum("nij,njk,nlk,nl->ni", rot, self.inertia, rot, snap.ang_vel)
         kinetic = 0.5 * np.sum(self.mass * np.sum(snap.vel**2, axis=1))
         kinetic += 0.5 * np.sum(self.moving * np.sum(snap.ang_vel * spin, axis=1))
-        return float(kinetic - np.sum(self.mass * (snap.pos @ self.gravity)))
+        potential = -np.sum(self.mass * (snap.pos @ self.gravity))
+        return float(kinetic + potential + self._snapshot_spring_energy(snap))
+
+    def _spring_energy(self, pos: np.ndarray, quat: np.ndarray) -> float:
+        from mini_engine.forces import spring_energy
+        from mini_engine.model import State
+
+        model, state = self.springs
+        sample = State(pos, quat, state.vel, state.ang_vel)
+        return spring_energy(model, sample, quat_to_matrix(quat))
+
+    def _snapshot_spring_energy(self, snap: Snapshot) -> float:
+        if self.springs is None:
+            return 0.0
+        state = self.springs[1]
+        count = len(self.scenario.bodies)
+        pos, quat = state.pos.copy(), state.quat.copy()
+        pos[:count], quat[:count] = snap.pos, snap.quat
+        return self._spring_energy(pos, quat)
 
     def check_overlap(self, deepest: float, radius: float, time: float) -> str | None:
         """``deep_penetration`` when the deepest overlap (m) of a state exceeds
@@ -140,6 +168,8 @@ class StabilityLimit:
 
     def sentence(self) -> str:
         """The finding in plain words, as the report prints it."""
+        if self.stable_dt is None and self.unstable_dt is None:
+            return f"{self.engine} was not run on {self.scenario}: {self.reason}"
         if self.stable_dt is None:
             return f"{self.engine} is unstable at every dt tried on {self.scenario} (down to {self.unstable_dt:.3g} s): {self.reason}"
         if self.unstable_dt is None:
@@ -214,9 +244,18 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
     def is_stable(dt: float) -> tuple[bool, str]:
         probe = scene_at(scenario, dt)
         run = run_engine(probe, spec, max(1, probe.steps // SAMPLES_PER_PROBE))
-        return run.status not in ("unstable", "error"), run.message
+        if run.status == "model_mismatch":
+            raise _NotRunError(run.message)
+        return run.status == "ok", run.message
 
     lowest = max(scenario.dt / search_down, scenario.duration / MAX_STEPS)
     highest = max(scenario.dt, SEARCH_UP_FRACTION * scenario.duration)
-    stable, unstable, reason = largest_stable_dt(is_stable, scenario.dt, lowest, highest)
+    try:
+        stable, unstable, reason = largest_stable_dt(is_stable, scenario.dt, lowest, highest)
+    except _NotRunError as why:
+        return StabilityLimit(scenario.name or "", spec.label, None, None, f"model_mismatch: {why}")
     return StabilityLimit(scenario.name or "", spec.label, stable, unstable, reason)
+
+
+class _NotRunError(Exception):
+    """The engine's model failed the parity gate: its stability says nothing."""

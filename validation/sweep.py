@@ -96,8 +96,9 @@ def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
     adapter = create_adapter(spec)
     try:
         adapter.load(scenario)
-        adapter.advance(min(WARMUP_STEPS, scenario.steps))
-        block = min(BLOCK_STEPS, scenario.steps)
+        warmup = min(WARMUP_STEPS, scenario.steps // (REPEATS + 1))
+        adapter.advance(warmup)
+        block = max(1, min(BLOCK_STEPS, (scenario.steps - warmup) // REPEATS))
         samples = []
         for _ in range(REPEATS):
             start = time.perf_counter()
@@ -155,6 +156,20 @@ def _end_position(scenario: Scenario, spec: EngineSpec) -> np.ndarray | None:
     return run.recording.trajectory.pos[-1]
 
 
+def _position_at(scenario: Scenario, spec: EngineSpec, time: float) -> np.ndarray | None:
+    """Body positions (n, 3) at ``time``, interpolated between the run's per-step samples."""
+    run = run_engine(scenario, spec, 1)
+    if run.status != "ok" or run.recording is None:
+        return None
+    traj = run.recording.trajectory
+    return np.stack(
+        [
+            [np.interp(time, traj.t, traj.pos[:, b, a]) for a in range(3)]
+            for b in range(traj.pos.shape[1])
+        ]
+    )
+
+
 def segment_error(scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference) -> float:
     """Mean over segments of the end-of-segment COM distance between ``dt`` and the fine step,
     both restarted from the fine run's state at the segment's start."""
@@ -164,8 +179,12 @@ def segment_error(scenario: Scenario, spec: EngineSpec, dt: float, reference: Re
     errors = []
     for k in range(SEGMENTS):
         sample = int(np.argmin(np.abs(fine.t - k * length)))
-        coarse_end = _end_position(restarted(scenario, fine, sample, dt, length), spec)
-        fine_end = _end_position(restarted(scenario, fine, sample, fine_dt, length), spec)
+        coarse = restarted(scenario, fine, sample, dt, length)
+        coarse_end = _end_position(coarse, spec)
+        end_time = coarse.steps * coarse.dt  # compare both at exactly this time
+        fine_end = _position_at(
+            restarted(scenario, fine, sample, fine_dt, end_time + fine_dt), spec, end_time
+        )
         if coarse_end is None or fine_end is None:
             return math.inf
         errors.append(float(np.linalg.norm(coarse_end - fine_end, axis=1).max()))
@@ -180,8 +199,8 @@ def point_error(
         metric = reference.kind.split(":", 1)[1]
         found = [m for m in measure(Context(scenario, run.recording)) if m.metric == metric]
         return found[0].error if found else math.nan
-    if reference.run is None or reference.run.recording is None:
-        return math.nan
+    if reference.run is None or reference.run.status != "ok":
+        return math.nan  # an unstable or failed reference measures nothing (see its message)
     if reference.kind.startswith("self:"):
         return segment_error(scenario, spec, scenario.dt, reference)
     mine, theirs = run.recording.trajectory, reference.run.recording.trajectory
@@ -208,7 +227,7 @@ def sweep_point(scenario: Scenario, spec: EngineSpec, dt: float, reference: Refe
     if probe.steps < 1 or probe.steps > MAX_STEPS:
         return {**row, "status": "unsupported", "message": f"{probe.steps} steps is out of range"}
     run = run_engine(probe, spec, _every(probe, dt))
-    seconds = stepping_seconds(probe, spec) if run.status in ("ok",) else run.wall_time_s
+    seconds = stepping_seconds(probe, spec) if run.status == "ok" else math.nan
     error = point_error(probe, spec, run, reference) if run.recording is not None else math.nan
     return {
         **row,
