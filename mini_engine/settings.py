@@ -122,7 +122,8 @@ class Settings:
     initial penetration is removed gradually instead of launching bodies."""
 
     broadphase_padding: float = 0.0
-    """m. Extra radius added to bounding spheres in the broad phase (added to contact_margin)."""
+    """m. Extra radius of the broad phase's bounding spheres only (more candidate pairs, the
+    same contacts): contacts are still those within ``contact_margin``."""
 
     def __post_init__(self) -> None:
         for name, allowed in CHOICES.items():
