@@ -82,8 +82,8 @@ def test_linear_momentum_drift_follows_gravity_and_is_undefined_with_a_ground():
 def test_restitution_error_is_the_worst_impact_and_undefined_without_impacts():
     ground = scene(ground={"restitution": 0.5})
     impacts = [
-        ImpactEvent("ground", "b", 0.1, 0.2, (0, 0, 1), -2.0, 1.0),  # e = 0.5
-        ImpactEvent("ground", "b", 0.5, 0.6, (0, 0, 1), -1.0, 0.45),  # e = 0.45
+        ImpactEvent("ground", "b", 0.1, 0.2, 0.2, (0, 0, 1), -2.0, 1.0),  # e = 0.5
+        ImpactEvent("ground", "b", 0.5, 0.6, 0.6, (0, 0, 1), -1.0, 0.45),  # e = 0.45
     ]
     ctx = context(ground, np.zeros((3, 3)), np.zeros((3, 3)), impacts)
     result = METRICS["restitution_error"](ctx)

@@ -284,7 +284,8 @@ def _velocity_after_impact(ctx, expectation) -> Measurement | None:
         return Measurement(
             expectation.metric, float("inf"), 0.0, "analytic", float("inf"), "no impact"
         )
-    sample = int(np.searchsorted(ctx.trajectory.t, mine[0].time_end - 1e-12))
+    # the first sample at the end of the impulse, before gravity acts any further
+    sample = int(np.searchsorted(ctx.trajectory.t, mine[0].time_impulse - 1e-12))
     sample = min(sample, ctx.trajectory.t.size - 1)
     return _vector_expectation(ctx, expectation, "vel", sample)
 

@@ -90,12 +90,14 @@ class ImpactEvent:
         normal: (3,) unit, world frame, at first contact.
         normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
         normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
+        time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
     """
 
     body_a: str
     body_b: str
     time_start: float
     time_end: float
+    time_impulse: float
     normal: tuple[float, float, float]
     normal_velocity_before: float
     normal_velocity_after: float
@@ -197,6 +199,7 @@ class ImpactDetector:
             body_b=names[key[1]] if key[1] < self.count else GROUND,
             time_start=impact.start,
             time_end=end,
+            time_impulse=centroid,
             normal=tuple(float(x) for x in impact.normal),
             normal_velocity_before=float(speeds[0] + accel * (centroid - times[0])),
             normal_velocity_after=after,
