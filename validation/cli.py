@@ -14,9 +14,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.scenario import check_scenario, json_schema, scenario_files
-
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 """The library shipped with the project (the repository's scenarios/ folder)."""

@@ -11,29 +11,13 @@ from __future__ import annotations
 import json
 import math
 
+from validation.contract import RESULTS_COLUMNS
 from validation.metrics import Context, Measurement, divergence, measure
 from validation.runner import EngineRun
 from validation.scenario import Scenario
 
-COLUMNS = (
-    "scenario",
-    "engine",
-    "metric",
-    "value",
-    "expected",
-    "expected_kind",
-    "error",
-    "tolerance",
-    "passed",
-    "status",
-    "dt",
-    "steps",
-    "wall_time_s",
-    "engine_version",
-    "settings",
-    "message",
-)
-"""The columns of results.csv, in order (issue 5 fixes the first fifteen names)."""
+COLUMNS = RESULTS_COLUMNS
+"""The columns of results.csv, in order (``validation.contract``)."""
 
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 """Row statuses that make ``physval run`` exit 1."""

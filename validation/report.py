@@ -39,6 +39,18 @@ from jinja2 import Environment, FileSystemLoader, StrictUndefined
 from markupsafe import Markup
 from matplotlib.figure import Figure
 
+from validation.contract import (
+    EXIT_BAD_INPUT,
+    EXIT_OK,
+    IMPACTS_COLUMNS,
+    IMPACTS_FILE,
+    PROVENANCE_FILE,
+    REPORT_FILE,
+    RESULTS_COLUMNS,
+    RESULTS_FILE,
+    SERIES_COLUMNS,
+    SERIES_FILE,
+)
 from validation.metric_definitions import (
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
@@ -49,47 +61,10 @@ matplotlib.use("Agg")  # headless: rendering must never need a display
 
 # --- the run folder's files and their columns (the producer's contract) ---------------------
 
-RESULTS_FILE = "results.csv"
-SERIES_FILE = "series.csv"
-IMPACTS_FILE = "impacts.csv"
-PROVENANCE_FILE = "provenance.json"
-REPORT_FILE = "report.html"
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 TEMPLATE_NAME = "report.html.j2"
 
-RESULTS_COLUMNS = (
-    "scenario",
-    "engine",
-    "metric",
-    "value",
-    "expected",
-    "expected_kind",
-    "error",
-    "tolerance",
-    "passed",
-    "status",
-    "dt",
-    "steps",
-    "wall_time_s",
-    "engine_version",
-    "settings",
-    "message",
-)
 NUMERIC_RESULTS_COLUMNS = ("value", "expected", "error", "tolerance", "dt", "steps", "wall_time_s")
-SERIES_COLUMNS = ("scenario", "engine", "t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
-IMPACTS_COLUMNS = (
-    "scenario",
-    "engine",
-    "body_a",
-    "body_b",
-    "time",
-    "e_requested",
-    "e_measured",
-    "normal_velocity_before",
-    "normal_velocity_after",
-)
-
-EXIT_OK, EXIT_BAD_INPUT = 0, 2
 
 # --- outcomes: what a row, a (scene, engine) cell and a summary chip can be -----------------
 

@@ -25,6 +25,16 @@ import numpy as np
 import pandas as pd
 
 from validation.comparator import BAD_STATUSES, COLUMNS, compare_scene
+from validation.contract import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    IMPACTS_COLUMNS,
+    IMPACTS_FILE,
+    PROVENANCE_FILE,
+    RESULTS_FILE,
+    SERIES_FILE,
+)
 from validation.engine_spec import EngineSpec, EngineSpecError, parse_engine_spec, split_engine_list
 from validation.metrics import Context
 from validation.runner import EngineRun, run_engine
@@ -37,8 +47,6 @@ thousand steps), every k-th step for long ones, so metrics see impacts and apexe
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
-
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 @dataclass
@@ -225,25 +233,15 @@ def execute(plan: Plan) -> tuple[list[dict], list[pd.DataFrame], list[dict], lis
 def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
     """The record files of one run into ``folder`` (which must exist)."""
     results = pd.DataFrame(rows, columns=list(COLUMNS))
-    results.to_csv(folder / "results.csv", index=False)
+    results.to_csv(folder / RESULTS_FILE, index=False)
     frames = [f for f in series if not f.empty]
     if frames:
-        pd.concat(frames, ignore_index=True).to_csv(folder / "series.csv", index=False)
+        pd.concat(frames, ignore_index=True).to_csv(folder / SERIES_FILE, index=False)
     pd.DataFrame(
         impacts,
-        columns=[
-            "scenario",
-            "engine",
-            "body_a",
-            "body_b",
-            "time",
-            "e_requested",
-            "e_measured",
-            "normal_velocity_before",
-            "normal_velocity_after",
-        ],
-    ).to_csv(folder / "impacts.csv", index=False)
-    (folder / "provenance.json").write_text(json.dumps(provenance, indent=2, default=str))
+        columns=list(IMPACTS_COLUMNS),
+    ).to_csv(folder / IMPACTS_FILE, index=False)
+    (folder / PROVENANCE_FILE).write_text(json.dumps(provenance, indent=2, default=str))
 
 
 def write_table(rows: list[dict], path: Path) -> None:
@@ -348,7 +346,7 @@ def run_main(
     print(summary(rows))
     bad = sum(row["status"] in BAD_STATUSES for row in rows)
     print(
-        f"{len(rows)} rows, {bad} failed or unstable -> {destination / 'results.csv'}"
+        f"{len(rows)} rows, {bad} failed or unstable -> {destination / RESULTS_FILE}"
         + (f"; {note}" if note else "")
     )
     return EXIT_FAILED if bad else EXIT_OK

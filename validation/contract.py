@@ -1,0 +1,53 @@
+"""Names that CI jobs, scenario authors and report readers depend on, defined once.
+
+The run folder's files and their columns, and the command's exit codes. The producer
+(``validation.run``, ``validation.comparator``) and the consumer (``validation.report``)
+both import them from here.
+"""
+
+from __future__ import annotations
+
+RESULTS_FILE = "results.csv"
+SERIES_FILE = "series.csv"
+IMPACTS_FILE = "impacts.csv"
+PROVENANCE_FILE = "provenance.json"
+REPORT_FILE = "report.html"
+
+RESULTS_COLUMNS = (
+    "scenario",
+    "engine",
+    "metric",
+    "value",
+    "expected",
+    "expected_kind",
+    "error",
+    "tolerance",
+    "passed",
+    "status",
+    "dt",
+    "steps",
+    "wall_time_s",
+    "engine_version",
+    "settings",
+    "message",
+)
+"""results.csv, in order (issue 5 fixes the first fifteen names)."""
+
+SERIES_COLUMNS = ("scenario", "engine", "t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
+"""series.csv: energy (J), linear momentum (kg·m/s), angular momentum about the system COM."""
+
+IMPACTS_COLUMNS = (
+    "scenario",
+    "engine",
+    "body_a",
+    "body_b",
+    "time",
+    "e_requested",
+    "e_measured",
+    "normal_velocity_before",
+    "normal_velocity_after",
+)
+"""impacts.csv: one row per impact event."""
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+"""physval's exit codes: all passed; a check failed or a run was unstable; bad input."""
