@@ -28,7 +28,7 @@ from report_fixtures import (
     write_synthetic_run,
 )
 
-from validation import report
+from validation import files, report
 from validation.metric_definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
 
 RUN_FILES = {"results.csv", "series.csv", "impacts.csv", "provenance.json"}
@@ -218,7 +218,7 @@ def test_a_failing_rename_removes_the_temporary_file(tmp_path, monkeypatch):
     def broken_replace(source, destination):
         raise OSError("disk gone")
 
-    monkeypatch.setattr(report.os, "replace", broken_replace)
+    monkeypatch.setattr(files.os, "replace", broken_replace)
     with pytest.raises(OSError, match="disk gone"):
         report.render_report(run_dir)
     assert (run_dir / "report.html").read_text() == "previous report"

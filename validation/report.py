@@ -24,9 +24,7 @@ import io
 import itertools
 import json
 import math
-import os
 import re
-import secrets
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +49,7 @@ from validation.contract import (
     SERIES_COLUMNS,
     SERIES_FILE,
 )
+from validation.files import write_atomically
 from validation.metric_definitions import (
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
@@ -733,26 +732,6 @@ def render_html(context: dict[str, Any]) -> str:
         lstrip_blocks=True,
     )
     return environment.get_template(TEMPLATE_NAME).render(**context)
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to a new file next to ``path``, then rename it over ``path``.
-
-    Readers see the old file or the new one, never a half-written one; on any error the
-    temporary file is removed and ``path`` is untouched.
-    """
-    temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
-    try:
-        # O_EXCL: never reuse a stranger's file; 0o666 & ~umask like any new file.
-        descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(descriptor, "w", encoding="utf-8") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
 
 
 def render_report(run_dir: Path) -> Path:

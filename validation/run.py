@@ -36,6 +36,7 @@ from validation.contract import (
     SERIES_FILE,
 )
 from validation.engine_spec import EngineSpec, EngineSpecError, parse_engine_spec, split_engine_list
+from validation.files import write_atomically
 from validation.metrics import Context
 from validation.runner import EngineRun, run_engine
 from validation.scenario import Scenario, ScenarioError, load_scenario, scenario_files
@@ -245,16 +246,9 @@ def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
 
 
 def write_table(rows: list[dict], path: Path) -> None:
-    """A CSV written to a temporary name beside ``path``, then renamed over it."""
+    """A CSV of ``rows`` written atomically (``files.write_atomically``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(handle)
-    try:
-        pd.DataFrame(rows).to_csv(temporary, index=False)
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
+    write_atomically(path, pd.DataFrame(rows).to_csv(index=False))
 
 
 def publish(stage: Path, destination: Path) -> None:
