@@ -26,7 +26,7 @@ from mini_engine.model import (
 from mini_engine.settings import Settings
 from mini_engine.shapes import Box, Capsule, Plane, ShapeType, Sphere
 from mini_engine.solver import ContactReport
-from mini_engine.step import StepResult, simulate, step
+from mini_engine.step import StepResult, step
 
 __all__ = [
     "SHARED_WORLD",
@@ -46,6 +46,5 @@ __all__ = [
     "StepResult",
     "build_model",
     "replicate",
-    "simulate",
     "step",
 ]

@@ -199,10 +199,6 @@ class Model:
         return np.flatnonzero(self.body_dynamic & ~self.body_isotropic)
 
     @cached_property
-    def has_gravity(self) -> bool:
-        return bool(np.any(self.gravity != 0.0))
-
-    @cached_property
     def can_touch(self) -> bool:
         """Whether any two collidable bodies, not both fixed, share a world.
 
@@ -218,13 +214,6 @@ class Model:
         all_worlds = self.body_world[collidable]
         counts = np.bincount(all_worlds[all_worlds >= 0], minlength=self.n_worlds)
         return bool(np.any(counts[np.unique(dynamic_worlds)] >= 2))
-
-    @cached_property
-    def has_friction(self) -> bool:
-        """Whether any contact can carry friction (any body or pair override with μ > 0)."""
-        return bool(
-            np.any(self.body_friction > 0.0) or np.any(np.nan_to_num(self.pair_friction) > 0)
-        )
 
     def body_index(self, name: str) -> int:
         return self.body_name.index(name)

@@ -149,10 +149,6 @@ class Settings:
         """A copy with some fields changed (validated again)."""
         return replace(self, **changes)
 
-    @classmethod
-    def field_names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
-
     def as_dict(self) -> dict[str, object]:
         """Every field and its value, for provenance records."""
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -113,15 +113,3 @@ def _apply_pseudo_twist(pos, quat, pseudo_twist, dt) -> tuple[np.ndarray, np.nda
         quat_multiply(rotation_quat(pseudo_twist[moved, 3:] * dt), quat[moved])
     )
     return pos, quat
-
-
-def simulate(
-    model: Model, state: State, settings: Settings, steps: int
-) -> tuple[State, list[ContactReport]]:
-    """Advance ``steps`` steps; returns the final state and the non-empty contact reports."""
-    reports = []
-    for _ in range(steps):
-        state, report = step(model, state, settings)
-        if report.contacts.count:
-            reports.append(report)
-    return state, reports

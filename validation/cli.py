@@ -155,33 +155,35 @@ def _positive_seconds(text: str) -> float:
     return value
 
 
-def _run_arguments(command: argparse.ArgumentParser) -> None:
+def _scene_selection(command: argparse.ArgumentParser) -> None:
+    """PATHS, --engines and --only: which scenes in which engines (run, sweep, stability)."""
     command.add_argument(
         "paths", nargs="*", type=Path, metavar="PATHS", help="scenario files or folders"
     )
     command.add_argument("--engines", metavar="SPECS", help='e.g. "mini, mujoco(integrator=RK4)"')
+    command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
+
+
+def _run_arguments(command: argparse.ArgumentParser) -> None:
+    _scene_selection(command)
     command.add_argument(
         "--out", type=Path, metavar="DIR", help="run folder (default reports/latest)"
     )
     command.add_argument(
         "--dt", type=_positive_seconds, metavar="SECONDS", help="override every scene's dt"
     )
-    command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
 
 
 def _stability_arguments(command: argparse.ArgumentParser) -> None:
-    command.add_argument(
-        "paths", nargs="*", type=Path, metavar="PATHS", help="scenario files or folders"
-    )
-    command.add_argument("--engines", metavar="SPECS", help='e.g. "mini, mujoco(integrator=RK4)"')
+    _scene_selection(command)
     command.add_argument(
         "--out", type=Path, metavar="FILE", help="CSV (default reports/stability.csv)"
     )
-    command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
 
 
 def _sweep_arguments(command: argparse.ArgumentParser) -> None:
-    _stability_arguments(command)
+    _scene_selection(command)
+    command.add_argument("--out", type=Path, metavar="DIR", help="folder (default reports/sweep)")
     command.add_argument(
         "--dt",
         default="1e-2:1e-4:5",

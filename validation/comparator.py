@@ -19,9 +19,6 @@ from validation.scenario import Scenario
 COLUMNS = RESULTS_COLUMNS
 """The columns of results.csv, in order (``validation.contract``)."""
 
-BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
-"""Row statuses that make ``physval run`` exit 1."""
-
 
 def _common(scenario: Scenario, run: EngineRun) -> dict:
     provenance = run.provenance

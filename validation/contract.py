@@ -49,5 +49,20 @@ IMPACTS_COLUMNS = (
 )
 """impacts.csv: one row per impact event."""
 
+STATUS_DESCRIPTIONS: dict[str, str] = {
+    "ok": "the engine ran the whole scene and the row's check (if any) passed",
+    "failed": "the metric's error exceeds the scene's tolerance",
+    "unstable": "the run failed a stability check (non-finite state, energy blow-up, quaternion "
+    "drift, tunnelling, impossible speed, the engine's own instability warning); it stopped there",
+    "model_mismatch": "the engine's model differs from the scenario (the message names the "
+    "quantity and both values); the engine was not run",
+    "error": "the engine raised; the message carries the exception",
+    "unsupported": "the engine cannot represent something the scene or metric needs",
+}
+"""Every status a result row can carry (issue 5 fixes the names), with its meaning."""
+
+BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
+"""Row statuses that make ``physval run`` exit 1."""
+
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 """physval's exit codes: all passed; a check failed or a run was unstable; bad input."""

@@ -48,6 +48,7 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_COLUMNS,
     SERIES_FILE,
+    STATUS_DESCRIPTIONS,
 )
 from validation.files import write_atomically
 from validation.metric_definitions import (
@@ -67,15 +68,6 @@ NUMERIC_RESULTS_COLUMNS = ("value", "expected", "error", "tolerance", "dt", "ste
 
 # --- outcomes: what a row, a (scene, engine) cell and a summary chip can be -----------------
 
-STATUS_DESCRIPTIONS: dict[str, str] = {
-    "ok": "the engine ran the whole scene and the row's check (if any) passed",
-    "failed": "the metric's error exceeds the scene's tolerance",
-    "unstable": "the state became non-finite or the energy exploded; the run stopped there",
-    "model_mismatch": "the engine's model differs from the scenario (the message names the "
-    "quantity and both values); the engine was not run",
-    "error": "the engine raised; the message carries the exception",
-    "unsupported": "the engine cannot represent something the scene or metric needs",
-}
 """Every status of results.csv -> its meaning, printed in the legend."""
 
 OUTCOME_ORDER = (

@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from validation.comparator import BAD_STATUSES, COLUMNS, compare_scene
+from validation.comparator import COLUMNS, compare_scene
 from validation.contract import (
+    BAD_STATUSES,
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,

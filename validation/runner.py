@@ -29,9 +29,6 @@ from validation.engines.reference import reference_report
 from validation.recording import Recording, record
 from validation.scenario import Scenario
 
-STATUSES = ("ok", "failed", "unstable", "model_mismatch", "error", "unsupported")
-"""Every status a result row can carry (issue 5 fixes the names)."""
-
 
 @dataclass
 class EngineRun:
