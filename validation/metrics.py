@@ -17,13 +17,11 @@ from functools import cached_property
 import numpy as np
 
 from mini_engine.collision import detect_contacts
-from mini_engine.forces import spring_energy
-from mini_engine.model import State
 from mini_engine.rotation import quat_to_matrix
 from validation.mini_scene import build_mini_model
 from validation.recording import Recording
 from validation.scenario import Scenario
-from validation.scene_physics import body_inertia, pair_value
+from validation.scene_physics import SceneEnergy, body_inertia, pair_value
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
@@ -98,30 +96,14 @@ class Context:
         rot = quat_to_matrix(traj.quat.reshape(-1, 4)).reshape(samples, count, 3, 3)
         inertia_world = rot @ self.inertia[None] @ rot.transpose(0, 1, 3, 2)
         spin = np.einsum("snij,snj->sni", inertia_world, traj.ang_vel)
-        kinetic = 0.5 * np.einsum("n,sni,sni->s", m, traj.vel, traj.vel)
-        kinetic += 0.5 * np.einsum("sni,sni,n->s", traj.ang_vel, spin, self.moving.astype(float))
-        potential = -np.einsum("n,sni,i->s", m, traj.pos, self.gravity)
         total_mass = m.sum()
         com = np.einsum("n,sni->si", m, traj.pos) / total_mass
         momentum = np.einsum("n,sni->si", m, traj.vel)
         arm = traj.pos - com[:, None, :]
         angular = np.einsum("n,sni->si", m, np.cross(arm, traj.vel))
         angular += np.einsum("sni,n->si", spin, self.moving.astype(float))
-        energy = kinetic + potential + self._spring_energy(traj, rot)
+        energy = SceneEnergy(self.scenario)(traj.pos, traj.quat, traj.vel, traj.ang_vel)
         return Series(traj.t, energy, momentum, angular, com)
-
-    def _spring_energy(self, traj, rot) -> np.ndarray:
-        if not self.scenario.springs:
-            return np.zeros(traj.t.size)
-        model, state = self.model_and_state
-        count = len(self.scenario.bodies)
-        energies = []
-        for k in range(traj.t.size):
-            pos, quat = state.pos.copy(), state.quat.copy()
-            pos[:count], quat[:count] = traj.pos[k], traj.quat[k]
-            sample = State(pos, quat, state.vel, state.ang_vel)
-            energies.append(spring_energy(model, sample, quat_to_matrix(quat)))
-        return np.array(energies)
 
 
 def _drift(values: np.ndarray, name: str, scale: float | None = None) -> Measurement:

@@ -14,10 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Snapshot
 from validation.scenario import Scenario
-from validation.scene_physics import body_inertia
+from validation.scene_physics import SceneEnergy
 
 ENERGY_BLOW_UP_FACTOR = 1e6
 """A run whose energy departs from its start by more than this multiple of the scene's
@@ -59,18 +58,15 @@ class StabilityMonitor:
         bodies = self.scenario.bodies
         self.moving = np.array([not b.fixed for b in bodies])
         self.mass = np.where(self.moving, [b.mass for b in bodies], 0.0)
-        self.inertia = np.array([body_inertia(b) for b in bodies])
         self.gravity = np.asarray(self.scenario.gravity, dtype=float)
         speed = max(np.linalg.norm(b.velocity) for b in bodies)
         spin = max(np.linalg.norm(b.angular_velocity) * _size(b) for b in bodies)
         fall = float(np.linalg.norm(self.gravity)) * self.scenario.duration
-        self.springs = None
-        stored = 0.0
-        if self.scenario.springs:  # spring energy counts, in the energy and the speed scale
-            from validation.mini_scene import build_mini_model
-
-            self.springs = build_mini_model(self.scenario)
-            stored = self._spring_energy(self.springs[1].pos, self.springs[1].quat)
+        self.energy = SceneEnergy(self.scenario)
+        initial = tuple(
+            np.array([[getattr(b, f) for b in bodies]]) for f in ("position", "orientation")
+        )
+        stored = float(self.energy.spring_energy(*initial)[0])  # what the springs can release
         release = math.sqrt(
             2.0 * stored / max(self.mass[self.moving].min(initial=math.inf), 1e-300)
         )
@@ -79,29 +75,9 @@ class StabilityMonitor:
         self.energy_scale = 1.0
 
     def _energy(self, snap: Snapshot) -> float:
-        rot = quat_to_matrix(snap.quat)
-        spin = np.einsum("nij,njk,nlk,nl->ni", rot, self.inertia, rot, snap.ang_vel)
-        kinetic = 0.5 * np.sum(self.mass * np.sum(snap.vel**2, axis=1))
-        kinetic += 0.5 * np.sum(self.moving * np.sum(snap.ang_vel * spin, axis=1))
-        potential = -np.sum(self.mass * (snap.pos @ self.gravity))
-        return float(kinetic + potential + self._snapshot_spring_energy(snap))
-
-    def _spring_energy(self, pos: np.ndarray, quat: np.ndarray) -> float:
-        from mini_engine.forces import spring_energy
-        from mini_engine.model import State
-
-        model, state = self.springs
-        sample = State(pos, quat, state.vel, state.ang_vel)
-        return spring_energy(model, sample, quat_to_matrix(quat))
-
-    def _snapshot_spring_energy(self, snap: Snapshot) -> float:
-        if self.springs is None:
-            return 0.0
-        state = self.springs[1]
-        count = len(self.scenario.bodies)
-        pos, quat = state.pos.copy(), state.quat.copy()
-        pos[:count], quat[:count] = snap.pos, snap.quat
-        return self._spring_energy(pos, quat)
+        return float(
+            self.energy(*(a[None] for a in (snap.pos, snap.quat, snap.vel, snap.ang_vel)))[0]
+        )
 
     def check_overlap(self, deepest: float, radius: float, time: float) -> str | None:
         """``deep_penetration`` when the deepest overlap (m) of a state exceeds
