@@ -16,7 +16,7 @@ import numpy as np
 
 from validation.engines.base import Snapshot
 from validation.scenario import Scenario
-from validation.scene_physics import SceneEnergy
+from validation.scene_physics import SHAPE_BUILDERS, SceneEnergy
 
 ENERGY_BLOW_UP_FACTOR = 1e6
 """A run whose energy departs from its start by more than this multiple of the scene's
@@ -120,10 +120,8 @@ class StabilityMonitor:
 
 
 def _size(body) -> float:
-    shape = body.shape
-    if shape.type == "box":
-        return float(np.linalg.norm(shape.half_extents))
-    return shape.radius + getattr(shape, "half_length", 0.0)
+    """m, the bounding radius of a scene body's shape (mini_engine's, one definition)."""
+    return SHAPE_BUILDERS[body.shape.type](body.shape).bounding_radius()
 
 
 BISECTION_RATIO = 1.02
