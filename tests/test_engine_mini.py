@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS
-from validation.engine_spec import parse_engine_spec
-from validation.engines import create_adapter
 from validation.engines.parity import PARITY_TOLERANCE, compare
 from validation.engines.reference import reference_report
+from validation.engines.registry import create_adapter
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.engine_spec import parse_engine_spec
 
 ROTATED_OFFSET_SPINNING = {
     "dt": 0.001,

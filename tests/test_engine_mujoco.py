@@ -11,11 +11,12 @@ import pytest
 
 from mini_engine.rotation import quat_to_matrix
 from validation.cli import BUNDLED_SCENARIOS
-from validation.engine_spec import parse_engine_spec
-from validation.engines import create_adapter, mujoco_engine
+from validation.engines.mujoco import mjcf as mujoco_engine
 from validation.engines.parity import compare
 from validation.engines.reference import reference_report
+from validation.engines.registry import create_adapter
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.engine_spec import parse_engine_spec
 
 ROUNDOFF = 1e-12
 """Relative/absolute (SI units). A state written to qpos/qvel and read back passes through

@@ -11,12 +11,12 @@ import pybullet
 import pytest
 
 from mini_engine.rotation import quat_to_matrix
-from validation.engine_spec import parse_engine_spec
-from validation.engines import pybullet_engine
 from validation.engines.parity import compare
-from validation.engines.pybullet_engine import PybulletAdapter
+from validation.engines.pybullet import adapter as pybullet_engine
+from validation.engines.pybullet.adapter import PybulletAdapter
 from validation.engines.reference import reference_report
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.engine_spec import parse_engine_spec
 
 ROUND_OFF = 1e-12
 """Absolute, in the quantity's SI unit: the boundary converts frames with a few double

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from validation.comparator import COLUMNS, compare_scene
-from validation.metrics import METRICS, Context, measure
-from validation.recording import ImpactEvent, Recording, Trajectory
-from validation.runner import EngineRun
+from validation.measure.comparator import COLUMNS, compare_scene
+from validation.measure.metrics import METRICS, Context, measure
+from validation.measure.recording import ImpactEvent, Recording, Trajectory
+from validation.measure.runner import EngineRun
 from validation.scenario import Scenario
 
 G = 9.81
@@ -173,7 +173,7 @@ def test_penetration_max_is_the_deepest_overlap_over_the_samples():
 
 
 def test_divergence_is_the_largest_centre_of_mass_distance_to_the_reference():
-    from validation.metrics import divergence
+    from validation.measure.metrics import divergence
 
     base = scene()
     reference = context(base, [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0]], np.zeros((3, 3)))

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from validation.engine_spec import parse_engine_spec
-from validation.engines import create_adapter
-from validation.recording import record
+from validation.engines.registry import create_adapter
+from validation.measure.recording import record
 from validation.scenario import Scenario
+from validation.scenario.engine_spec import parse_engine_spec
 
 MINI_EVENT_RESTITUTION = 1e-6
 """Absolute. mini_engine resolves an impact in one semi-implicit step, for which carrying

@@ -28,8 +28,9 @@ from report_fixtures import (
     write_synthetic_run,
 )
 
-from validation import files, report
-from validation.metric_definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
+from validation import files
+from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
+from validation.report import render as report
 
 RUN_FILES = {"results.csv", "series.csv", "impacts.csv", "provenance.json"}
 URL_ATTRIBUTES = {"src", "href", "xlink:href", "srcset", "action", "formaction", "data", "poster"}

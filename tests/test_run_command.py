@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
-from validation.comparator import COLUMNS
+from validation.measure.comparator import COLUMNS
 
 TWO_PASSING_SCENES = [
     BUNDLED_SCENARIOS / "formulas" / "head_on_ratio_10.yaml",

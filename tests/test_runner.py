@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from validation.engine_spec import parse_engine_spec
-from validation.engines import mujoco_engine
-from validation.runner import run_engine
+from validation.engines.mujoco import mjcf as mujoco_engine
+from validation.measure.runner import run_engine
 from validation.scenario import Scenario
+from validation.scenario.engine_spec import parse_engine_spec
 
 BALL = {
     "name": "drop",
@@ -45,7 +45,7 @@ def test_wrong_inertia_gives_a_model_mismatch_naming_the_quantity(monkeypatch):
 
 
 def test_a_crashing_engine_becomes_an_error_row(monkeypatch):
-    from validation.engines import mini
+    from validation.engines.mini import adapter as mini
 
     def explode(self, steps):
         raise RuntimeError("solver fell over")

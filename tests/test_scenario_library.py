@@ -7,7 +7,7 @@ import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
 from validation.scenario import check_scenario, json_schema, scenario_files
-from validation.yaml_source import read_yaml
+from validation.scenario.yaml_source import read_yaml
 
 SCENES = scenario_files([BUNDLED_SCENARIOS])
 MINIMUM_SCENES = 24

@@ -339,7 +339,7 @@ def test_physval_check_as_a_process_exits_2_without_traceback(tmp_path, case):
 
 
 def test_engine_lists_split_at_top_level_commas():
-    from validation.engine_spec import split_engine_list
+    from validation.scenario.engine_spec import split_engine_list
 
     text = "mini(gyroscopic=implicit, solver_iterations=20), mujoco(integrator=RK4),pybullet"
     assert split_engine_list(text) == [
@@ -354,6 +354,6 @@ def test_round_off_asymmetric_inertia_is_accepted_and_symmetrised(tmp_path):
     scenario = load_scenario(write(tmp_path, text))
     inertia = scenario.bodies[0].inertia_matrix
     assert (inertia == inertia.T).all()
-    from validation.mini_scene import build_mini_model
+    from validation.scenario.physics import build_mini_model
 
     build_mini_model(scenario)  # the engine accepts what the loader accepted

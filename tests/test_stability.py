@@ -7,14 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from validation.engine_spec import parse_engine_spec
-from validation.scenario import Scenario
-from validation.stability import (
-    BISECTION_RATIO,
+from validation.jobs.stability_search import BISECTION_RATIO, largest_stable_dt, stability_limit
+from validation.measure.stability import (
     StabilityMonitor,
-    largest_stable_dt,
-    stability_limit,
 )
+from validation.scenario import Scenario
+from validation.scenario.engine_spec import parse_engine_spec
 
 STIFFNESS, MASS = 1.0e6, 1.0
 OMEGA = math.sqrt(STIFFNESS / MASS)
@@ -96,7 +94,7 @@ def test_monitor_names_each_kind():
 @pytest.mark.parametrize("engine", ["mujoco"])
 def test_foreign_engine_instability_warnings_are_read(engine):
     """MuJoCo resets an exploding state and only warns: the adapter must surface it."""
-    from validation.engines import create_adapter
+    from validation.engines.registry import create_adapter
 
     adapter = create_adapter(parse_engine_spec(engine))
     adapter.load(oscillator(dt=5e-3, duration=1.0))  # ω·dt = 5: MuJoCo Euler explodes
@@ -110,7 +108,7 @@ def test_foreign_engine_instability_warnings_are_read(engine):
 
 def test_a_stable_spring_with_a_large_stored_energy_is_not_flagged():
     """15 cm out on k = 1e6 N/m is 11 kJ released at 150 m/s: stable at ω·dt = 0.1."""
-    from validation.runner import run_engine
+    from validation.measure.runner import run_engine
 
     scene = Scenario.model_validate(
         {
@@ -130,7 +128,7 @@ def test_a_stable_spring_with_a_large_stored_energy_is_not_flagged():
 
 
 def test_a_model_mismatch_is_reported_as_not_run(monkeypatch):
-    from validation.engines import mujoco_engine
+    from validation.engines.mujoco import mjcf as mujoco_engine
 
     right = mujoco_engine.body_inertia
     monkeypatch.setattr(mujoco_engine, "body_inertia", lambda body: right(body) * 1.01)

@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
-from validation.engine_spec import parse_engine_spec
+from validation.jobs.sweep import GridError, parse_dt_grid, run_sweep
 from validation.scenario import Scenario, load_scenario
-from validation.sweep import GridError, parse_dt_grid, run_sweep
+from validation.scenario.engine_spec import parse_engine_spec
 
 ORDER_TOLERANCE = 0.05
 """Semi-implicit Euler's position error on a parabola is exactly g·dt·t/2, first order: the
@@ -55,7 +55,7 @@ def test_an_exploding_point_is_kept_as_unstable_in_the_csv_and_the_plot(tmp_path
 def test_stepping_time_excludes_recording(monkeypatch):
     """The sweep's time of a point is the stepping alone: keeping 500 samples or 5 changes the
     recording work, not the time (compared with each other, never with a wall-clock bound)."""
-    from validation import sweep
+    from validation.jobs import sweep
 
     scenario = Scenario.model_validate(
         {

@@ -14,8 +14,13 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_OK
-from validation.scenario import check_scenario, json_schema, scenario_files
+from validation.contract import EXIT_OK
+from validation.jobs.check import check_main
+from validation.jobs.run import run_main
+from validation.jobs.stability_search import stability_main
+from validation.jobs.sweep import sweep_main
+from validation.report.render import report_command
+from validation.scenario import json_schema
 
 BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 """The library shipped with the project (the repository's scenarios/ folder)."""
@@ -29,32 +34,11 @@ def default_scenario_paths() -> list[Path]:
 
 def command_check(args: argparse.Namespace) -> int:
     """Validate scenario files and folders; print every problem; 0 if all are valid, else 2."""
-    paths = args.paths or default_scenario_paths()
-    missing = [p for p in paths if not Path(p).exists()]
-    if missing:
-        for path in missing:
-            print(f"{path}: no such file or folder", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    files = scenario_files(paths)
-    if not files:
-        print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    invalid = warnings = 0
-    for file in files:
-        scenario, problems = check_scenario(file)
-        invalid += scenario is None
-        warnings += sum(p.warning for p in problems)
-        for problem in problems:
-            print(problem, file=sys.stderr if not problem.warning else sys.stdout)
-    valid = len(files) - invalid
-    print(f"{len(files)} files: {valid} valid, {invalid} invalid, {warnings} warnings")
-    return EXIT_OK if invalid == 0 else EXIT_BAD_INPUT
+    return check_main(args.paths or default_scenario_paths())
 
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
-    from validation.run import run_main
-
     return run_main(
         args.paths or default_scenario_paths(),
         args.engines,
@@ -67,53 +51,24 @@ def command_run(args: argparse.Namespace) -> int:
 
 def command_report(args: argparse.Namespace) -> int:
     """Re-render report.html of a run folder from its files, without re-running."""
-    try:
-        from validation.report import report_command
-    except ImportError:
-        print("physval report: the HTML renderer is not installed", file=sys.stderr)
-        return EXIT_BAD_INPUT
     return report_command(args.folder)
 
 
 def command_stability(args: argparse.Namespace) -> int:
     """Largest stable dt per scene and engine, by bisection; writes stability.csv."""
-    from validation.run import BadInputError, plan_run, write_table
-    from validation.stability import stability_limit
-
-    try:
-        plan = plan_run(args.paths or default_scenario_paths(), args.engines, None, args.only)
-    except BadInputError as error:
-        print(error, file=sys.stderr)
-        return EXIT_BAD_INPUT
-    limits = [stability_limit(scenario, spec) for scenario, specs in plan.scenes for spec in specs]
-    for limit in limits:
-        print(limit.sentence())
-    rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
-    write_table(rows, args.out or Path("reports") / "stability.csv")
-    return EXIT_OK
+    return stability_main(args.paths or default_scenario_paths(), args.engines, args.only, args.out)
 
 
 def command_sweep(args: argparse.Namespace) -> int:
     """Error against run time over a dt sweep; writes sweep.csv and sweep.html."""
-    from validation.run import BadInputError, plan_run, write_table
-    from validation.sweep import DEFAULT_ENGINES, GridError, parse_dt_grid, run_sweep
-    from validation.sweep_report import render_sweep
-
-    try:
-        grid = parse_dt_grid(args.dt)
-        engines = args.engines or DEFAULT_ENGINES
-        plan = plan_run(args.paths or default_scenario_paths(), engines, None, args.only)
-    except (BadInputError, GridError) as error:
-        print(error, file=sys.stderr)
-        return EXIT_BAD_INPUT
-    jobs = [(scenario, spec, grid) for scenario, specs in plan.scenes for spec in specs]
-    rows = run_sweep(jobs, args.jobs)
-    out = args.out or Path("reports") / "sweep"
-    out.mkdir(parents=True, exist_ok=True)
-    write_table(rows, out / "sweep.csv")
-    render_sweep(rows, out / "sweep.html")
-    print(f"{len(rows)} rows -> {out / 'sweep.csv'}, {out / 'sweep.html'}")
-    return EXIT_OK
+    return sweep_main(
+        args.paths or default_scenario_paths(),
+        args.engines,
+        args.only,
+        args.dt,
+        args.jobs,
+        args.out,
+    )
 
 
 def command_schema(args: argparse.Namespace) -> int:

@@ -1,7 +1,7 @@
 """Names that CI jobs, scenario authors and report readers depend on, defined once.
 
 The run folder's files and their columns, and the command's exit codes. The producer
-(``validation.run``, ``validation.comparator``) and the consumer (``validation.report``)
+(``validation.jobs.run``, ``validation.measure.comparator``) and the consumer (``validation.report``)
 both import them from here.
 """
 

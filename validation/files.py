@@ -6,6 +6,8 @@ import os
 import secrets
 from pathlib import Path
 
+import pandas as pd
+
 
 def write_atomically(path: Path, text: str) -> None:
     """Write ``text`` to a new file next to ``path``, then rename it over ``path``.
@@ -25,3 +27,9 @@ def write_atomically(path: Path, text: str) -> None:
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+
+
+def write_table(rows: list[dict], path: Path) -> None:
+    """A CSV of ``rows`` written atomically (``files.write_atomically``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomically(path, pd.DataFrame(rows).to_csv(index=False))

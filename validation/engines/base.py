@@ -14,8 +14,8 @@ from typing import Protocol
 
 import numpy as np
 
-from validation.engine_spec import EngineSpec
 from validation.scenario import Scenario
+from validation.scenario.engine_spec import EngineSpec
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ from mini_engine.quantities import (
 )
 from mini_engine.rotation import quat_to_matrix, world_inertia
 from validation.engines.base import ModelReport
-from validation.mini_scene import build_mini_model
 from validation.scenario import Scenario
+from validation.scenario.physics import build_mini_model
 
 
 def dynamic_bodies(scenario: Scenario) -> np.ndarray:

@@ -32,9 +32,9 @@ import numpy as np
 from mini_engine.collision import detect_contacts
 from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import EngineAdapter, Snapshot
-from validation.mini_scene import GROUND, build_mini_model
+from validation.measure.stability import StabilityMonitor
 from validation.scenario import Scenario
-from validation.stability import StabilityMonitor
+from validation.scenario.physics import GROUND, build_mini_model
 
 DETECTION_GAP = 1e-6
 """m. Shapes closer than this count as touching (mini_engine's contact margin), so a body

@@ -12,9 +12,13 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mini_engine import Body, PairProperties, Plane, Spring, build_model
+from mini_engine.collision import detect_contacts
+from mini_engine.forces import spring_energy
+from mini_engine.model import Model, State
 from mini_engine.rotation import apply, quat_to_matrix
 from mini_engine.shapes import Box, Capsule, Sphere, solid_inertia
-from validation.scenario import BodySpec, Scenario, SpringSpec
+from validation.scenario.schema import BodySpec, Scenario, SpringSpec
 
 SHAPE_BUILDERS = {
     "sphere": lambda s: Sphere(s.radius),
@@ -80,8 +84,6 @@ class SceneEnergy:
     """
 
     def __init__(self, scenario: Scenario):
-        from validation.mini_scene import build_mini_model  # mini_scene imports this module
-
         self.moving = np.array([not b.fixed for b in scenario.bodies], dtype=float)
         self.mass = self.moving * np.array([b.mass for b in scenario.bodies])
         self.inertia = np.array([body_inertia(b) for b in scenario.bodies])
@@ -103,9 +105,6 @@ class SceneEnergy:
         """(s,) J stored in the springs at ``pos (s, n, 3)`` m, ``quat (s, n, 4)``."""
         if self.springs is None:
             return np.zeros(pos.shape[0])
-        from mini_engine.forces import spring_energy
-        from mini_engine.model import State
-
         model, state = self.springs
         energies = []
         for k in range(pos.shape[0]):  # per sample; only scenes with springs pay for it
@@ -114,3 +113,82 @@ class SceneEnergy:
             sample = State(full_pos, full_quat, state.vel, state.ang_vel)
             energies.append(spring_energy(model, sample, quat_to_matrix(full_quat)))
         return np.array(energies)
+
+
+# --- the scene as a mini_engine model ---
+
+
+GROUND = "ground"
+"""Name of the scene's ground plane in the model (always the last body)."""
+
+OVERLAP_TOLERANCE = 1e-9
+"""m. Bodies placed exactly touching overlap by round-off; deeper than this is an overlap."""
+
+
+def _body(spec: BodySpec) -> Body:
+    return Body(
+        shape=SHAPE_BUILDERS[spec.shape.type](spec.shape),
+        mass=spec.mass,
+        inertia=spec.inertia_matrix,
+        position=spec.position,
+        orientation=spec.orientation,
+        velocity=spec.velocity,
+        angular_velocity=spec.angular_velocity,
+        restitution=spec.restitution,
+        friction=spec.friction,
+        fixed=spec.fixed,
+        name=spec.name,
+    )
+
+
+def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
+    """Model and initial state: the scene's bodies in order, then the ground plane if any."""
+    bodies = [_body(spec) for spec in scenario.bodies]
+    if scenario.ground is not None:
+        bodies.append(
+            Body(
+                Plane(),
+                fixed=True,
+                restitution=scenario.ground.restitution,
+                friction=scenario.ground.friction,
+                name=GROUND,
+            )
+        )
+    index = {b.name: i for i, b in enumerate(bodies)}
+    springs = [
+        Spring(
+            body_a=index[s.a],
+            body_b=None if s.b == "world" else index[s.b],
+            anchor_a=s.anchor_a,
+            anchor_b=s.anchor_b,
+            stiffness=s.stiffness,
+            damping=s.damping,
+            rest_length=rest_length(scenario, s),
+        )
+        for s in scenario.springs
+    ]
+    pairs = [
+        PairProperties(index[p.a], index[p.b], p.restitution, p.friction) for p in scenario.pairs
+    ]
+    return build_model(bodies, springs, gravity=scenario.gravity, pairs=pairs)
+
+
+def initial_overlaps(scenario: Scenario) -> list[tuple[int, str]]:
+    """(body index, message) for every pair overlapping at t = 0 (deeper than round-off)."""
+    model, state = build_mini_model(scenario)
+    contacts = detect_contacts(model, state.pos, quat_to_matrix(state.quat), 0.0)
+    deep = contacts.depth > OVERLAP_TOLERANCE
+    found: dict[tuple[int, int], float] = {}
+    for a, b, depth in zip(
+        contacts.body_a[deep], contacts.body_b[deep], contacts.depth[deep], strict=True
+    ):
+        key = (int(min(a, b)), int(max(a, b)))
+        found[key] = max(found.get(key, 0.0), float(depth))
+    names = model.body_name
+    return [
+        (
+            a if a < len(scenario.bodies) else b,
+            f"{names[a]!r} and {names[b]!r} overlap by {depth:.3g} m at t = 0 (intended for deep-penetration scenes)",
+        )
+        for (a, b), depth in sorted(found.items())
+    ]

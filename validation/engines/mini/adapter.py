@@ -16,11 +16,11 @@ from mini_engine.quantities import (
     potential_energy,
 )
 from mini_engine.rotation import quat_to_matrix, world_inertia
-from validation.engine_spec import EngineSpec
 from validation.engines.base import ModelReport, Provenance, Snapshot
 from validation.engines.reference import dynamic_bodies
-from validation.mini_scene import build_mini_model
 from validation.scenario import Scenario
+from validation.scenario.engine_spec import EngineSpec
+from validation.scenario.physics import build_mini_model
 
 
 class MiniAdapter:

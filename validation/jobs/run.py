@@ -10,7 +10,6 @@ interrupted run never leaves a half-written report.
 from __future__ import annotations
 
 import datetime as dt_module
-import fnmatch
 import json
 import os
 import platform
@@ -18,13 +17,11 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from validation.comparator import COLUMNS, compare_scene
 from validation.contract import (
     BAD_STATUSES,
     EXIT_BAD_INPUT,
@@ -36,12 +33,13 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_FILE,
 )
-from validation.engine_spec import EngineSpec, EngineSpecError, parse_engine_spec, split_engine_list
-from validation.files import write_atomically
-from validation.metrics import Context
-from validation.runner import EngineRun, run_engine
-from validation.scenario import Scenario, ScenarioError, load_scenario, scenario_files
-from validation.scene_physics import pair_value
+from validation.jobs.plan import BadInputError, Plan, plan_run
+from validation.measure.comparator import COLUMNS, compare_scene
+from validation.measure.metrics import Context
+from validation.measure.runner import EngineRun, run_engine
+from validation.report.render import render_report
+from validation.scenario import Scenario
+from validation.scenario.physics import pair_value
 
 MAX_SAMPLES = 5000
 """Trajectory samples kept per run: every step for the library's impact scenes (at most a few
@@ -49,66 +47,6 @@ thousand steps), every k-th step for long ones, so metrics see impacts and apexe
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
-
-
-@dataclass
-class Plan:
-    """What to run: validated scenes, each with its engine specs."""
-
-    scenes: list[tuple[Scenario, list[EngineSpec]]]
-
-
-class BadInputError(ValueError):
-    """User input that stops the run before anything is written (exit code 2)."""
-
-
-def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
-    """Load and validate everything first; raises ``BadInputError`` listing every problem."""
-    problems: list[str] = []
-    overrides: list[EngineSpec] | None = None
-    if engines is not None:
-        overrides = []
-        for text in split_engine_list(engines) or [""]:
-            try:
-                spec = parse_engine_spec(text)
-            except EngineSpecError as error:
-                problems.append(f"--engines: {error}")
-                continue
-            if spec in overrides:
-                problems.append(f"--engines: {spec.label!r} is listed twice")
-            overrides.append(spec)
-    if dt is not None and not (np.isfinite(dt) and dt > 0):
-        problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
-    missing = [p for p in paths if not p.exists()]
-    problems += [f"{p}: no such file or folder" for p in missing]
-    scenes: list[tuple[Scenario, list[EngineSpec]]] = []
-    for file in scenario_files([p for p in paths if p.exists()]):
-        try:
-            scenario = load_scenario(file)
-        except ScenarioError as error:
-            problems += [str(p) for p in error.problems]
-            continue
-        if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
-            continue
-        if dt is not None and not problems:
-            try:
-                scenario = Scenario.model_validate(
-                    {**scenario.model_dump(), "dt": dt, "source": scenario.source}
-                )
-            except ValueError as error:
-                problems.append(f"--dt {dt} for {file}: {error}")
-                continue
-            if scenario.steps < 1 or scenario.duration / dt > 5_000_000:
-                problems.append(
-                    f"--dt {dt} for {file}: {scenario.duration / dt:.3g} steps is out of range"
-                )
-                continue
-        scenes.append((scenario, overrides or list(scenario.engine_specs)))
-    if not scenes and not problems:
-        problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
-    if problems:
-        raise BadInputError("\n".join(problems))
-    return Plan(scenes)
 
 
 def _sample_every(scenario: Scenario) -> int:
@@ -246,12 +184,6 @@ def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
     (folder / PROVENANCE_FILE).write_text(json.dumps(provenance, indent=2, default=str))
 
 
-def write_table(rows: list[dict], path: Path) -> None:
-    """A CSV of ``rows`` written atomically (``files.write_atomically``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(path, pd.DataFrame(rows).to_csv(index=False))
-
-
 def publish(stage: Path, destination: Path) -> None:
     """Move the finished ``stage`` folder to ``destination``, replacing an older run."""
     destination.parent.mkdir(parents=True, exist_ok=True)
@@ -267,8 +199,6 @@ def publish(stage: Path, destination: Path) -> None:
 def render_html(folder: Path) -> str:
     """Render report.html; returns a note instead of failing the run when rendering fails
     (results.csv is the record; ``physval report DIR`` can render it again later)."""
-    from validation.report import render_report
-
     try:
         render_report(folder)
     except Exception as error:  # a rendering bug must not lose the run's record

@@ -51,7 +51,7 @@ from validation.contract import (
     STATUS_DESCRIPTIONS,
 )
 from validation.files import write_atomically
-from validation.metric_definitions import (
+from validation.measure.definitions import (
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
     METRIC_DEFINITIONS,

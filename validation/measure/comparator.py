@@ -12,8 +12,8 @@ import json
 import math
 
 from validation.contract import RESULTS_COLUMNS
-from validation.metrics import Context, Measurement, divergence, measure
-from validation.runner import EngineRun
+from validation.measure.metrics import Context, Measurement, divergence, measure
+from validation.measure.runner import EngineRun
 from validation.scenario import Scenario
 
 COLUMNS = RESULTS_COLUMNS

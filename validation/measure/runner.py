@@ -21,13 +21,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from validation.engine_spec import EngineSpec
-from validation.engines import create_adapter
 from validation.engines.base import Provenance
 from validation.engines.parity import Mismatch, compare
 from validation.engines.reference import reference_report
-from validation.recording import Recording, record
+from validation.engines.registry import create_adapter
+from validation.measure.recording import Recording, record
 from validation.scenario import Scenario
+from validation.scenario.engine_spec import EngineSpec
 
 
 @dataclass

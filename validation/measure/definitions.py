@@ -1,6 +1,6 @@
 """One line per metric: the definition the report's legend prints (issue 5 fixes the names).
 
-The code that computes each metric is in ``validation.metrics``; this table is its
+The code that computes each metric is in ``validation.measure.metrics``; this table is its
 contract, kept apart so that a report can be rendered without importing any engine.
 """
 

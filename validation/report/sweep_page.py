@@ -18,7 +18,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from validation.report import _svg_for_html, write_atomically
+from validation.files import write_atomically
+from validation.report.render import _svg_for_html
 
 FIGURE_SIZE = (11.0, 3.6)
 """inches: two charts side by side, readable at a laptop's width."""

@@ -4,7 +4,7 @@ Every metric is a function in ``METRICS`` (or, for a scene's own expectations,
 ``EXPECTATIONS``) that returns a ``Measurement`` or ``None`` when the scene cannot
 define it (no restitution without an impact, no ballistic error where bodies touch).
 A ``None`` is left out of the report, never written as zero. The one-line definitions
-the report prints are in ``validation.metric_definitions``.
+the report prints are in ``validation.measure.definitions``.
 """
 
 from __future__ import annotations
@@ -18,10 +18,9 @@ import numpy as np
 
 from mini_engine.collision import detect_contacts
 from mini_engine.rotation import quat_to_matrix
-from validation.mini_scene import build_mini_model
-from validation.recording import Recording
+from validation.measure.recording import Recording
 from validation.scenario import Scenario
-from validation.scene_physics import SceneEnergy, body_inertia, pair_value
+from validation.scenario.physics import SceneEnergy, body_inertia, build_mini_model, pair_value
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as

@@ -23,18 +23,25 @@ from __future__ import annotations
 
 import math
 import statistics
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from validation.engine_spec import EngineSpec, parse_engine_spec
-from validation.engines import create_adapter
-from validation.metrics import Context, measure
-from validation.runner import EngineRun, run_engine
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.engines.registry import create_adapter
+from validation.files import write_table
+from validation.jobs.plan import BadInputError, plan_run
+from validation.measure.metrics import Context, measure
+from validation.measure.runner import EngineRun, run_engine
+from validation.report.sweep_page import render_sweep
 from validation.scenario import MAX_STEPS, Scenario
-from validation.stability import scene_at
+from validation.scenario.engine_spec import EngineSpec, parse_engine_spec
+from validation.scenario.physics import build_mini_model
+from validation.scenario.schema import scene_at
 
 WARMUP_STEPS = 20
 BLOCK_STEPS = 100
@@ -110,8 +117,6 @@ def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
 
 
 def _can_touch(scenario: Scenario) -> bool:
-    from validation.mini_scene import build_mini_model
-
     return build_mini_model(scenario)[0].can_touch
 
 
@@ -280,3 +285,24 @@ def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int
         return [row for job in jobs for row in sweep_scene(job)]
     with ProcessPoolExecutor(max_workers=workers) as pool:
         return [row for rows in pool.map(sweep_scene, jobs) for row in rows]
+
+
+def sweep_main(
+    paths: list[Path], engines: str | None, only: str | None, dt: str, jobs: int, out: Path | None
+) -> int:
+    """``physval sweep``: the sweep of every planned (scene, engine); sweep.csv and sweep.html."""
+    try:
+        grid = parse_dt_grid(dt)
+        plan = plan_run(paths, engines or DEFAULT_ENGINES, None, only)
+    except (BadInputError, GridError) as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    rows = run_sweep(
+        [(scenario, spec, grid) for scenario, specs in plan.scenes for spec in specs], jobs
+    )
+    out = out or Path("reports") / "sweep"
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(rows, out / "sweep.csv")
+    render_sweep(rows, out / "sweep.html")
+    print(f"{len(rows)} rows -> {out / 'sweep.csv'}, {out / 'sweep.html'}")
+    return EXIT_OK

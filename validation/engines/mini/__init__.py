@@ -1,0 +1,1 @@
+"""mini_engine behind the adapter protocol."""

@@ -1,0 +1,1 @@
+"""MuJoCo behind the adapter protocol: ``mjcf`` writes the model, ``adapter`` runs it."""

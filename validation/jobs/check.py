@@ -1,0 +1,32 @@
+"""``physval check``: validate scenario files and folders, print every problem."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.scenario import check_scenario, scenario_files
+
+
+def check_main(paths: list[Path]) -> int:
+    """Print every problem of the files under ``paths``; 0 if all are valid, else 2."""
+    missing = [p for p in paths if not Path(p).exists()]
+    if missing:
+        for path in missing:
+            print(f"{path}: no such file or folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    files = scenario_files(paths)
+    if not files:
+        print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    invalid = warnings = 0
+    for file in files:
+        scenario, problems = check_scenario(file)
+        invalid += scenario is None
+        warnings += sum(p.warning for p in problems)
+        for problem in problems:
+            print(problem, file=sys.stderr if not problem.warning else sys.stdout)
+    valid = len(files) - invalid
+    print(f"{len(files)} files: {valid} valid, {invalid} invalid, {warnings} warnings")
+    return EXIT_OK if invalid == 0 else EXIT_BAD_INPUT

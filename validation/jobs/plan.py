@@ -1,0 +1,77 @@
+"""Planning: every scene loaded and validated, every flag checked, before any work starts."""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from validation.scenario import Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scenario.engine_spec import (
+    EngineSpec,
+    EngineSpecError,
+    parse_engine_spec,
+    split_engine_list,
+)
+
+
+@dataclass
+class Plan:
+    """What to run: validated scenes, each with its engine specs."""
+
+    scenes: list[tuple[Scenario, list[EngineSpec]]]
+
+
+class BadInputError(ValueError):
+    """User input that stops the run before anything is written (exit code 2)."""
+
+
+def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
+    """Load and validate everything first; raises ``BadInputError`` listing every problem."""
+    problems: list[str] = []
+    overrides: list[EngineSpec] | None = None
+    if engines is not None:
+        overrides = []
+        for text in split_engine_list(engines) or [""]:
+            try:
+                spec = parse_engine_spec(text)
+            except EngineSpecError as error:
+                problems.append(f"--engines: {error}")
+                continue
+            if spec in overrides:
+                problems.append(f"--engines: {spec.label!r} is listed twice")
+            overrides.append(spec)
+    if dt is not None and not (np.isfinite(dt) and dt > 0):
+        problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
+    missing = [p for p in paths if not p.exists()]
+    problems += [f"{p}: no such file or folder" for p in missing]
+    scenes: list[tuple[Scenario, list[EngineSpec]]] = []
+    for file in scenario_files([p for p in paths if p.exists()]):
+        try:
+            scenario = load_scenario(file)
+        except ScenarioError as error:
+            problems += [str(p) for p in error.problems]
+            continue
+        if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
+            continue
+        if dt is not None and not problems:
+            try:
+                scenario = Scenario.model_validate(
+                    {**scenario.model_dump(), "dt": dt, "source": scenario.source}
+                )
+            except ValueError as error:
+                problems.append(f"--dt {dt} for {file}: {error}")
+                continue
+            if scenario.steps < 1 or scenario.duration / dt > 5_000_000:
+                problems.append(
+                    f"--dt {dt} for {file}: {scenario.duration / dt:.3g} steps is out of range"
+                )
+                continue
+        scenes.append((scenario, overrides or list(scenario.engine_specs)))
+    if not scenes and not problems:
+        problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
+    if problems:
+        raise BadInputError("\n".join(problems))
+    return Plan(scenes)

@@ -1,0 +1,79 @@
+"""Loading: a file read strictly, validated by the schema, then by the whole-document
+rules; every problem collected."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import (
+    ValidationError,
+)
+
+from validation.scenario.checks import _cross_problems
+from validation.scenario.physics import initial_overlaps
+from validation.scenario.problems import Problem, ScenarioError, _found, _schema_problem
+from validation.scenario.schema import (
+    Scenario,
+)
+from validation.scenario.yaml_source import YamlSourceError, read_yaml
+
+
+def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
+    file = str(path)
+    try:
+        data, source = read_yaml(path)
+    except YamlSourceError as error:
+        return None, [Problem(file, "", error.message, error.line, error.column)]
+    if not isinstance(data, dict):
+        return None, [
+            Problem(file, "", f"expected a mapping of scenario fields; got {_found(data)}", 1, 1)
+        ]
+    data = {**data, "source": file}
+    if data.get("name") is None:
+        data["name"] = path.stem
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as error:
+        problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
+        return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
+    problems = _cross_problems(scenario, file, source)
+    return (None if problems else scenario), problems
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """The validated scenario at ``path``; raises ``ScenarioError`` listing every problem."""
+    scenario, problems = _load(Path(path))
+    if scenario is None:
+        raise ScenarioError(problems)
+    return scenario
+
+
+def check_scenario(path: str | Path) -> tuple[Scenario | None, list[Problem]]:
+    """The scenario (or None) and all its problems, warnings included (overlaps at t = 0)."""
+    scenario, problems = _load(Path(path))
+    if scenario is not None:
+        problems += [
+            Problem(str(path), f"bodies[{i}]", message, *(None, None), warning=True)
+            for i, message in initial_overlaps(scenario)
+        ]
+    return scenario, problems
+
+
+def scenario_files(paths: list[str | Path]) -> list[Path]:
+    """Every ``*.yaml``/``*.yml`` file named or found (recursively) under the folders, sorted."""
+    files: list[Path] = []
+    for item in map(Path, paths):
+        if item.is_dir():
+            files += sorted(p for p in item.rglob("*") if p.suffix in (".yaml", ".yml"))
+        else:
+            files.append(item)
+    return files
+
+
+def json_schema() -> dict:
+    """The JSON Schema of the format (for editors: the YAML language server)."""
+    schema = Scenario.model_json_schema()
+    schema["properties"].pop("source", None)
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "physval scenario, version 1"
+    return schema

@@ -1,0 +1,150 @@
+"""Problems: one thing wrong in a scenario file, as ``file:line:column: field: message``,
+with pydantic's errors translated into that form (and a "did you mean")."""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import Any
+
+from validation.scenario.schema import (
+    BodySpec,
+    BounceHeights,
+    BoxShape,
+    CapsuleShape,
+    Flips,
+    GroundSpec,
+    PairSpec,
+    PositionAt,
+    PrecessionRate,
+    Scenario,
+    SphereShape,
+    SpringSpec,
+    VelocityAfterImpact,
+    VelocityAt,
+)
+from validation.scenario.yaml_source import SourceMap
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong (or, with ``warning``, suspicious) in a scenario file."""
+
+    file: str
+    path: str
+    message: str
+    line: int | None = None
+    column: int | None = None
+    warning: bool = False
+
+    def __str__(self) -> str:
+        where = self.file + (f":{self.line}:{self.column}" if self.line else "")
+        field = f" {self.path}:" if self.path else ""
+        kind = " warning:" if self.warning else ""
+        return f"{where}:{kind}{field} {self.message}"
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be loaded; ``problems`` holds every reason."""
+
+    def __init__(self, problems: list[Problem]):
+        super().__init__("\n".join(str(p) for p in problems))
+        self.problems = problems
+
+
+def path_text(loc: tuple[str | int, ...]) -> str:
+    """``("bodies", 1, "shape", "radius")`` -> ``bodies[1].shape.radius``."""
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _found(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _has(node: Any, part: str | int) -> bool:
+    return (isinstance(node, dict) and part in node) or (
+        isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node)
+    )
+
+
+def _clean_loc(data: Any, loc: tuple) -> tuple[str | int, ...]:
+    """Drop what pydantic adds to a location that is not a field: the tag of a tagged
+    union (``shape.sphere.radius`` -> ``shape.radius``) and validator names."""
+    clean: list[str | int] = []
+    node = data
+    for part in loc:
+        if isinstance(part, str) and part.startswith("function-"):
+            continue
+        if (
+            isinstance(node, dict)
+            and not _has(node, part)
+            and part in (node.get("type"), node.get("kind"))
+        ):
+            continue
+        clean.append(part)
+        node = node[part] if _has(node, part) else None
+    return tuple(clean)
+
+
+def _node_at(data: Any, loc: tuple) -> Any:
+    for part in loc:
+        data = data[part] if _has(data, part) else None
+    return data
+
+
+_SHAPES = {"sphere": SphereShape, "box": BoxShape, "capsule": CapsuleShape}
+_EXPECTATIONS = {
+    model.model_fields["kind"].annotation.__args__[0]: model
+    for model in (VelocityAfterImpact, PositionAt, VelocityAt, BounceHeights, PrecessionRate, Flips)
+}
+_MODEL_AT = {
+    (): lambda node: Scenario,
+    ("bodies", "#"): lambda node: BodySpec,
+    ("bodies", "#", "shape"): lambda node: _SHAPES.get(node.get("type")),
+    ("ground",): lambda node: GroundSpec,
+    ("springs", "#"): lambda node: SpringSpec,
+    ("pairs", "#"): lambda node: PairSpec,
+    ("expect", "#"): lambda node: _EXPECTATIONS.get(node.get("kind")),
+}
+"""Which schema model validates the mapping at a location (for "did you mean")."""
+
+
+def _allowed_keys(data: Any, loc: tuple) -> list[str]:
+    pattern = tuple("#" if isinstance(p, int) else p for p in loc)
+    node = _node_at(data, loc)
+    chooser = _MODEL_AT.get(pattern)
+    model = chooser(node if isinstance(node, dict) else {}) if chooser else None
+    return [k for k in model.model_fields if k != "source"] if model else []
+
+
+def _schema_problem(error: dict, data: Any, file: str, source: SourceMap) -> Problem:
+    """One pydantic error as a ``Problem`` with the field path, expectation and found value."""
+    loc = _clean_loc(data, error["loc"])
+    kind = error["type"]
+    found = _found(error.get("input"))
+    if kind == "extra_forbidden":
+        key = loc[-1]
+        allowed = _allowed_keys(data, loc[:-1])
+        close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.5)
+        hint = (
+            f"; did you mean {close[0]!r}?" if close else f"; expected one of {', '.join(allowed)}"
+        )
+        message = f"unknown field {key!r}{hint}"
+    elif kind == "missing":
+        message = "required field is missing"
+    elif kind == "union_tag_invalid":
+        context = error["ctx"]
+        loc = (*loc, context["discriminator"].strip("'"))
+        message = f"expected one of {context['expected_tags']}; got {context['tag']!r}"
+    elif kind == "union_tag_not_found":
+        message = f"required field {error['ctx']['discriminator']} is missing"
+    elif kind == "value_error":
+        message = str(error["ctx"]["error"]) if "ctx" in error else error["msg"]
+    else:
+        message = f"expected {error['msg'].removeprefix('Input should be ').lower()}; got {found}"
+    position = source.locate(loc)
+    return Problem(file, path_text(loc), message, *(position or (None, None)))
