@@ -30,7 +30,9 @@ from report_fixtures import (
 
 from validation import files
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
-from validation.report import render as report
+from validation.report import build, render
+from validation.report.outcomes import GREEN, RED
+from validation.report.plots import thin_line
 
 RUN_FILES = {"results.csv", "series.csv", "impacts.csv", "provenance.json"}
 URL_ATTRIBUTES = {"src", "href", "xlink:href", "srcset", "action", "formaction", "data", "poster"}
@@ -41,7 +43,7 @@ URL_ATTRIBUTES = {"src", "href", "xlink:href", "srcset", "action", "formaction",
 def rendered(tmp_path_factory) -> tuple[Path, str]:
     """The synthetic run rendered once: (run folder, report.html text)."""
     run_dir = write_synthetic_run(tmp_path_factory.mktemp("run"))
-    path = report.render_report(run_dir)
+    path = render.render_report(run_dir)
     assert path == run_dir / "report.html"
     return run_dir, path.read_text(encoding="utf-8")
 
@@ -174,7 +176,7 @@ def test_missing_optional_files_still_render(tmp_path):
     run_dir = write_synthetic_run(tmp_path)
     for name in ("series.csv", "impacts.csv", "provenance.json"):
         (run_dir / name).unlink()
-    html = report.render_report(run_dir).read_text(encoding="utf-8")
+    html = render.render_report(run_dir).read_text(encoding="utf-8")
     assert "no series.csv in this run" in html and "No impacts.csv in this run" in html
     assert "provenance.json: missing" in html
     assert str(escape(ENGINES[0])) in html[html.index('<section id="provenance">') :]
@@ -185,7 +187,7 @@ def test_thin_line_keeps_spikes_and_bounds_points():
     y = np.zeros_like(t)
     y[54_321] = 7.0
     y[-1] = np.inf
-    tt, yy = report.thin_line(t, y, max_points=1000)
+    tt, yy = thin_line(t, y, max_points=1000)
     assert tt.size <= 1000 and np.nanmax(yy) == 7.0 and np.all(np.diff(tt) > 0)
     assert np.isnan(yy[-1]) or tt[-1] < 1.0
 
@@ -205,9 +207,9 @@ def test_a_failing_plot_leaves_the_previous_report_intact(tmp_path, monkeypatch)
     def broken_plot(*args, **kwargs):
         raise RuntimeError("plotting failed")
 
-    monkeypatch.setattr(report, "plot_scene_series", broken_plot)
+    monkeypatch.setattr(build, "plot_scene_series", broken_plot)
     with pytest.raises(RuntimeError, match="plotting failed"):
-        report.render_report(run_dir)
+        render.render_report(run_dir)
     assert (run_dir / "report.html").read_text() == "previous report"
     assert {p.name for p in run_dir.iterdir()} == RUN_FILES | {"report.html"}
 
@@ -221,7 +223,7 @@ def test_a_failing_rename_removes_the_temporary_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(files.os, "replace", broken_replace)
     with pytest.raises(OSError, match="disk gone"):
-        report.render_report(run_dir)
+        render.render_report(run_dir)
     assert (run_dir / "report.html").read_text() == "previous report"
     assert {p.name for p in run_dir.iterdir()} == RUN_FILES | {"report.html"}
 
@@ -230,7 +232,7 @@ def test_a_failing_rename_removes_the_temporary_file(tmp_path, monkeypatch):
 
 
 def test_report_command_on_a_folder_without_results_returns_2(tmp_path, capsys):
-    assert report.report_command(tmp_path) == 2
+    assert render.report_command(tmp_path) == 2
     captured = capsys.readouterr()
     assert captured.err == f"{tmp_path}: no results.csv (not a physval run folder)\n"
     assert captured.out == ""
@@ -239,14 +241,14 @@ def test_report_command_on_a_folder_without_results_returns_2(tmp_path, capsys):
 
 def test_report_command_on_a_broken_results_file_returns_2(tmp_path, capsys):
     (tmp_path / "results.csv").write_text("scenario,engine\nbounce,mini\n")
-    assert report.report_command(tmp_path) == 2
+    assert render.report_command(tmp_path) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "results.csv: missing columns metric" in err
 
 
 def test_report_command_renders_a_run_folder(tmp_path, capsys):
     run_dir = write_synthetic_run(tmp_path)
-    assert report.report_command(str(run_dir)) == 0
+    assert render.report_command(str(run_dir)) == 0
     assert capsys.readouterr().out == f"{run_dir / 'report.html'}\n"
 
 
@@ -344,6 +346,6 @@ def test_chromium_renders_the_report(rendered, tmp_path):
 
     pixels = (matplotlib.image.imread(shot)[..., :3] * 255).round().astype(int)
     assert pixels.shape[:2] == (SCREEN[1], SCREEN[0])
-    for colour in (report.RED, report.GREEN):  # the matrix's failing and passing cells
+    for colour in (RED, GREEN):  # the matrix's failing and passing cells
         rgb = np.array([int(colour[i : i + 2], 16) for i in (1, 3, 5)])
         assert (np.abs(pixels - rgb).max(axis=-1) <= 2).sum() > 1000, colour

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from validation.files import write_atomically
-from validation.report.render import _svg_for_html
+from validation.report.plots import svg_for_html
 
 FIGURE_SIZE = (11.0, 3.6)
 """inches: two charts side by side, readable at a laptop's width."""
@@ -51,7 +51,7 @@ def _chart(scene: pd.DataFrame, orders: dict[str, float]) -> str:
     buffer = io.StringIO()
     figure.savefig(buffer, format="svg")
     plt.close(figure)
-    return _svg_for_html(buffer.getvalue())
+    return svg_for_html(buffer.getvalue())
 
 
 def render_sweep(rows: list[dict], path: Path) -> Path:

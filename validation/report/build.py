@@ -1,0 +1,370 @@
+"""Phase 3 of report.html: the template's context, as plain strings, lists and dicts.
+
+``build_context(run)`` judges the rows (``outcomes``) and builds, in the page's order:
+the verdict and summary chips, the scene x engine matrix (``build_cell``), the worst
+offenders (``build_rows``), one section per scene (``build_scene``: runs, the plot from
+``plots``, impacts, checks), the legend (``build_legend``) and the provenance
+(``build_provenance``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from markupsafe import Markup
+
+from validation.contract import SERIES_FILE, STATUS_DESCRIPTIONS
+from validation.measure.definitions import (
+    EXPECTATION_DEFINITIONS,
+    EXPECTED_KINDS,
+    METRIC_DEFINITIONS,
+)
+from validation.report.outcomes import (
+    OUTCOME_COLOURS,
+    OUTCOME_ORDER,
+    RED_OUTCOMES,
+    RUN_FAILURES,
+    classify_rows,
+    outcome_label,
+    worst_first,
+)
+from validation.report.plots import engine_styles, plot_scene_series
+from validation.report.read import RunData
+
+# --- page size limits --------------------------------------------------------------------------
+
+MAX_OFFENDERS = 20  # rows in the "worst offenders" table at the top
+MAX_IMPACT_ROWS = 40  # impacts listed per scene; the rest stay in impacts.csv
+IMPACTS_OPEN_UP_TO = 12  # an impacts table this short is shown expanded
+SETTINGS_INLINE_UP_TO = 6  # more settings than this are folded in the scene's runs table
+
+
+def format_number(value: Any, raw: str = "") -> str:
+    """A compact number (4 significant digits); raw text when it is not a number."""
+    if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
+        if math.isnan(value):
+            return raw
+        return f"{value:.4g}"
+    return raw or ("" if value is None else str(value))
+
+
+def format_ratio(ratio: float) -> str:
+    """error/tolerance as shown in a cell: ``0.42×``, ``12×``, ``inf×``."""
+    if math.isnan(ratio):
+        return ""
+    return "inf×" if math.isinf(ratio) else f"{ratio:.2g}×"
+
+
+def slug(text: str, taken: set[str]) -> str:
+    """An HTML id for a scene: letters, digits, ``-`` and ``_`` only, unique in ``taken``."""
+    base = "scene-" + (re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-") or "unnamed")
+    candidate, n = base, 1
+    while candidate in taken:
+        n += 1
+        candidate = f"{base}-{n}"
+    taken.add(candidate)
+    return candidate
+
+
+def metric_anchor(metric: str) -> str | None:
+    """The legend anchor that defines ``metric`` (``<kind>.<body>`` -> the kind), if any."""
+    if metric in METRIC_DEFINITIONS:
+        return f"metric-{metric}"
+    kind = metric.split(".", 1)[0]
+    return f"expectation-{kind}" if kind in EXPECTATION_DEFINITIONS and "." in metric else None
+
+
+def build_cell(rows: pd.DataFrame, anchor: str) -> dict[str, Any]:
+    """One matrix cell: the worst outcome of a (scene, engine)'s rows, shown as a ratio or word."""
+    if rows.empty:
+        return {"outcome": "not_run", "text": "–", "title": "not run", "anchor": anchor}
+    ordered = worst_first(rows)
+    worst = ordered.iloc[0]
+    outcome = worst["outcome"]
+    judged = rows[rows["ratio"].notna()]
+    ratio = judged["ratio"].max() if not judged.empty else math.nan
+    if outcome in (*RUN_FAILURES, "unsupported", "no_tolerance") or math.isnan(ratio):
+        text = outcome_label(outcome)
+    else:
+        text = format_ratio(ratio)
+    failed = int((rows["outcome"] == "failed").sum())
+    title = f"{outcome_label(outcome)}: {worst['metric']}"
+    if not math.isnan(worst["ratio"]):
+        title += f" at {format_ratio(worst['ratio'])} its tolerance"
+    if len(judged):
+        title += f"; {failed} of {len(judged)} checks failed"
+    if worst["message"]:
+        title += f" — {worst['message']}"
+    return {"outcome": outcome, "text": text, "title": title, "anchor": anchor}
+
+
+def scene_order(table: pd.DataFrame) -> list[str]:
+    """Scenes worst first (worst outcome, then largest error/tolerance), then by name."""
+    keys = {}
+    for scene, rows in table.groupby("scenario", sort=False):
+        ratio = rows.loc[rows["outcome"].isin(RED_OUTCOMES), "ratio"].max()
+        keys[scene] = (rows["severity"].min(), -(0 if math.isnan(ratio) else ratio), scene)
+    return sorted(keys, key=keys.get)
+
+
+def count_chips(outcomes: list[str]) -> list[dict[str, Any]]:
+    """Counts per outcome, worst first, only the outcomes that occur."""
+    return [
+        {"outcome": o, "label": outcome_label(o), "count": outcomes.count(o)}
+        for o in OUTCOME_ORDER
+        if o in outcomes
+    ]
+
+
+def build_rows(rows: pd.DataFrame, anchors: dict[str, str] | None = None) -> list[dict[str, Any]]:
+    """Result rows as display strings (worst first)."""
+    return [
+        {
+            "scenario": row["scenario"],
+            "anchor": (anchors or {}).get(row["scenario"], ""),
+            "engine": row["engine"],
+            "metric": row["metric"],
+            "metric_anchor": metric_anchor(row["metric"]),
+            "value": format_number(row["value"], row["value_text"]),
+            "expected": format_number(row["expected"], row["expected_text"]),
+            "expected_kind": row["expected_kind"],
+            "error": format_number(row["error"], row["error_text"]),
+            "tolerance": format_number(row["tolerance"], row["tolerance_text"]),
+            "ratio": format_ratio(row["ratio"]),
+            "outcome": row["outcome"],
+            "outcome_label": outcome_label(row["outcome"]),
+            "message": row["message"],
+        }
+        for _, row in worst_first(rows).iterrows()
+    ]
+
+
+def _pretty_settings(text: str) -> tuple[str, int]:
+    """The settings JSON of a row as ``k=v, ...`` and the number of settings."""
+    try:
+        settings = json.loads(text) if text else {}
+    except json.JSONDecodeError:
+        return text, 1
+    if isinstance(settings, dict):
+        return ", ".join(f"{k}={v}" for k, v in settings.items()), len(settings)
+    return text, 1
+
+
+def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
+    """One line per engine of a scene: outcome, version, dt, steps, wall time, settings."""
+    runs = []
+    for engine in engines:
+        mine = rows[rows["engine"] == engine]
+        if mine.empty:
+            continue
+        first = mine.iloc[0]
+        worst = worst_first(mine).iloc[0]["outcome"]
+        settings, count = _pretty_settings(first["settings"])
+        messages = [m for m in dict.fromkeys(mine.loc[mine["metric"] == "status", "message"]) if m]
+        runs.append(
+            {
+                "engine": engine,
+                "outcome": worst,
+                "outcome_label": outcome_label(worst),
+                "version": first["engine_version"],
+                "dt": format_number(first["dt"], first["dt_text"]),
+                "steps": format_number(first["steps"], first["steps_text"]),
+                "wall_time_s": format_number(first["wall_time_s"], first["wall_time_s_text"]),
+                "settings": settings,
+                "settings_count": count,
+                "message": "; ".join(messages),
+            }
+        )
+    return runs
+
+
+def build_impacts(impacts: pd.DataFrame | None, scene: str) -> dict[str, Any]:
+    """A scene's impacts: rows (engine, then time), the largest |Δe| per engine, truncation."""
+    if impacts is None:
+        return {"available": False, "rows": [], "total": 0, "hidden": 0, "worst": []}
+    mine = impacts[impacts["scenario"] == scene].copy()
+    mine["delta_e"] = (mine["e_measured"] - mine["e_requested"]).abs()
+    mine = mine.sort_values(["engine", "time"], kind="stable")
+    worst = [
+        {"engine": engine, "count": len(group), "max_delta": format_number(group["delta_e"].max())}
+        for engine, group in mine.groupby("engine", sort=False)
+    ]
+    shown = mine.head(MAX_IMPACT_ROWS)
+    rows = [
+        {
+            "engine": row["engine"],
+            "bodies": f"{row['body_a']} – {row['body_b']}",
+            "time": format_number(row["time"]),
+            "e_requested": format_number(row["e_requested"]),
+            "e_measured": format_number(row["e_measured"]),
+            "delta_e": format_number(row["delta_e"]),
+            "v_before": format_number(row["normal_velocity_before"]),
+            "v_after": format_number(row["normal_velocity_after"]),
+        }
+        for _, row in shown.iterrows()
+    ]
+    return {
+        "available": True,
+        "rows": rows,
+        "total": len(mine),
+        "hidden": len(mine) - len(shown),
+        "worst": worst,
+        "open": len(mine) <= IMPACTS_OPEN_UP_TO,
+    }
+
+
+def build_legend(table: pd.DataFrame) -> dict[str, Any]:
+    """Every metric and expectation definition, the expected kinds, statuses and colours."""
+    metrics = set(table["metric"]) - {"status"}
+    undefined = sorted(m for m in metrics if metric_anchor(m) is None)
+    return {
+        "metrics": list(METRIC_DEFINITIONS.items()),
+        "expectations": list(EXPECTATION_DEFINITIONS.items()),
+        "expected_kinds": {
+            "analytic": "a closed form (the expected value printed in the row)",
+            "conserved": "the conserved quantity's initial value",
+            "engine": "another engine's result on the same scene, written engine:<spec>",
+        },
+        "kinds_known": EXPECTED_KINDS,
+        "statuses": list(STATUS_DESCRIPTIONS.items()),
+        "undefined": undefined,
+    }
+
+
+def build_provenance(provenance: dict[str, Any] | None, table: pd.DataFrame) -> dict[str, Any]:
+    """Command, commit, time, machine and one line per engine spec (from results.csv if absent)."""
+    provenance = provenance or {}
+    engines = provenance.get("engines")
+    if not isinstance(engines, dict) or not engines:
+        firsts = table.drop_duplicates("engine")
+        engines = {
+            row["engine"]: {"version": row["engine_version"], "settings": row["settings"]}
+            for _, row in firsts.iterrows()
+        }
+    engine_rows = []
+    for label, info in engines.items():
+        info = info if isinstance(info, dict) else {}
+        settings = info.get("settings", {})
+        engine_rows.append(
+            {
+                "label": label,
+                "engine": str(info.get("engine", "")),
+                "version": str(info.get("version", "")),
+                "settings": settings
+                if isinstance(settings, str)
+                else json.dumps(settings, indent=1, sort_keys=True, default=str),
+                "notes": [str(n) for n in info.get("notes", []) or []],
+            }
+        )
+    machine = provenance.get("machine", {})
+    return {
+        "command": str(provenance.get("command", "")),
+        "git_commit": str(provenance.get("git_commit", "")),
+        "created": str(provenance.get("created", "")),
+        "machine": [(str(k), str(v)) for k, v in machine.items()]
+        if isinstance(machine, dict)
+        else [("machine", str(machine))],
+        "engines": engine_rows,
+    }
+
+
+def _engine_order(table: pd.DataFrame, series: pd.DataFrame | None) -> list[str]:
+    """Engines in the order of first appearance (the reference engine, listed first, leads)."""
+    engines = list(dict.fromkeys(table["engine"]))
+    if series is not None:
+        engines += [e for e in dict.fromkeys(series["engine"]) if e not in engines]
+    return engines
+
+
+def build_scene(
+    scene: str,
+    anchor: str,
+    rows: pd.DataFrame,
+    run: RunData,
+    engines: list[str],
+    colours: dict[str, tuple[str, str]],
+) -> dict[str, Any]:
+    """One scene's section: runs, the plot, the impacts and the checks."""
+    plot_note = ""
+    svg = None
+    if run.series is None:
+        plot_note = f"no {SERIES_FILE} in this run"
+    else:
+        series = run.series[run.series["scenario"] == scene]
+        if series.empty:
+            plot_note = "no time series recorded for this scene"
+        else:
+            svg = Markup(plot_scene_series(scene, series, engines, colours))
+    return {
+        "name": scene,
+        "anchor": anchor,
+        "runs": build_runs(rows, engines),
+        "svg": svg,
+        "plot_note": plot_note,
+        "impacts": build_impacts(run.impacts, scene),
+        "rows": build_rows(rows),
+    }
+
+
+def build_context(run: RunData) -> dict[str, Any]:
+    """Everything the template prints, as plain strings, lists and dicts."""
+    table = classify_rows(run.results, run.warnings)
+    engines = _engine_order(table, run.series)
+    colours = engine_styles(engines)
+    scenes = scene_order(table)
+    taken: set[str] = set()
+    anchors = {scene: slug(scene, taken) for scene in scenes}
+    matrix = [
+        {
+            "scene": scene,
+            "anchor": anchors[scene],
+            "cells": [
+                build_cell(
+                    table[(table["scenario"] == scene) & (table["engine"] == engine)],
+                    anchors[scene],
+                )
+                for engine in engines
+            ],
+        }
+        for scene in scenes
+    ]
+    cell_outcomes = [cell["outcome"] for row in matrix for cell in row["cells"]]
+    red_runs = sum(o in RED_OUTCOMES for o in cell_outcomes)
+    offenders = table[table["outcome"].isin(RED_OUTCOMES)]
+    provenance = build_provenance(run.provenance, table)
+    return {
+        "title": f"physval report {provenance['created']}".strip(),
+        "run_dir": str(run.run_dir),
+        "warnings": run.warnings,
+        "verdict": {
+            "bad": red_runs > 0,
+            "runs": sum(o != "not_run" for o in cell_outcomes),
+            "red_runs": red_runs,
+        },
+        "scene_count": len(scenes),
+        "engines": engines,
+        "engine_colours": {e: c for e, (c, _) in colours.items()},
+        "run_chips": count_chips([o for o in cell_outcomes if o != "not_run"]),
+        "row_chips": count_chips(list(table["outcome"])),
+        "row_count": len(table),
+        "matrix": matrix,
+        "offenders": build_rows(offenders, anchors)[:MAX_OFFENDERS],
+        "offenders_hidden": max(0, len(offenders) - MAX_OFFENDERS),
+        "scenes": [
+            build_scene(
+                scene, anchors[scene], table[table["scenario"] == scene], run, engines, colours
+            )
+            for scene in scenes
+        ],
+        "legend": build_legend(table),
+        "provenance": provenance,
+        "outcome_colours": OUTCOME_COLOURS,
+        "outcome_labels": {o: outcome_label(o) for o in OUTCOME_ORDER},
+        "red_outcomes": RED_OUTCOMES,
+        "settings_inline_up_to": SETTINGS_INLINE_UP_TO,
+    }

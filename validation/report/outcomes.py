@@ -1,0 +1,92 @@
+"""Phase 2 of report.html: judge each row. What a row, a (scene, engine) cell and a summary
+chip can be, worst first, and the colour each is drawn in."""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from validation.contract import RESULTS_FILE, STATUS_DESCRIPTIONS
+
+OUTCOME_ORDER = (
+    "error",
+    "model_mismatch",
+    "unstable",
+    "failed",
+    "passed",
+    "no_tolerance",
+    "unsupported",
+    "not_run",
+)
+"""Outcomes worst first; a cell shows the worst outcome of its rows."""
+
+RUN_FAILURES = ("error", "model_mismatch", "unstable")
+"""Outcomes that mean the engine produced no trustworthy numbers (the cell shows the word)."""
+
+RED_OUTCOMES = (*RUN_FAILURES, "failed")
+"""Outcomes that need a person's look (red, counted as offenders)."""
+
+OUTCOME_LABELS = {"no_tolerance": "no tolerance", "not_run": "not run"}
+"""Display words for outcomes that are not statuses of results.csv."""
+
+# Cell and chip backgrounds: red needs a look, green passed, grey nothing was judged,
+# near-white means the engine was not run on the scene. Pale so that black text stays legible.
+RED, GREEN, GREY, BLANK = "#f3b3b0", "#b7e3bf", "#dedede", "#f7f7f7"
+OUTCOME_COLOURS = {
+    "error": RED,
+    "model_mismatch": RED,
+    "unstable": RED,
+    "failed": RED,
+    "passed": GREEN,
+    "no_tolerance": GREY,
+    "unsupported": GREY,
+    "not_run": BLANK,
+}
+
+
+def outcome_label(outcome: str) -> str:
+    """The word shown for an outcome (``no tolerance``, ``not run``, else the outcome)."""
+    return OUTCOME_LABELS.get(outcome, outcome)
+
+
+def row_outcome(status: str, passed: bool | None) -> str:
+    """One row's outcome: a run failure or ``unsupported`` as such, else the check's verdict."""
+    if status in (*RUN_FAILURES, "unsupported"):
+        return status
+    if status == "failed" or passed is False:
+        return "failed"
+    if passed is True:
+        return "passed"
+    return "no_tolerance" if status in ("ok", "") else "error"
+
+
+def error_ratio(error: float, tolerance: float) -> float:
+    """|error| / tolerance (NaN when either is missing; a zero tolerance gives 0 or inf)."""
+    if not (math.isfinite(tolerance) and not math.isnan(error)):
+        return math.nan
+    if tolerance <= 0:
+        return 0.0 if error == 0 else math.inf
+    return abs(error) / tolerance
+
+
+def classify_rows(results: pd.DataFrame, warnings: list[str]) -> pd.DataFrame:
+    """Adds ``outcome``, ``ratio`` (error/tolerance) and ``severity`` (0 = worst) per row."""
+    table = results.copy()
+    unknown = sorted(set(table["status"]) - set(STATUS_DESCRIPTIONS) - {""})
+    if unknown:
+        warnings.append(f"{RESULTS_FILE}: unknown status {', '.join(unknown)} (shown as error)")
+    table["outcome"] = [
+        row_outcome(s, p) for s, p in zip(table["status"], table["passed"], strict=True)
+    ]
+    table["ratio"] = [
+        error_ratio(e, t) for e, t in zip(table["error"], table["tolerance"], strict=True)
+    ]
+    table["severity"] = [OUTCOME_ORDER.index(o) for o in table["outcome"]]
+    return table
+
+
+def worst_first(rows: pd.DataFrame) -> pd.DataFrame:
+    """Rows sorted worst outcome first, then largest error/tolerance first."""
+    key = rows.assign(_neg_ratio=-rows["ratio"].fillna(-math.inf))
+    return rows.loc[key.sort_values(["severity", "_neg_ratio"], kind="stable").index]

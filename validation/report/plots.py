@@ -1,0 +1,136 @@
+"""Phase 4 of report.html: matplotlib figures as inline SVG.
+
+``plot_scene_series`` draws a scene's energy, |p| and |L| over time, one line per engine;
+``svg_for_html`` (also used by ``sweep_page``) turns matplotlib's SVG file into an element
+to inline in a page that has no scripts and fetches nothing.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import re
+
+import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+matplotlib.use("Agg")  # headless: rendering must never need a display
+
+# Inches: three side-by-side axes that fill a ~1100 px column at the SVG's 72 px per inch.
+FIGURE_SIZE_IN = (15.0, 3.6)
+# Okabe–Ito colours (readable with colour-blindness), one per engine, same engine same colour
+# in every scene; engines beyond eight cycle.
+ENGINE_COLOURS = (
+    "#0072B2",
+    "#D55E00",
+    "#009E73",
+    "#CC79A7",
+    "#E69F00",
+    "#56B4E9",
+    "#000000",
+    "#F0E442",
+)
+# Line styles cycle too, so engines whose lines coincide (the usual case) stay distinguishable.
+ENGINE_LINE_STYLES = ("-", "--", ":", "-.")
+LINE_WIDTH = 1.4  # points
+PLOT_FONT_SIZE = 9  # points
+MAX_POINTS_PER_LINE = 1200
+"""Longer lines are thinned to per-bucket min/max pairs: spikes stay visible, the page small."""
+PLOT_QUANTITIES = (
+    ("energy", "energy E (J)"),
+    ("p_norm", "|p| linear momentum (kg·m/s)"),
+    ("L_norm", "|L| about the COM (kg·m²/s)"),
+)
+"""Series column -> axis title, one axis each."""
+
+
+def engine_styles(engines: list[str]) -> dict[str, tuple[str, str]]:
+    """Engine -> (colour, line style), by position in ``engines``; both cycle."""
+    return {
+        engine: (
+            ENGINE_COLOURS[i % len(ENGINE_COLOURS)],
+            ENGINE_LINE_STYLES[i % len(ENGINE_LINE_STYLES)],
+        )
+        for i, engine in enumerate(engines)
+    }
+
+
+def thin_line(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS_PER_LINE):
+    """At most ``max_points`` points: each of ``max_points // 2`` buckets keeps its min and
+    max (in time order), so spikes and explosions survive; non-finite values become gaps."""
+    y = np.where(np.isfinite(y), y, np.nan)
+    if t.size <= max_points:
+        return t, y
+    edges = np.linspace(0, t.size, max_points // 2 + 1).astype(int)
+    keep = []
+    for start, stop in itertools.pairwise(edges):
+        chunk = y[start:stop]
+        if np.isnan(chunk).all():
+            keep.append(start)
+            continue
+        keep += sorted({start + int(np.nanargmin(chunk)), start + int(np.nanargmax(chunk))})
+    index = np.asarray(keep)
+    return t[index], y[index]
+
+
+def _norm(series: pd.DataFrame, columns: tuple[str, str, str]) -> np.ndarray:
+    return np.sqrt(sum(series[c].to_numpy(float) ** 2 for c in columns))
+
+
+def svg_for_html(svg: str) -> str:
+    """matplotlib's SVG file as an element to inline: no XML prolog, DOCTYPE or metadata."""
+    svg = re.sub(r"<\?xml[^>]*\?>\s*", "", svg)
+    svg = re.sub(r"<!DOCTYPE[^>]*>\s*", "", svg)
+    svg = re.sub(r"<metadata>.*?</metadata>\s*", "", svg, flags=re.DOTALL)
+    return svg.replace("<svg ", '<svg class="plot" role="img" ', 1).strip()
+
+
+def plot_scene_series(
+    scene: str,
+    series: pd.DataFrame,
+    engines: list[str],
+    colours: dict[str, tuple[str, str]],
+) -> str:
+    """Energy, |p| and |L| over time, one line per engine, as an inline ``<svg>`` element."""
+    figure = Figure(figsize=FIGURE_SIZE_IN, layout="constrained")
+    axes = figure.subplots(1, len(PLOT_QUANTITIES), sharex=True)
+    series = series.assign(
+        p_norm=_norm(series, ("px", "py", "pz")), L_norm=_norm(series, ("Lx", "Ly", "Lz"))
+    )
+    for engine in engines:
+        mine = series[series["engine"] == engine].sort_values("t", kind="stable")
+        if mine.empty:
+            continue
+        colour, style = colours[engine]
+        t = mine["t"].to_numpy(float)
+        for axis, (column, _) in zip(axes, PLOT_QUANTITIES, strict=True):
+            axis.plot(
+                *thin_line(t, mine[column].to_numpy(float)),
+                color=colour,
+                linestyle=style,
+                linewidth=LINE_WIDTH,
+                label=engine,
+            )
+    for axis, (_, title) in zip(axes, PLOT_QUANTITIES, strict=True):
+        axis.set_title(title, fontsize=PLOT_FONT_SIZE + 1)
+        axis.set_xlabel("t (s)", fontsize=PLOT_FONT_SIZE)
+        axis.tick_params(labelsize=PLOT_FONT_SIZE)
+        axis.grid(True, color="#e6e6e6", linewidth=0.6)
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        figure.legend(
+            handles,
+            labels,
+            loc="outside upper center",
+            ncols=min(len(labels), 4),
+            fontsize=PLOT_FONT_SIZE,
+            frameon=False,
+        )
+    buffer = io.StringIO()
+    # Text stays text (small, searchable); the salt makes element ids deterministic and
+    # distinct between the page's figures.
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": f"physval-{scene}"}):
+        figure.savefig(buffer, format="svg", metadata={"Date": None})
+    return svg_for_html(buffer.getvalue())
