@@ -5,11 +5,14 @@ Three kinds of candidates, all vectorized:
 1. **planes** (infinite) against every finite body: signed distance of the
    centre along the plane normal minus the bounding radius;
 2. **large** finite bodies (bounding radius over ``LARGE_BODY_FACTOR`` times
-   the median) against every other finite body, by one broadcast test;
+   the median), and finite bodies of the shared world, against every other finite
+   body of their world (all worlds for a shared one), by one broadcast test;
 3. **small** finite bodies through a uniform grid whose cell is the largest
    small-body bounding diameter: each body is hashed to the cell of its
-   centre, and pairs are found in its own cell and 13 of its 26 neighbours
-   (each neighbour pair is visited once).
+   centre *in its own world*, and pairs are found in its own cell and 13 of its
+   26 neighbours (each neighbour pair is visited once). Keying cells by world
+   keeps many copies of one scene at the same place (an ensemble, or the
+   observed states of one run measured at once) from meeting in one cell.
 
 Every candidate then passes the same filter: both bodies collide, not both
 fixed, same world (or one in the shared world), bounding spheres within the
@@ -32,6 +35,10 @@ GRID_SPAN_LIMIT = 1e6
 """Cells along one axis beyond which the bodies are too spread for a grid (an exploded
 state, or bodies kilometres apart): every pair is tested directly instead, and int64 cell
 keys can never overflow."""
+
+KEY_LIMIT = 1 << 62
+"""Largest cell key (cells per world times worlds) the grid uses; beyond it int64 keys could
+overflow and every pair of one world is tested directly."""
 
 CELL_TABLE_LIMIT = 1 << 20
 """Grids with at most this many cells (8 MiB of int64) get a dense cell-start table;
@@ -73,9 +80,12 @@ def candidate_pairs(
     if finite.size >= 2:
         median = np.median(radius[finite])
         large_mask = radius[finite] > LARGE_BODY_FACTOR * median
+        large_mask |= model.body_world[finite] == SHARED_WORLD
         large, small = finite[large_mask], finite[~large_mask]
-        pairs.append(_direct_pairs(large, finite))
-        pairs.append(_grid_pairs(pos[small], radius[small] + padding, small))
+        pairs.append(_direct_pairs(large, finite, model.body_world))
+        pairs.append(
+            _grid_pairs(pos[small], radius[small] + padding, small, model.body_world[small])
+        )
     a = np.concatenate([p[0] for p in pairs])
     b = np.concatenate([p[1] for p in pairs])
     a, b = np.minimum(a, b), np.maximum(a, b)
@@ -108,26 +118,59 @@ def _plane_pairs(model, pos, rot, planes, finite, padding) -> tuple[np.ndarray, 
     return planes[plane_idx], finite[body_idx]
 
 
-def _direct_pairs(large: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every large body against every other finite body, each unordered pair once."""
+def _direct_pairs(
+    large: np.ndarray, finite: np.ndarray, body_world: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every large body against every other finite body of its world (every finite body for
+    a large body of the shared world, and shared finite bodies for every large one), each
+    unordered pair once. Order: by large body, then by world, then by index."""
     if large.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    a = np.repeat(large, finite.size)
-    b = np.tile(finite, large.size)
+    own = body_world[finite][body_world[finite] != SHARED_WORLD]
+    if own.size == 0 or np.all(own == own[0]):
+        a = np.repeat(large, finite.size)  # one world: every large body against every body
+        b = np.tile(finite, large.size)
+    else:
+        a, b = _same_world_pairs(large, finite, body_world)
     is_large = np.zeros(finite.max() + 1, dtype=bool)
     is_large[large] = True
     once = ~is_large[b] | (a < b)  # a large-large pair appears twice; keep a < b
     return a[once], b[once]
 
 
-def _grid_pairs(
-    centre: np.ndarray, radius: np.ndarray, body: np.ndarray
+def _same_world_pairs(
+    large: np.ndarray, finite: np.ndarray, body_world: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs of bodies whose centres lie in the same or adjacent grid cells.
+    """(a, b): each large body with the finite bodies of its own world and of the shared world;
+    a large body of the shared world with every finite body."""
+    world = body_world[finite]
+    order = np.argsort(world, kind="stable")
+    by_world, sorted_world = finite[order], world[order]
+    shared_finite = by_world[sorted_world == SHARED_WORLD]
+    large_world = body_world[large]
+    start = np.searchsorted(sorted_world, large_world, side="left")
+    end = np.searchsorted(sorted_world, large_world, side="right")
+    start = np.where(large_world == SHARED_WORLD, 0, start)  # shared: all worlds
+    end = np.where(large_world == SHARED_WORLD, by_world.size, end)
+    count = end - start
+    owner = np.repeat(np.arange(large.size), count)
+    within = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    a = [large[owner]]
+    b = [by_world[np.repeat(start, count) + within]]
+    own = large_world != SHARED_WORLD
+    a.append(np.repeat(large[own], shared_finite.size))  # own-world large bodies see the shared
+    b.append(np.tile(shared_finite, int(own.sum())))
+    return np.concatenate(a), np.concatenate(b)
+
+
+def _grid_pairs(
+    centre: np.ndarray, radius: np.ndarray, body: np.ndarray, world: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of bodies of one world whose centres lie in the same or adjacent grid cells.
 
     Args:
         centre: (m, 3) m, world frame. radius: (m,) m, padded bounding radii.
-        body: (m,) int, the model indices of these bodies.
+        body: (m,) int, the model indices of these bodies. world: (m,) int, their worlds (>= 0).
     """
     m = body.size
     if m < 2:
@@ -140,13 +183,19 @@ def _grid_pairs(
     cell = np.floor((centre - centre.min(axis=0)) / cell_size).astype(np.int64) + 1
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
     strides = np.array([dims[1] * dims[2], dims[2], 1])
-    key = cell @ strides  # row-major cell index; the empty border keeps cell + offset inside
+    per_world = int(np.prod(dims))
+    if per_world * int(world.max() - world.min() + 1) > KEY_LIMIT:  # keys would overflow
+        first, second = np.triu_indices(m, k=1)
+        same = world[first] == world[second]
+        return body[first[same]], body[second[same]]
+    # row-major cell index within the body's world; the empty border keeps cell + offset inside
+    key = cell @ strides + (world - world.min()) * per_world
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     rank = np.empty(m, dtype=np.int64)
     rank[order] = np.arange(m)
 
-    n_cells = int(np.prod(dims))
+    n_cells = per_world * int(world.max() - world.min() + 1)
     if n_cells <= CELL_TABLE_LIMIT:  # dense table: where each cell's run starts in sorted order
         cell_start = np.searchsorted(sorted_key, np.arange(n_cells + 1))
 

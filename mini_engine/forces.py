@@ -70,18 +70,24 @@ def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarr
     return force, torque
 
 
+def spring_energies(model: Model, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Elastic energy (s,) J of each spring, ``½ k (L - rest)²``, at poses ``pos (n, 3)`` m and
+    ``rot (n, 3, 3)`` (body to world)."""
+    a, b = model.spring_body_a, model.spring_body_b
+    to_world = b == WORLD_ANCHOR
+    b_safe = np.where(to_world, 0, b)
+    point_a = pos[a] + apply(rot[a], model.spring_anchor_a)
+    point_b = np.where(
+        to_world[:, None],
+        model.spring_anchor_b,
+        pos[b_safe] + apply(rot[b_safe], model.spring_anchor_b),
+    )
+    length = np.linalg.norm(point_b - point_a, axis=1)
+    return 0.5 * model.spring_stiffness * (length - model.spring_rest_length) ** 2
+
+
 def spring_energy(model: Model, state: State, rot: np.ndarray) -> float:
     """Elastic energy J stored in all springs, ``Σ ½ k (L - rest)²``."""
     if model.n_springs == 0:
         return 0.0
-    a, b = model.spring_body_a, model.spring_body_b
-    to_world = b == WORLD_ANCHOR
-    b_safe = np.where(to_world, 0, b)
-    point_a = state.pos[a] + apply(rot[a], model.spring_anchor_a)
-    point_b = np.where(
-        to_world[:, None],
-        model.spring_anchor_b,
-        state.pos[b_safe] + apply(rot[b_safe], model.spring_anchor_b),
-    )
-    length = np.linalg.norm(point_b - point_a, axis=1)
-    return float(np.sum(0.5 * model.spring_stiffness * (length - model.spring_rest_length) ** 2))
+    return float(np.sum(spring_energies(model, state.pos, rot)))

@@ -10,6 +10,7 @@ from validation.engines.parity import PARITY_TOLERANCE, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 ROTATED_OFFSET_SPINNING = {
@@ -46,7 +47,7 @@ def scenario_from(data: dict) -> Scenario:
 def test_snapshot_is_the_scenario_state_in_scenario_order_without_the_ground():
     scenario = scenario_from(ROTATED_OFFSET_SPINNING)
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
+    adapter.load(compile_scene(scenario))
     snap = adapter.observe()
     box = scenario.bodies[0]
     assert snap.pos.shape == (2, 3), "the ground must not be a body of the snapshot"
@@ -63,19 +64,19 @@ def test_snapshot_is_the_scenario_state_in_scenario_order_without_the_ground():
 def test_parity_gate_passes_on_every_bundled_scene(path):
     scenario = load_scenario(path)
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
-    mismatches = compare(adapter.model_report(), reference_report(scenario))
+    adapter.load(compile_scene(scenario))
+    mismatches = compare(adapter.model_report(), reference_report(compile_scene(scenario)))
     assert mismatches == [], [str(m) for m in mismatches]
 
 
 def test_parity_gate_names_a_wrong_inertia(monkeypatch):
     scenario = scenario_from(ROTATED_OFFSET_SPINNING)
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
+    adapter.load(compile_scene(scenario))
     wrong = adapter.model.body_inertia.copy()
     wrong[0] *= 1.0 + 1e-6  # a millionth: far below anything a plot would show
     object.__setattr__(adapter.model, "body_inertia", wrong)
-    mismatches = compare(adapter.model_report(), reference_report(scenario))
+    mismatches = compare(adapter.model_report(), reference_report(compile_scene(scenario)))
     quantities = {m.quantity for m in mismatches}
     assert "inertia_world" in quantities, quantities
     message = str(next(m for m in mismatches if m.quantity == "inertia_world"))
@@ -84,7 +85,7 @@ def test_parity_gate_names_a_wrong_inertia(monkeypatch):
 
 def test_provenance_records_every_setting():
     adapter = create_adapter(parse_engine_spec("mini(gyroscopic=implicit, solver_iterations=20)"))
-    adapter.load(scenario_from(ROTATED_OFFSET_SPINNING))
+    adapter.load(compile_scene(scenario_from(ROTATED_OFFSET_SPINNING)))
     settings = adapter.provenance().settings
     assert settings["gyroscopic"] == "implicit" and settings["solver_iterations"] == 20
     assert settings["dt"] == 0.001 and "restitution_threshold" in settings

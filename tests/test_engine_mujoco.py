@@ -16,6 +16,7 @@ from validation.engines.parity import compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 ROUNDOFF = 1e-12
@@ -119,7 +120,7 @@ def scenario_from(data: dict, **changes) -> Scenario:
 
 def mujoco(data: dict | Scenario, spec: str = "mujoco"):
     adapter = create_adapter(parse_engine_spec(spec))
-    adapter.load(data if isinstance(data, Scenario) else scenario_from(data))
+    adapter.load(compile_scene(data if isinstance(data, Scenario) else scenario_from(data)))
     return adapter
 
 
@@ -165,7 +166,7 @@ def test_one_step_moves_by_v_dt_and_rotates_by_the_world_angular_velocity():
     scenario = scenario_from(ROTATED_OFFSET_SPINNING)
     engine = mujoco(scenario)
     mini = create_adapter(parse_engine_spec("mini(gyroscopic=explicit)"))
-    mini.load(scenario)
+    mini.load(compile_scene(scenario))
     engine.advance(1)
     mini.advance(1)
     got, want = engine.observe(), mini.observe()
@@ -207,7 +208,7 @@ def test_parity_gate_passes(source):
     )
     for profile in ("matched", "defaults"):
         adapter = mujoco(scenario, f"mujoco(profile={profile})")
-        mismatches = compare(adapter.model_report(), reference_report(scenario))
+        mismatches = compare(adapter.model_report(), reference_report(compile_scene(scenario)))
         assert mismatches == [], (profile, [str(m) for m in mismatches])
 
 
@@ -217,7 +218,7 @@ def test_parity_gate_names_a_wrong_inertia(monkeypatch):
     monkeypatch.setattr(
         mujoco_engine, "body_inertia", lambda body: right(body) * (1.0 + 1e-6)
     )  # a millionth: far below anything a plot would show
-    mismatches = compare(mujoco(scenario).model_report(), reference_report(scenario))
+    mismatches = compare(mujoco(scenario).model_report(), reference_report(compile_scene(scenario)))
     quantities = {m.quantity for m in mismatches}
     assert "inertia_world" in quantities, [str(m) for m in mismatches]
 
@@ -391,7 +392,7 @@ def test_spring_oscillates_with_the_closed_form_period(integrator):
     report = adapter.model_report()
     spring_energy = 0.5 * stiffness * amplitude**2
     assert abs(report.energy - spring_energy) <= ENERGY_PARITY * spring_energy, report.energy
-    assert compare(report, reference_report(scenario)) == []
+    assert compare(report, reference_report(compile_scene(scenario))) == []
     x = []
     for _ in range(scenario.steps):
         adapter.advance(1)
@@ -414,7 +415,9 @@ def test_unused_gravity_and_contacts_are_switched_off():
     def flags(data: dict) -> list[str]:
         adapter = create_adapter(parse_engine_spec("mujoco"))
         adapter.load(
-            Scenario.model_validate({"name": "flags", "dt": 0.001, "duration": 0.01, **data})
+            compile_scene(
+                Scenario.model_validate({"name": "flags", "dt": 0.001, "duration": 0.01, **data})
+            )
         )
         settings = adapter.provenance().settings
         adapter.close()

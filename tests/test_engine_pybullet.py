@@ -16,6 +16,7 @@ from validation.engines.pybullet import adapter as pybullet_engine
 from validation.engines.pybullet.adapter import PybulletAdapter
 from validation.engines.reference import reference_report
 from validation.scenario import Scenario, load_scenario, scenario_files
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 ROUND_OFF = 1e-12
@@ -52,7 +53,7 @@ ALL_PROFILES = (*BODY_MODES, "pybullet(profile=defaults)")
 
 def adapter_for(text: str, scenario: Scenario) -> PybulletAdapter:
     adapter = PybulletAdapter(parse_engine_spec(text))
-    adapter.load(scenario)
+    adapter.load(compile_scene(scenario))
     return adapter
 
 
@@ -161,7 +162,7 @@ def mixed_scene() -> Scenario:
 def test_parity_gate_passes(source, text):
     scenario = mixed_scene() if source == "mixed" else load_scenario(source)
     with adapter_for(text, scenario) as adapter:
-        mismatches = compare(adapter.model_report(), reference_report(scenario))
+        mismatches = compare(adapter.model_report(), reference_report(compile_scene(scenario)))
     assert mismatches == [], [str(m) for m in mismatches]
 
 
@@ -170,7 +171,7 @@ def test_parity_gate_names_a_wrong_inertia(monkeypatch):
     monkeypatch.setattr(pybullet_engine, "body_inertia", lambda spec: 1.01 * right(spec))
     scenario = mixed_scene()
     with adapter_for("pybullet", scenario) as adapter:
-        mismatches = compare(adapter.model_report(), reference_report(scenario))
+        mismatches = compare(adapter.model_report(), reference_report(compile_scene(scenario)))
     assert {m.quantity for m in mismatches} >= {"inertia_world"}, [str(m) for m in mismatches]
 
 

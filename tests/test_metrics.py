@@ -7,9 +7,10 @@ import pytest
 
 from validation.measure.comparator import COLUMNS, compare_scene
 from validation.measure.metrics import METRICS, Context, measure
-from validation.measure.recording import ImpactEvent, Recording, Trajectory
+from validation.measure.recording import ImpactEvent, Trajectory, measure_trajectory
 from validation.measure.runner import EngineRun
 from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
 
 G = 9.81
 
@@ -39,8 +40,18 @@ def trajectory(pos, vel) -> Trajectory:
     return Trajectory(np.arange(samples) * 0.1, pos, quat, vel, np.zeros_like(vel))
 
 
+def recorded(scenario, states: Trajectory, impacts=()) -> Context:
+    """The context of ``states`` measured as a run is (``measure_trajectory``); ``impacts``
+    replaces the detected ones when given."""
+    scene = compile_scene(scenario)
+    recording = measure_trajectory(scene, states)
+    if impacts:
+        recording.impacts = list(impacts)
+    return Context(scene, recording)
+
+
 def context(scenario, pos, vel, impacts=()) -> Context:
-    return Context(scenario, Recording(trajectory(pos, vel), list(impacts), 0.0))
+    return recorded(scenario, trajectory(pos, vel), impacts)
 
 
 def test_energy_drift_by_hand():
@@ -93,7 +104,7 @@ def test_restitution_error_is_the_worst_impact_and_undefined_without_impacts():
 
 def run_of(scenario, pos, vel) -> EngineRun:
     return EngineRun(
-        scenario.name, "mini", "ok", recording=Recording(trajectory(pos, vel), [], 0.0)
+        scenario.name, "mini", "ok", recording=recorded(scenario, trajectory(pos, vel)).recording
     )
 
 
@@ -104,7 +115,9 @@ def test_comparator_rows_pass_fail_and_no_tolerance():
     checked = scene(
         checks={"position_error": 0.001, "velocity_error": {"default": 1e-9, "mini": 0.0}}
     )
-    rows = compare_scene(checked, [run_of(checked, pos + np.array([0.0, 0.0, 0.003]), vel)])
+    rows = compare_scene(
+        compile_scene(checked), [run_of(checked, pos + np.array([0.0, 0.0, 0.003]), vel)]
+    )
     by_metric = {row["metric"]: row for row in rows}
     assert set(rows[0]) == set(COLUMNS)
     assert (
@@ -157,7 +170,7 @@ def test_angular_momentum_drift_by_hand():
     traj = Trajectory(
         np.array([0.0, 0.1]), pos, np.tile([1.0, 0, 0, 0], (2, 2, 1)), vel, np.zeros_like(vel)
     )
-    result = METRICS["angular_momentum_drift"](Context(two, Recording(traj, [], 0.0)))
+    result = METRICS["angular_momentum_drift"](recorded(two, traj))
     assert result.value == pytest.approx(0.1) and result.expected == pytest.approx(4.0)
 
 

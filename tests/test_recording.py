@@ -8,6 +8,7 @@ import pytest
 from validation.engines.registry import create_adapter
 from validation.measure.recording import record
 from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 MINI_EVENT_RESTITUTION = 1e-6
@@ -47,8 +48,8 @@ def ladder(e: float) -> Scenario:
 def test_impact_events_measure_the_requested_restitution(e):
     scenario = ladder(e)
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
-    recording = record(adapter, scenario, sample_every=10)
+    adapter.load(compile_scene(scenario))
+    recording = record(adapter, compile_scene(scenario), sample_every=10)
     bodies = {event.body_b for event in recording.impacts}
     assert bodies == {"ball", "cube"}, f"impacts of {bodies}"
     assert all(event.body_a == "ground" for event in recording.impacts)
@@ -73,7 +74,7 @@ def test_trajectory_samples_and_a_contact_free_scene_is_observed_only_at_samples
         }
     )
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
+    adapter.load(compile_scene(scenario))
     calls = {"observe": 0}
     observe = adapter.observe
 
@@ -82,7 +83,7 @@ def test_trajectory_samples_and_a_contact_free_scene_is_observed_only_at_samples
         return observe()
 
     adapter.observe = counting
-    recording = record(adapter, scenario, sample_every=25)
+    recording = record(adapter, compile_scene(scenario), sample_every=25)
     assert recording.trajectory.t.tolist() == pytest.approx([0.0, 0.025, 0.05, 0.075, 0.1])
     assert recording.trajectory.pos.shape == (5, 1, 3)
     assert calls["observe"] == 5, f"observed {calls['observe']} times for 5 samples"
@@ -97,8 +98,8 @@ def test_spinning_oblique_impact_is_measured_along_the_impulse_direction():
 
     scenario = load_scenario(BUNDLED_SCENARIOS / "formulas" / "oblique_impact_spin.yaml")
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
-    (event,) = record(adapter, scenario).impacts
+    adapter.load(compile_scene(scenario))
+    (event,) = record(adapter, compile_scene(scenario)).impacts
     assert abs(event.restitution - 0.8) < MINI_EVENT_RESTITUTION, f"e = {event.restitution:.9f}"
 
 
@@ -124,6 +125,6 @@ def test_a_plastic_impact_measures_e_zero(speed):
         }
     )
     adapter = create_adapter(parse_engine_spec("mini"))
-    adapter.load(scenario)
-    (event,) = record(adapter, scenario).impacts
+    adapter.load(compile_scene(scenario))
+    (event,) = record(adapter, compile_scene(scenario)).impacts
     assert abs(event.restitution) < MINI_EVENT_RESTITUTION, f"e = {event.restitution:.3e}"

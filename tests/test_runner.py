@@ -7,6 +7,7 @@ import pytest
 from validation.engines.mujoco import mjcf as mujoco_engine
 from validation.measure.runner import run_engine
 from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 BALL = {
@@ -28,7 +29,9 @@ BALL = {
 
 @pytest.mark.parametrize("engine", ["mini", "mujoco", "pybullet"])
 def test_every_engine_runs_a_bounce_to_the_end(engine):
-    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec(engine), sample_every=10)
+    run = run_engine(
+        compile_scene(Scenario.model_validate(BALL)), parse_engine_spec(engine), sample_every=10
+    )
     assert run.status == "ok", run.message
     assert run.recording.trajectory.t[-1] == pytest.approx(0.2)
     assert len(run.recording.impacts) >= 1, "no impact recorded"
@@ -39,7 +42,7 @@ def test_every_engine_runs_a_bounce_to_the_end(engine):
 def test_wrong_inertia_gives_a_model_mismatch_naming_the_quantity(monkeypatch):
     right = mujoco_engine.body_inertia
     monkeypatch.setattr(mujoco_engine, "body_inertia", lambda body: right(body) * (1.0 + 1e-6))
-    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec("mujoco"))
+    run = run_engine(compile_scene(Scenario.model_validate(BALL)), parse_engine_spec("mujoco"))
     assert run.status == "model_mismatch", run.status
     assert "inertia_world of body 0" in run.message and run.recording is None, run.message
 
@@ -51,7 +54,7 @@ def test_a_crashing_engine_becomes_an_error_row(monkeypatch):
         raise RuntimeError("solver fell over")
 
     monkeypatch.setattr(mini.MiniAdapter, "advance", explode)
-    run = run_engine(Scenario.model_validate(BALL), parse_engine_spec("mini"))
+    run = run_engine(compile_scene(Scenario.model_validate(BALL)), parse_engine_spec("mini"))
     assert run.status == "error" and "solver fell over" in run.message, run
 
 
@@ -74,7 +77,9 @@ def test_an_exploding_engine_becomes_an_unstable_row_and_stops_early():
         "springs": [{"a": "m", "b": "world", "stiffness": 1.0e6, "rest_length": 0.0}],
     }
     run = run_engine(
-        Scenario.model_validate(scene), parse_engine_spec("mini(integrator=explicit_euler)"), 100
+        compile_scene(Scenario.model_validate(scene)),
+        parse_engine_spec("mini(integrator=explicit_euler)"),
+        100,
     )
     assert run.status == "unstable", run.status
     assert run.message.startswith(("energy_blow_up", "non_finite")), run.message

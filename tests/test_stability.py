@@ -9,9 +9,11 @@ import pytest
 
 from validation.jobs.stability_search import BISECTION_RATIO, largest_stable_dt, stability_limit
 from validation.measure.stability import (
-    StabilityMonitor,
+    StabilityChecks,
 )
+from validation.measure.states import Trajectory
 from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
 STIFFNESS, MASS = 1.0e6, 1.0
@@ -73,22 +75,31 @@ def test_bracketing_and_bisection_on_a_known_threshold():
     assert len(calls) < 20, calls
 
 
-def test_monitor_names_each_kind():
-    scene = oscillator()
-    monitor = StabilityMonitor(scene)
-    from validation.engines.base import Snapshot
+def test_checks_name_each_kind_at_the_first_failing_state():
+    scene = compile_scene(oscillator())
 
-    def snap(pos=(0.01, 0, 0), quat=(1.0, 0, 0, 0), vel=(0, 0, 0)):
-        return Snapshot(
-            0.0, np.array([pos]), np.array([quat]), np.array([vel], float), np.zeros((1, 3))
+    def states(pos=(0.01, 0, 0), quat=(1.0, 0, 0, 0), vel=(0, 0, 0)) -> Trajectory:
+        """Two states: the oscillator at rest, then the given one."""
+        rows = [((0.01, 0, 0), (1.0, 0, 0, 0), (0, 0, 0)), (pos, quat, vel)]
+        return Trajectory(
+            np.array([0.0, 0.5]),
+            np.array([[r[0]] for r in rows], float),
+            np.array([[r[1]] for r in rows], float),
+            np.array([[r[2]] for r in rows], float),
+            np.zeros((2, 1, 3)),
         )
 
-    assert monitor.check(snap()) is None
-    assert monitor.check(snap(pos=(np.nan, 0, 0))).startswith("non_finite")
-    assert monitor.check(snap(quat=(1.1, 0, 0, 0))).startswith("quaternion_drift")
-    assert monitor.check(snap(vel=(1.0e9, 0, 0))).startswith(("energy_blow_up", "speed_limit"))
-    assert monitor.check_overlap(0.05, 0.01, 1.0).startswith("deep_penetration")
-    assert monitor.check_overlap(0.001, 0.01, 1.0) is None
+    def first(batch, deepest=None, radius=None):
+        found = StabilityChecks(scene).first_failure(batch, deepest, radius)
+        return found if found is None else (found[0], found[1].split(":")[0])
+
+    assert first(states()) is None
+    assert first(states(pos=(np.nan, 0, 0))) == (1, "non_finite")
+    assert first(states(quat=(1.1, 0, 0, 0))) == (1, "quaternion_drift")
+    assert first(states(vel=(1.0e9, 0, 0))) == (1, "energy_blow_up")  # energy judged before speed
+    overlap = np.array([0.0, 0.05]), np.array([np.inf, 0.01])
+    assert first(states(), *overlap) == (1, "deep_penetration")
+    assert first(states(), np.array([0.0, 0.001]), np.array([np.inf, 0.01])) is None
 
 
 @pytest.mark.parametrize("engine", ["mujoco"])
@@ -97,7 +108,9 @@ def test_foreign_engine_instability_warnings_are_read(engine):
     from validation.engines.registry import create_adapter
 
     adapter = create_adapter(parse_engine_spec(engine))
-    adapter.load(oscillator(dt=5e-3, duration=1.0))  # ω·dt = 5: MuJoCo Euler explodes
+    adapter.load(
+        compile_scene(oscillator(dt=5e-3, duration=1.0))
+    )  # ω·dt = 5: MuJoCo Euler explodes
     adapter.advance(200)
     warnings = adapter.instability_warnings()
     state = adapter.observe()
@@ -123,7 +136,7 @@ def test_a_stable_spring_with_a_large_stored_energy_is_not_flagged():
             ],
         }
     )
-    run = run_engine(scene, parse_engine_spec("mini"), 10)
+    run = run_engine(compile_scene(scene), parse_engine_spec("mini"), 10)
     assert run.status == "ok", run.message
 
 

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 from validation.contract import EXIT_OK
 from validation.jobs.check import check_main
+from validation.jobs.executor import default_jobs
 from validation.jobs.run import run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
@@ -46,6 +46,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.dt,
         args.only,
         args.argv,
+        args.jobs,
     )
 
 
@@ -56,7 +57,9 @@ def command_report(args: argparse.Namespace) -> int:
 
 def command_stability(args: argparse.Namespace) -> int:
     """Largest stable dt per scene and engine, by bisection; writes stability.csv."""
-    return stability_main(args.paths or default_scenario_paths(), args.engines, args.only, args.out)
+    return stability_main(
+        args.paths or default_scenario_paths(), args.engines, args.only, args.out, args.jobs
+    )
 
 
 def command_sweep(args: argparse.Namespace) -> int:
@@ -127,10 +130,32 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--dt", type=_positive_seconds, metavar="SECONDS", help="override every scene's dt"
     )
+    _jobs_argument(command)
+
+
+def _positive_count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1; got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1; got {text!r}")
+    return value
+
+
+def _jobs_argument(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--jobs",
+        type=_positive_count,
+        default=default_jobs(),
+        metavar="N",
+        help="parallel worker processes (default: the machine's cores)",
+    )
 
 
 def _stability_arguments(command: argparse.ArgumentParser) -> None:
     _scene_selection(command)
+    _jobs_argument(command)
     command.add_argument(
         "--out", type=Path, metavar="FILE", help="CSV (default reports/stability.csv)"
     )
@@ -145,7 +170,7 @@ def _sweep_arguments(command: argparse.ArgumentParser) -> None:
         metavar="GRID",
         help="START:STOP:COUNT (log-spaced) or a comma list (default 1e-2:1e-4:5)",
     )
-    command.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel processes")
+    _jobs_argument(command)
 
 
 ARGUMENTS = {

@@ -66,3 +66,6 @@ BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 """physval's exit codes: all passed; a check failed or a run was unstable; bad input."""
+
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT, the shell's convention): every worker stopped, nothing published."""

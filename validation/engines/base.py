@@ -14,7 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
-from validation.scenario import Scenario
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
 
@@ -73,8 +73,8 @@ class EngineAdapter(Protocol):
 
     spec: EngineSpec
 
-    def load(self, scenario: Scenario) -> None:
-        """Build the engine's model of ``scenario`` at the scene's dt."""
+    def load(self, scene: CompiledScene) -> None:
+        """Build the engine's model of the compiled scene at its scenario's dt."""
 
     def model_report(self) -> ModelReport:
         """Masses, centres of mass, world inertias and invariants as the engine holds them."""

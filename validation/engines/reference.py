@@ -1,47 +1,41 @@
 """What the scenario itself says the engines must build: the parity gate's expected values.
 
-Computed from the scenario alone (the solid-shape formulas of ``mini_engine.shapes``,
-shared by every engine's expectation), never read back from an engine.
+Computed from the compiled scenario alone (the solid-shape formulas of ``mini_engine.shapes``
+and the invariants of ``CompiledScene``, shared by every engine's expectation), never read
+back from an engine.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mini_engine.forces import spring_energy
-from mini_engine.quantities import (
-    angular_momentum,
-    centre_of_mass,
-    kinetic_energy,
-    linear_momentum,
-    potential_energy,
-)
-from mini_engine.rotation import quat_to_matrix, world_inertia
 from validation.engines.base import ModelReport
-from validation.scenario import Scenario
-from validation.scenario.physics import build_mini_model
+from validation.scenario.compiled import CompiledScene, rotations, world_inertia
 
 
-def dynamic_bodies(scenario: Scenario) -> np.ndarray:
+def dynamic_bodies(scene: CompiledScene) -> np.ndarray:
     """(d,) int, scenario indices of the bodies that move (the parity gate's rows)."""
-    return np.array([i for i, b in enumerate(scenario.bodies) if not b.fixed], dtype=np.int64)
+    return np.flatnonzero(scene.moving)
 
 
-def reference_report(scenario: Scenario) -> ModelReport:
-    """The ``ModelReport`` every engine must match: dynamic bodies only, t = 0."""
-    model, state = build_mini_model(scenario)
-    moving = dynamic_bodies(scenario)
-    rot = quat_to_matrix(state.quat)
-    centre = centre_of_mass(model, state)
+def scene_report(scene: CompiledScene, pos, quat, vel, ang_vel) -> ModelReport:
+    """The ``ModelReport`` of one state ``pos, quat, vel, ang_vel (n, ...)`` of the scene's
+    bodies with the scene's masses and inertias: dynamic bodies, invariants of all."""
+    moving = dynamic_bodies(scene)
+    states = tuple(np.asarray(a)[None] for a in (pos, quat, vel, ang_vel))
+    inertia = world_inertia(scene.inertia, rotations(states[1]))[0]
     return ModelReport(
-        mass=model.body_mass[moving].copy(),
-        com=state.pos[moving].copy(),
-        inertia_world=world_inertia(rot, model.body_inertia)[moving],
-        energy=float(
-            kinetic_energy(model, state)[0]
-            + potential_energy(model, state)[0]
-            + spring_energy(model, state, rot)
-        ),
-        linear_momentum=linear_momentum(model, state)[0],
-        angular_momentum=angular_momentum(model, state, about=centre)[0],
+        mass=scene.mass[moving].copy(),
+        com=np.asarray(pos)[moving].copy(),
+        inertia_world=inertia[moving],
+        energy=float(scene.energy(*states)[0]),
+        linear_momentum=scene.linear_momentum(states[2])[0],
+        angular_momentum=scene.angular_momentum(*states)[0],
     )
+
+
+def reference_report(scene: CompiledScene) -> ModelReport:
+    """The ``ModelReport`` every engine must match: the scene at t = 0."""
+    n = scene.count
+    state = scene.initial
+    return scene_report(scene, state.pos[:n], state.quat[:n], state.vel[:n], state.ang_vel[:n])

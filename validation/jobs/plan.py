@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.scenario import Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scenario import MAX_STEPS, Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scenario.compiled import CompiledScene, compile_scene
 from validation.scenario.engine_spec import (
     EngineSpec,
     EngineSpecError,
@@ -21,7 +22,13 @@ from validation.scenario.engine_spec import (
 class Plan:
     """What to run: validated scenes, each with its engine specs."""
 
-    scenes: list[tuple[Scenario, list[EngineSpec]]]
+    scenes: list[tuple[CompiledScene, list[EngineSpec]]]
+    """Each scene compiled once, with the engine specs it runs in."""
+
+    @property
+    def jobs(self) -> list[tuple[CompiledScene, EngineSpec]]:
+        """(scene, spec) in plan order: scenes in file order, specs in the scene's order."""
+        return [(scene, spec) for scene, specs in self.scenes for spec in specs]
 
 
 class BadInputError(ValueError):
@@ -47,7 +54,7 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
     missing = [p for p in paths if not p.exists()]
     problems += [f"{p}: no such file or folder" for p in missing]
-    scenes: list[tuple[Scenario, list[EngineSpec]]] = []
+    scenes: list[tuple[CompiledScene, list[EngineSpec]]] = []
     for file in scenario_files([p for p in paths if p.exists()]):
         try:
             scenario = load_scenario(file)
@@ -64,12 +71,12 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
             except ValueError as error:
                 problems.append(f"--dt {dt} for {file}: {error}")
                 continue
-            if scenario.steps < 1 or scenario.duration / dt > 5_000_000:
+            if scenario.steps < 1 or scenario.duration / dt > MAX_STEPS:
                 problems.append(
                     f"--dt {dt} for {file}: {scenario.duration / dt:.3g} steps is out of range"
                 )
                 continue
-        scenes.append((scenario, overrides or list(scenario.engine_specs)))
+        scenes.append((compile_scene(scenario), overrides or list(scenario.engine_specs)))
     if not scenes and not problems:
         problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
     if problems:

@@ -26,6 +26,7 @@ from validation.contract import (
     BAD_STATUSES,
     EXIT_BAD_INPUT,
     EXIT_FAILED,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     IMPACTS_COLUMNS,
     IMPACTS_FILE,
@@ -33,13 +34,14 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_FILE,
 )
+from validation.jobs.executor import Interrupted, run_jobs
 from validation.jobs.plan import BadInputError, Plan, plan_run
-from validation.measure.comparator import COLUMNS, compare_scene
-from validation.measure.metrics import Context
+from validation.measure.comparator import COLUMNS, compare_scene, measure_run
+from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
 from validation.report.render import render_report
-from validation.scenario import Scenario
-from validation.scenario.physics import pair_value
+from validation.scenario.compiled import CompiledScene
+from validation.scenario.engine_spec import EngineSpec
 
 MAX_SAMPLES = 5000
 """Trajectory samples kept per run: every step for the library's impact scenes (at most a few
@@ -49,8 +51,8 @@ MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
 
 
-def _sample_every(scenario: Scenario) -> int:
-    return max(1, -(-scenario.steps // MAX_SAMPLES))
+def _sample_every(scene: CompiledScene) -> int:
+    return max(1, -(-scene.scenario.steps // MAX_SAMPLES))
 
 
 class Progress:
@@ -75,8 +77,8 @@ class Progress:
             sys.stderr.write("\n")
 
 
-def _series_rows(scenario: Scenario, run: EngineRun) -> pd.DataFrame:
-    series = Context(scenario, run.recording).series
+def _series_rows(scene: CompiledScene, run: EngineRun) -> pd.DataFrame:
+    series = run.recording.series
     keep = np.unique(
         np.linspace(0, series.t.size - 1, min(series.t.size, MAX_SERIES_POINTS)).astype(int)
     )
@@ -89,25 +91,32 @@ def _series_rows(scenario: Scenario, run: EngineRun) -> pd.DataFrame:
         }
     )
     frame.insert(0, "engine", run.engine)
-    frame.insert(0, "scenario", scenario.name)
+    frame.insert(0, "scenario", scene.name)
     return frame
 
 
-def _impact_rows(scenario: Scenario, run: EngineRun) -> list[dict]:
+def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
     return [
         {
-            "scenario": scenario.name,
+            "scenario": scene.name,
             "engine": run.engine,
             "body_a": event.body_a,
             "body_b": event.body_b,
             "time": event.time_start,
-            "e_requested": pair_value(scenario, event.body_a, event.body_b, "restitution"),
+            "e_requested": scene.pair_value(event.body_a, event.body_b, "restitution"),
             "e_measured": event.restitution,
             "normal_velocity_before": event.normal_velocity_before,
             "normal_velocity_after": event.normal_velocity_after,
         }
         for event in run.recording.impacts
     ]
+
+
+def run_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
+    """One (scene, engine spec): the run and its own metrics (in a worker process)."""
+    scene, spec = job
+    run = run_engine(scene, spec, _sample_every(scene))
+    return run, measure_run(scene, run)
 
 
 def _git_commit() -> str:
@@ -151,22 +160,32 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
     }
 
 
-def execute(plan: Plan) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
-    """Run every (scene, engine); returns rows, series frames, impact rows and the runs."""
-    progress = Progress(sum(len(specs) for _, specs in plan.scenes))
+def execute(
+    plan: Plan, jobs: int = 1
+) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
+    """Run every (scene, engine) on ``jobs`` workers; returns rows, series frames, impact rows
+    and the runs, all in plan order whatever order the jobs finished in."""
+    work = plan.jobs
+    progress = Progress(len(work))
+    done = run_jobs(
+        run_job,
+        work,
+        jobs,
+        lambda index, _: progress.step(f"{work[index][0].name} · {work[index][1].label}"),
+    )
+    progress.close()
     rows, series, impacts, all_runs = [], [], [], []
-    for scenario, specs in plan.scenes:
-        runs = []
-        for spec in specs:
-            progress.step(f"{scenario.name} · {spec.label}")
-            runs.append(run_engine(scenario, spec, _sample_every(scenario)))
-        rows += compare_scene(scenario, runs)
+    position = 0
+    for scene, specs in plan.scenes:
+        results = done[position : position + len(specs)]
+        position += len(specs)
+        runs = [run for run, _ in results]
+        rows += compare_scene(scene, runs, [measured for _, measured in results])
         for run in runs:
             if run.recording is not None:
-                series.append(_series_rows(scenario, run))
-                impacts += _impact_rows(scenario, run)
+                series.append(_series_rows(scene, run))
+                impacts += _impact_rows(scene, run)
         all_runs += runs
-    progress.close()
     return rows, series, impacts, all_runs
 
 
@@ -247,6 +266,7 @@ def run_main(
     dt: float | None,
     only: str | None,
     argv: list[str],
+    jobs: int = 1,
 ) -> int:
     """The whole job; returns the exit code (0 all passed, 1 any failed or unstable, 2 bad input)."""
     try:
@@ -254,7 +274,13 @@ def run_main(
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    rows, series, impacts, runs = execute(plan)
+    try:
+        rows, series, impacts, runs = execute(plan, jobs)
+    except Interrupted:
+        print(
+            "interrupted: every worker stopped; the previous report is unchanged", file=sys.stderr
+        )
+        return EXIT_INTERRUPTED
     destination = out or Path("reports") / "latest"
     destination.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{destination.name}-staging-", dir=destination.parent))

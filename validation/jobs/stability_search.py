@@ -11,9 +11,12 @@ from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_table
+from validation.jobs.executor import run_jobs
 from validation.jobs.plan import BadInputError, plan_run
 from validation.measure.runner import run_engine
 from validation.scenario import MAX_STEPS, Scenario
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import EngineSpec
 from validation.scenario.schema import scene_at
 
 BISECTION_RATIO = 1.02
@@ -102,7 +105,7 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
 
     def is_stable(dt: float) -> tuple[bool, str]:
         probe = scene_at(scenario, dt)
-        run = run_engine(probe, spec, max(1, probe.steps // SAMPLES_PER_PROBE))
+        run = run_engine(compile_scene(probe), spec, max(1, probe.steps // SAMPLES_PER_PROBE))
         if run.status == "model_mismatch":
             raise _NotRunError(run.message)
         return run.status == "ok", run.message
@@ -120,8 +123,12 @@ class _NotRunError(Exception):
     """The engine's model failed the parity gate: its stability says nothing."""
 
 
+def _limit_job(job: tuple[Scenario, EngineSpec]) -> StabilityLimit:
+    return stability_limit(*job)
+
+
 def stability_main(
-    paths: list[Path], engines: str | None, only: str | None, out: Path | None
+    paths: list[Path], engines: str | None, only: str | None, out: Path | None, jobs: int = 1
 ) -> int:
     """``physval stability``: every limit printed as a sentence and written to stability.csv."""
     try:
@@ -129,7 +136,7 @@ def stability_main(
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    limits = [stability_limit(scenario, spec) for scenario, specs in plan.scenes for spec in specs]
+    limits = run_jobs(_limit_job, [(scene.scenario, spec) for scene, spec in plan.jobs], jobs)
     for limit in limits:
         print(limit.sentence())
     rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]

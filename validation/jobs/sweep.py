@@ -25,7 +25,6 @@ import math
 import statistics
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,13 +33,14 @@ import numpy as np
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.registry import create_adapter
 from validation.files import write_table
+from validation.jobs.executor import run_jobs
 from validation.jobs.plan import BadInputError, plan_run
 from validation.measure.metrics import Context, measure
 from validation.measure.runner import EngineRun, run_engine
 from validation.report.sweep_page import render_sweep
 from validation.scenario import MAX_STEPS, Scenario
+from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import EngineSpec, parse_engine_spec
-from validation.scenario.physics import build_mini_model
 from validation.scenario.schema import scene_at
 
 WARMUP_STEPS = 20
@@ -96,13 +96,15 @@ class Reference:
 
     kind: str
     run: EngineRun | None = None
+    dt: float | None = None
+    """s, the reference run's step (engine and self-consistency references)."""
 
 
 def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
     """Wall time (s) of the stepping alone for the whole run, from a separate timed pass."""
     adapter = create_adapter(spec)
     try:
-        adapter.load(scenario)
+        adapter.load(compile_scene(scenario))
         warmup = min(WARMUP_STEPS, scenario.steps // (REPEATS + 1))
         adapter.advance(warmup)
         block = max(1, min(BLOCK_STEPS, (scenario.steps - warmup) // REPEATS))
@@ -117,7 +119,12 @@ def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
 
 
 def _can_touch(scenario: Scenario) -> bool:
-    return build_mini_model(scenario)[0].can_touch
+    return compile_scene(scenario).can_touch
+
+
+def _run(scenario: Scenario, spec: EngineSpec, sample_every: int) -> EngineRun:
+    """``run_engine`` on a derived scene (another dt, a restart), compiled here."""
+    return run_engine(compile_scene(scenario), spec, sample_every)
 
 
 def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -> Reference:
@@ -128,13 +135,11 @@ def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -
         return Reference(f"analytic:{scenario.expect[0].metric}")
     if not _can_touch(scenario):
         dt = max(smallest_dt / REFINE_REFERENCE, scenario.duration / MAX_STEPS)
-        fine = run_engine(
-            scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt)
-        )
-        return Reference(f"engine:{HIGH_ACCURACY}@{dt!r}", fine)
+        fine = _run(scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt))
+        return Reference(f"engine:{HIGH_ACCURACY}@{dt!r}", fine, dt)
     dt = max(smallest_dt / REFINE_SELF, scenario.duration / MAX_STEPS)
-    fine = run_engine(scene_at(scenario, dt), spec, _every(scenario, dt))
-    return Reference(f"self:{spec.label}@{dt!r}", fine)
+    fine = _run(scene_at(scenario, dt), spec, _every(scenario, dt))
+    return Reference(f"self:{spec.label}@{dt!r}", fine, dt)
 
 
 def _every(scenario: Scenario, dt: float) -> int:
@@ -155,7 +160,7 @@ def restarted(scenario: Scenario, trajectory, sample: int, dt: float, duration: 
 
 
 def _end_position(scenario: Scenario, spec: EngineSpec) -> np.ndarray | None:
-    run = run_engine(scenario, spec, max(1, scenario.steps))
+    run = _run(scenario, spec, max(1, scenario.steps))
     if run.status != "ok" or run.recording is None:
         return None
     return run.recording.trajectory.pos[-1]
@@ -163,7 +168,7 @@ def _end_position(scenario: Scenario, spec: EngineSpec) -> np.ndarray | None:
 
 def _position_at(scenario: Scenario, spec: EngineSpec, time: float) -> np.ndarray | None:
     """Body positions (n, 3) at ``time``, interpolated between the run's per-step samples."""
-    run = run_engine(scenario, spec, 1)
+    run = _run(scenario, spec, 1)
     if run.status != "ok" or run.recording is None:
         return None
     traj = run.recording.trajectory
@@ -179,7 +184,7 @@ def segment_error(scenario: Scenario, spec: EngineSpec, dt: float, reference: Re
     """Mean over segments of the end-of-segment COM distance between ``dt`` and the fine step,
     both restarted from the fine run's state at the segment's start."""
     fine = reference.run.recording.trajectory
-    fine_dt = float(reference.kind.rsplit("@", 1)[1])
+    fine_dt = reference.dt
     length = scenario.duration / SEGMENTS
     errors = []
     for k in range(SEGMENTS):
@@ -202,7 +207,11 @@ def point_error(
     """The error of one sweep point against ``reference`` (units of the reference's metric)."""
     if reference.kind.startswith("analytic:"):
         metric = reference.kind.split(":", 1)[1]
-        found = [m for m in measure(Context(scenario, run.recording)) if m.metric == metric]
+        found = [
+            m
+            for m in measure(Context(compile_scene(scenario), run.recording))
+            if m.metric == metric
+        ]
         return found[0].error if found else math.nan
     if reference.run is None or reference.run.status != "ok":
         return math.nan  # an unstable or failed reference measures nothing (see its message)
@@ -231,7 +240,7 @@ def sweep_point(scenario: Scenario, spec: EngineSpec, dt: float, reference: Refe
     }
     if probe.steps < 1 or probe.steps > MAX_STEPS:
         return {**row, "status": "unsupported", "message": f"{probe.steps} steps is out of range"}
-    run = run_engine(probe, spec, _every(probe, dt))
+    run = _run(probe, spec, _every(probe, dt))
     seconds = stepping_seconds(probe, spec) if run.status == "ok" else math.nan
     error = point_error(probe, spec, run, reference) if run.recording is not None else math.nan
     return {
@@ -280,11 +289,9 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
 
 
 def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int) -> list[dict]:
-    """All jobs, in parallel over ``workers`` processes (one engine instance per process)."""
-    if workers <= 1 or len(jobs) <= 1:
-        return [row for job in jobs for row in sweep_scene(job)]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return [row for rows in pool.map(sweep_scene, jobs) for row in rows]
+    """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
+    shipping to a worker); rows in job order."""
+    return [row for rows in run_jobs(sweep_scene, jobs, workers) for row in rows]
 
 
 def sweep_main(
@@ -297,9 +304,7 @@ def sweep_main(
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    rows = run_sweep(
-        [(scenario, spec, grid) for scenario, specs in plan.scenes for spec in specs], jobs
-    )
+    rows = run_sweep([(scene.scenario, spec, grid) for scene, spec in plan.jobs], jobs)
     out = out or Path("reports") / "sweep"
     out.mkdir(parents=True, exist_ok=True)
     write_table(rows, out / "sweep.csv")

@@ -14,19 +14,19 @@ import math
 from validation.contract import RESULTS_COLUMNS
 from validation.measure.metrics import Context, Measurement, divergence, measure
 from validation.measure.runner import EngineRun
-from validation.scenario import Scenario
+from validation.scenario.compiled import CompiledScene
 
 COLUMNS = RESULTS_COLUMNS
 """The columns of results.csv, in order (``validation.contract``)."""
 
 
-def _common(scenario: Scenario, run: EngineRun) -> dict:
+def _common(scene: CompiledScene, run: EngineRun) -> dict:
     provenance = run.provenance
     return {
-        "scenario": scenario.name,
+        "scenario": scene.name,
         "engine": run.engine,
-        "dt": scenario.dt,
-        "steps": scenario.steps,
+        "dt": scene.scenario.dt,
+        "steps": scene.scenario.steps,
         "wall_time_s": round(run.wall_time_s, 6),
         "engine_version": provenance.version if provenance else "",
         "settings": json.dumps(
@@ -35,8 +35,8 @@ def _common(scenario: Scenario, run: EngineRun) -> dict:
     }
 
 
-def _row(scenario: Scenario, run: EngineRun, result: Measurement, status: str) -> dict:
-    tolerance = scenario.tolerance(result.metric, run.engine)
+def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str) -> dict:
+    tolerance = scene.scenario.tolerance(result.metric, run.engine)
     passed = (
         None
         if tolerance is None
@@ -45,7 +45,7 @@ def _row(scenario: Scenario, run: EngineRun, result: Measurement, status: str) -
     if status == "ok" and passed is False:
         status = "failed"
     return {
-        **_common(scenario, run),
+        **_common(scene, run),
         "metric": result.metric,
         "value": result.value,
         "expected": result.expected,
@@ -58,9 +58,9 @@ def _row(scenario: Scenario, run: EngineRun, result: Measurement, status: str) -
     }
 
 
-def _status_row(scenario: Scenario, run: EngineRun) -> dict:
+def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
     return {
-        **_common(scenario, run),
+        **_common(scene, run),
         "metric": "status",
         "value": None,
         "expected": None,
@@ -73,24 +73,33 @@ def _status_row(scenario: Scenario, run: EngineRun) -> dict:
     }
 
 
-def compare_scene(scenario: Scenario, runs: list[EngineRun]) -> list[dict]:
+def measure_run(scene: CompiledScene, run: EngineRun) -> list[Measurement]:
+    """Every metric of one engine run that needs only that run (empty without a recording)."""
+    return [] if run.recording is None else measure(Context(scene, run.recording))
+
+
+def compare_scene(
+    scene: CompiledScene, runs: list[EngineRun], measured: list[list[Measurement]] | None = None
+) -> list[dict]:
     """Rows for every engine run of one scene; the first engine that ran is the reference
-    of ``divergence`` for the others."""
+    of ``divergence`` for the others. ``measured``: each run's ``measure_run`` when it was
+    already computed (in the worker that ran it)."""
+    if measured is None:
+        measured = [measure_run(scene, run) for run in runs]
     rows: list[dict] = []
     contexts = {
-        run.engine: Context(scenario, run.recording) for run in runs if run.recording is not None
+        run.engine: Context(scene, run.recording) for run in runs if run.recording is not None
     }
     reference = next(iter(contexts), None)
-    for run in runs:
+    for run, results in zip(runs, measured, strict=True):
         if run.recording is None:
-            rows.append(_status_row(scenario, run))
+            rows.append(_status_row(scene, run))
             continue
-        ctx = contexts[run.engine]
-        results = measure(ctx)
+        results = list(results)
         if reference is not None and run.engine != reference:
-            found = divergence(ctx, contexts[reference], reference)
+            found = divergence(contexts[run.engine], contexts[reference], reference)
             results += [found] if found is not None else []
-        rows += [_row(scenario, run, result, run.status) for result in results]
+        rows += [_row(scene, run, result, run.status) for result in results]
         if run.status != "ok":
-            rows.append(_status_row(scenario, run))
+            rows.append(_status_row(scene, run))
     return rows

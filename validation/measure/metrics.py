@@ -12,15 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
-from mini_engine.collision import detect_contacts
 from mini_engine.rotation import quat_to_matrix
 from validation.measure.recording import Recording
-from validation.scenario import Scenario
-from validation.scenario.physics import SceneEnergy, body_inertia, build_mini_model, pair_value
+from validation.scenario.compiled import CompiledScene
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
@@ -43,66 +40,20 @@ class Measurement:
     message: str = ""
 
 
-@dataclass
-class Series:
-    """Invariants over the samples of a recording (s samples).
-
-    Attributes:
-        t: (s,) s. energy: (s,) J (kinetic + gravitational + spring).
-        momentum: (s, 3) kg·m/s. angular_momentum: (s, 3) kg·m²/s about the system COM.
-        com: (s, 3) m, the moving bodies' centre of mass.
-    """
-
-    t: np.ndarray
-    energy: np.ndarray
-    momentum: np.ndarray
-    angular_momentum: np.ndarray
-    com: np.ndarray
-
-
 class Context:
-    """A scene and one engine's recording of it, with the derived quantities metrics share."""
+    """A compiled scene and one engine's recording of it, with the quantities metrics share."""
 
-    def __init__(self, scenario: Scenario, recording: Recording):
-        self.scenario = scenario
+    def __init__(self, scene: CompiledScene, recording: Recording):
+        self.scene = scene
+        self.scenario = scene.scenario
         self.recording = recording
         self.trajectory = recording.trajectory
-        self.moving = np.array([not b.fixed for b in scenario.bodies])
-        self.mass = np.array([b.mass for b in scenario.bodies])
-        self.inertia = np.array([body_inertia(b) for b in scenario.bodies])
-        self.gravity = np.asarray(scenario.gravity, dtype=float)
-
-    @cached_property
-    def model_and_state(self):
-        return build_mini_model(self.scenario)
-
-    @cached_property
-    def external_contacts(self) -> bool:
-        """Whether anything outside the moving bodies can push them: ground, fixed bodies,
-        springs to the world. Then momentum is not conserved and its drift is undefined."""
-        world_springs = any(s.b == "world" for s in self.scenario.springs)
-        return self.scenario.ground is not None or not self.moving.all() or world_springs
-
-    @cached_property
-    def can_touch(self) -> bool:
-        return self.model_and_state[0].can_touch
-
-    @cached_property
-    def series(self) -> Series:
-        traj = self.trajectory
-        m = np.where(self.moving, self.mass, 0.0)
-        samples, count = traj.pos.shape[:2]
-        rot = quat_to_matrix(traj.quat.reshape(-1, 4)).reshape(samples, count, 3, 3)
-        inertia_world = rot @ self.inertia[None] @ rot.transpose(0, 1, 3, 2)
-        spin = np.einsum("snij,snj->sni", inertia_world, traj.ang_vel)
-        total_mass = m.sum()
-        com = np.einsum("n,sni->si", m, traj.pos) / total_mass
-        momentum = np.einsum("n,sni->si", m, traj.vel)
-        arm = traj.pos - com[:, None, :]
-        angular = np.einsum("n,sni->si", m, np.cross(arm, traj.vel))
-        angular += np.einsum("sni,n->si", spin, self.moving.astype(float))
-        energy = SceneEnergy(self.scenario)(traj.pos, traj.quat, traj.vel, traj.ang_vel)
-        return Series(traj.t, energy, momentum, angular, com)
+        self.series = recording.series
+        self.moving = scene.moving
+        self.mass = np.array([b.mass for b in scene.scenario.bodies])
+        self.gravity = scene.gravity
+        self.can_touch = scene.can_touch
+        self.external_contacts = scene.external_loads
 
 
 def _drift(values: np.ndarray, name: str, scale: float | None = None) -> Measurement:
@@ -178,7 +129,7 @@ def velocity_error(ctx: Context) -> Measurement | None:
 
 
 def requested_restitution(ctx: Context, body_a: str, body_b: str) -> float:
-    return pair_value(ctx.scenario, body_a, body_b, "restitution")
+    return ctx.scene.pair_value(body_a, body_b, "restitution")
 
 
 def restitution_error(ctx: Context) -> Measurement | None:
@@ -196,17 +147,9 @@ def restitution_error(ctx: Context) -> Measurement | None:
 
 
 def penetration_max(ctx: Context) -> Measurement | None:
-    if not ctx.can_touch:
+    deepest = ctx.recording.penetration_max
+    if deepest is None:
         return None
-    model, state = ctx.model_and_state
-    count = len(ctx.scenario.bodies)
-    deepest = 0.0
-    for k in range(ctx.trajectory.t.size):
-        pos, quat = state.pos.copy(), state.quat.copy()
-        pos[:count], quat[:count] = ctx.trajectory.pos[k], ctx.trajectory.quat[k]
-        depth = detect_contacts(model, pos, quat_to_matrix(quat), 0.0).depth
-        if depth.size:
-            deepest = max(deepest, float(depth.max()))
     return Measurement("penetration_max", deepest, 0.0, "analytic", deepest)
 
 

@@ -2,11 +2,11 @@
 
 Impacts are found from the observed states alone, never from an engine's own contact
 reports, so that restitution is measured identically in mini_engine, MuJoCo and
-PyBullet: after every step the scene's shapes are placed at the observed poses and
-mini_engine's collision detection says which pairs touch. A pair that starts touching
-opens an event; its relative normal velocity *before* is taken from the last observed
-state before the touch, its velocity *after* from the first observed state after the
-shapes separate again. Pairs still touching at the end (resting contacts) give no event.
+PyBullet: the scene's shapes are placed at the observed poses and mini_engine's collision
+detection says which pairs touch. A pair that starts touching opens an event; its relative
+normal velocity *before* is taken from the last observed state before the touch, its
+velocity *after* from the first observed state after the shapes separate again. Pairs still
+touching at the end (resting contacts) give no event.
 
 Gravity keeps acting while the shapes touch (for a body-ground pair it changes the
 relative normal velocity by g·dt each step: 5 % of a 0.4 m/s impact per ms). So the
@@ -20,6 +20,12 @@ resolves an impact within one semi-implicit step (mini_engine, MuJoCo Euler with
 one-step damper, PyBullet) this recovers exactly the velocities its solver saw; for soft
 contacts lasting several steps it is the natural average. Arms and normal are frozen at
 first contact, so every observation is measured along the impulse's own direction.
+
+Measuring once, batched: observed states are collected in batches; the contacts of a whole
+batch come from one collision call (the states are independent worlds of one model,
+``CompiledScene.contacts``) and serve impact detection, the overlap check and
+``penetration_max`` alike. The stability checks judge each batch as it completes, and the
+run stops at its first failing state, as if it had been checked state by state.
 """
 
 from __future__ import annotations
@@ -29,12 +35,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mini_engine.collision import detect_contacts
-from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import EngineAdapter, Snapshot
-from validation.measure.stability import StabilityMonitor
-from validation.scenario import Scenario
-from validation.scenario.physics import GROUND, build_mini_model
+from validation.measure.stability import StabilityChecks
+from validation.measure.states import Series, Trajectory, invariants
+from validation.scenario.compiled import CompiledScene, ObservedContacts
+from validation.scenario.physics import GROUND
 
 DETECTION_GAP = 1e-6
 """m. Shapes closer than this count as touching (mini_engine's contact margin), so a body
@@ -46,37 +51,19 @@ no event. The library's slowest deliberate bounce approaches at about 0.05 m/s. 
 must also be faster than gravity's change of velocity in one step (|a|·dt), or the body
 cannot leave the ground before it is pulled back: that too is settling."""
 
-
 PLASTIC_OBSERVATIONS = 3
 """Consecutive observations in contact with |relative normal velocity| below
 ``IMPACT_MIN_SPEED`` that close an impact as plastic (e = 0) while the shapes still touch.
 Three, so that a soft contact passing through zero relative speed mid-bounce is not cut."""
 
+BATCH_OBSERVATIONS = 256
+"""Observed states measured together. Large enough that the per-batch NumPy calls cost far
+less than the states' own observation; small enough that a run that explodes mid-batch is
+stopped within a few hundred steps of its first failing state."""
 
-@dataclass(frozen=True)
-class Trajectory:
-    """Sampled states of the scene's bodies (s samples, n bodies, scenario order).
-
-    Attributes:
-        t: (s,) s. pos: (s, n, 3) m, world, centres of mass. quat: (s, n, 4) w x y z.
-        vel: (s, n, 3) m/s, world. ang_vel: (s, n, 3) rad/s, world.
-    """
-
-    t: np.ndarray
-    pos: np.ndarray
-    quat: np.ndarray
-    vel: np.ndarray
-    ang_vel: np.ndarray
-
-    @staticmethod
-    def from_snapshots(snapshots: list[Snapshot]) -> Trajectory:
-        return Trajectory(
-            t=np.array([s.time for s in snapshots]),
-            pos=np.stack([s.pos for s in snapshots]),
-            quat=np.stack([s.quat for s in snapshots]),
-            vel=np.stack([s.vel for s in snapshots]),
-            ang_vel=np.stack([s.ang_vel for s in snapshots]),
-        )
+CONTEXT_OBSERVATIONS = 2
+"""States of the previous batch kept for the next one: the state before a touch (the velocity
+before) and the one before that (the approach acceleration)."""
 
 
 @dataclass(frozen=True)
@@ -110,80 +97,226 @@ class ImpactEvent:
 
 @dataclass
 class _OpenImpact:
+    key: tuple[int, int]
+    order: int
+    """Opening sequence number: events closing at one observation keep the order they opened in."""
     start: float
     normal: np.ndarray
     arm_a: np.ndarray
     """(3,) m, world frame: contact point minus A's centre at first contact."""
     arm_b: np.ndarray
-    history: list[tuple[float, float]]
+    times: list[float]
+    speeds: list[float]
     """(time s, relative normal velocity m/s) from the last observation before contact on."""
     accel: float = 0.0
     """m/s², relative normal acceleration before contact (what acts besides the impulse)."""
 
 
+@dataclass(frozen=True)
+class _Touching:
+    """The deepest contact of each touching (state, pair) of a batch, sorted by (state, pair).
+
+    Attributes:
+        observation: (r,) int. key: (r,) int pair code ``a * N + b``. point, normal: (r, 3).
+        depth: (r,) m. rank: (r,) int, the pair's first contact in detection order (ties).
+    """
+
+    observation: np.ndarray
+    key: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    depth: np.ndarray
+    rank: np.ndarray
+
+
+def _touching(contacts: ObservedContacts, bodies: int) -> _Touching:
+    """Reduce a batch's contacts to the deepest point of each (state, pair) (first on ties)."""
+    key = contacts.body_a * bodies + contacts.body_b
+    rank = np.arange(key.size)
+    order = np.lexsort((rank, -contacts.depth, key, contacts.observation))
+    obs, key_sorted = contacts.observation[order], key[order]
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = (obs[1:] != obs[:-1]) | (key_sorted[1:] != key_sorted[:-1])
+    starts = np.flatnonzero(first)
+    ranks = np.minimum.reduceat(rank[order], starts) if starts.size else starts
+    pick = order[first]
+    return _Touching(
+        contacts.observation[pick],
+        key[pick],
+        contacts.point[pick],
+        contacts.normal[pick],
+        contacts.depth[pick],
+        ranks,
+    )
+
+
 @dataclass
 class ImpactDetector:
-    """Finds impacts in a sequence of snapshots of one scenario (any engine)."""
+    """Finds impacts in batches of observed states of one scene (any engine)."""
 
-    scenario: Scenario
+    scene: CompiledScene
     events: list[ImpactEvent] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self.model, self.state = build_mini_model(self.scenario)
-        self.count = len(self.scenario.bodies)
-        self.can_touch = self.model.can_touch
-        self.body_gravity = np.where(self.model.body_fixed[:, None], 0.0, self.model.gravity)
+        self.bodies = self.scene.model.n_bodies
+        self.body_gravity = np.where(
+            np.asarray(self.scene.model.body_fixed)[:, None], 0.0, self.scene.gravity
+        )
         self.open: dict[tuple[int, int], _OpenImpact] = {}
-        self.previous: Snapshot | None = None
-        self.before_previous: Snapshot | None = None
-        self.deepest: tuple[float, float] = (0.0, float("inf"))
-        self.previous_touching: dict = {}
+        self.opened = 0
+        self.context: Trajectory | None = None
+        self.context_touching: np.ndarray = np.zeros(0, dtype=np.int64)
+        self.closed: list[tuple[float, int, ImpactEvent]] = []
 
-    def _full(self, snap: Snapshot, name: str) -> np.ndarray:
-        """Snapshot array for every model body (the ground keeps its initial value)."""
-        full = getattr(self.state, name).copy()
-        full[: self.count] = getattr(snap, name)
-        if name in ("vel", "ang_vel"):
-            full[self.count :] = 0.0
-        return full
+    # -- kinematics on the batch extended by the context states --
 
-    def _touching(
-        self, snap: Snapshot
-    ) -> dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]]:
-        """Pairs in contact: (a, b) -> (deepest point, normal A→B, depth)."""
-        pos, quat = self._full(snap, "pos"), self._full(snap, "quat")
-        contacts = detect_contacts(self.model, pos, quat_to_matrix(quat), DETECTION_GAP)
-        found: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]] = {}
-        for a, b, point, normal, depth in zip(*contacts, strict=True):
-            key = (int(a), int(b))
-            if key not in found or depth > found[key][2]:
-                found[key] = (point, normal, float(depth))
-        return found
-
-    def _normal_velocity(self, snap: Snapshot, key, impact: _OpenImpact) -> float:
-        """(v_PB - v_PA)·n with the arms and normal frozen at first contact, so every
-        observation of one impact is measured along the impulse's own direction (for
+    def _normal_velocity(self, ext: Trajectory, obs: np.ndarray, key, normal, arm_a, arm_b):
+        """(v_PB - v_PA)·n at states ``obs`` with arms and normal frozen at first contact (for
         spinning spheres the arms stay on the line of centres: ω × r adds nothing)."""
-        vel, ang_vel = self._full(snap, "vel"), self._full(snap, "ang_vel")
         a, b = key
-        v_a = vel[a] + np.cross(ang_vel[a], impact.arm_a)
-        v_b = vel[b] + np.cross(ang_vel[b], impact.arm_b)
-        return float((v_b - v_a) @ impact.normal)
 
-    def _event(
-        self, key: tuple[int, int], impact: _OpenImpact, end: float, separated: bool
-    ) -> ImpactEvent | None:
+        def point_velocity(body: int, arm) -> np.ndarray:
+            if body >= self.scene.count:  # the ground
+                return np.zeros((obs.size, 3))
+            return ext.vel[obs, body] + np.cross(ext.ang_vel[obs, body], arm)
+
+        return (point_velocity(b, arm_b) - point_velocity(a, arm_a)) @ normal
+
+    def _position(self, ext: Trajectory, obs: int, body: int) -> np.ndarray:
+        if body >= self.scene.count:
+            return np.asarray(self.scene.initial.pos[body])
+        return ext.pos[obs, body]
+
+    def update(self, states: Trajectory, touching: _Touching, last: int | None = None) -> None:
+        """Feed a batch of consecutive observed states (every step while the scene can touch)
+        and its touching pairs; only states up to ``last`` (inclusive) count when given."""
+        if last is not None:
+            states = states.take(slice(0, last + 1))
+            keep = touching.observation <= last
+            touching = _Touching(
+                *(getattr(touching, f)[keep] for f in _Touching.__dataclass_fields__)
+            )
+        offset = 0 if self.context is None else len(self.context)
+        ext = states if self.context is None else _concat(self.context, states)
+        codes_all = np.concatenate(
+            [
+                self.context_touching - self.bodies**2,
+                touching.observation * self.bodies**2 + touching.key,
+            ]
+        )
+        codes_all.sort()
+        per_state = self.bodies * self.bodies
+
+        def touching_at(obs: np.ndarray, key) -> np.ndarray:
+            return _member(obs * per_state + key, codes_all)
+
+        new = ~touching_at(touching.observation - 1, touching.key)
+        new &= (touching.observation + offset) >= 1  # a state before the touch was observed
+        candidates = np.flatnonzero(new)
+        candidates = candidates[
+            np.lexsort((touching.rank[candidates], touching.observation[candidates]))
+        ]
+        opens: list[tuple[int, _OpenImpact]] = []
+        for row in candidates:
+            impact = self._open(ext, offset, touching, int(row))
+            if impact is not None:
+                opens.append((int(touching.observation[row]), impact))
+        count = len(states)
+        for impact in list(self.open.values()):
+            self._follow(ext, offset, impact, 0, count, touching_at)
+        for obs, impact in opens:
+            if impact.key in self.open:
+                continue  # still in contact from an impact that has not closed: no new touch
+            self.open[impact.key] = impact
+            self._follow(ext, offset, impact, obs, count, touching_at)
+        self.closed.sort(key=lambda item: (item[0], item[1]))
+        self.events += [event for _, _, event in self.closed]
+        self.closed = []
+        self.context = ext.take(slice(len(ext) - min(CONTEXT_OBSERVATIONS, len(ext)), None))
+        last_keys = touching.key[touching.observation == count - 1]
+        self.context_touching = np.unique(last_keys)
+
+    def _open(
+        self, ext: Trajectory, offset: int, touching: _Touching, row: int
+    ) -> _OpenImpact | None:
+        """An impact opened by the new touch ``row``, if the pair approaches fast enough."""
+        obs = int(touching.observation[row]) + offset
+        key = divmod(int(touching.key[row]), self.bodies)
+        point, normal = touching.point[row], touching.normal[row]
+        arm_a = point - self._position(ext, obs, key[0])
+        arm_b = point - self._position(ext, obs, key[1])
+        before = float(
+            self._normal_velocity(ext, np.array([obs - 1]), key, normal, arm_a, arm_b)[0]
+        )
+        if before >= -IMPACT_MIN_SPEED:
+            return None
+        if obs >= 2 and ext.t[obs - 1] > ext.t[obs - 2]:
+            earlier = float(
+                self._normal_velocity(ext, np.array([obs - 2]), key, normal, arm_a, arm_b)[0]
+            )
+            accel = (before - earlier) / float(ext.t[obs - 1] - ext.t[obs - 2])
+        else:  # without two earlier observations: free fall of both bodies, (g_B - g_A)·n
+            accel = float((self.body_gravity[key[1]] - self.body_gravity[key[0]]) @ normal)
+        self.opened += 1
+        return _OpenImpact(
+            key,
+            self.opened,
+            float(ext.t[obs]),
+            normal,
+            arm_a,
+            arm_b,
+            [float(ext.t[obs - 1])],
+            [before],
+            accel,
+        )
+
+    def _follow(
+        self, ext, offset, impact: _OpenImpact, first: int, count: int, touching_at
+    ) -> None:
+        """Extend ``impact`` over batch states ``first..count-1``; close it where the shapes
+        separate or stay together at rest (plastic)."""
+        if first >= count:
+            return
+        obs = np.arange(first, count)
+        code = impact.key[0] * self.bodies + impact.key[1]
+        speeds = self._normal_velocity(
+            ext, obs + offset, impact.key, impact.normal, impact.arm_a, impact.arm_b
+        )
+        separated = ~touching_at(obs, code)
+        history = np.concatenate([impact.speeds, speeds])
+        slow = np.abs(history) <= IMPACT_MIN_SPEED
+        position = np.arange(len(impact.speeds), history.size)  # history index of each state
+        stuck = np.zeros(obs.size, dtype=bool)
+        window = position >= PLASTIC_OBSERVATIONS  # more than three entries in the history
+        if window.any():
+            p = position[window]
+            stuck[window] = slow[p] & slow[p - 1] & slow[p - 2]
+        ends = np.flatnonzero(separated | stuck)
+        if ends.size == 0:
+            impact.times += ext.t[obs + offset].tolist()
+            impact.speeds += speeds.tolist()
+            return
+        end = int(ends[0])
+        impact.times += ext.t[obs[: end + 1] + offset].tolist()
+        impact.speeds += speeds[: end + 1].tolist()
+        del self.open[impact.key]
+        close_time = float(ext.t[obs[end] + offset])
+        event = self._event(impact, close_time, bool(separated[end]))
+        if event is not None:
+            self.closed.append((close_time, impact.order, event))
+
+    def _event(self, impact: _OpenImpact, end: float, separated: bool) -> ImpactEvent | None:
         """The impact with both velocities carried to the impulse centroid (module docstring).
 
         ``separated``: the shapes came apart (a bounce); otherwise they stayed together
         with no relative normal motion (a plastic impact, e = 0).
         """
-        times, speeds = np.array(impact.history).T
+        times, speeds = np.array(impact.times), np.array(impact.speeds)
         if not separated:  # plastic: the impulse ends at the first observation at rest; the
             # resting steps after it are the support cancelling gravity, not the impact
             rest = np.flatnonzero(speeds[1:] >= -IMPACT_MIN_SPEED)
-            end = rest[0] + 2 if rest.size else speeds.size
-            times, speeds = times[:end], speeds[:end]
+            stop = rest[0] + 2 if rest.size else speeds.size
+            times, speeds = times[:stop], speeds[:stop]
         accel = impact.accel
         pushed = np.diff(speeds) - accel * np.diff(times)  # non-gravity change per step
         if pushed.sum() <= 0.0:
@@ -193,10 +326,11 @@ class ImpactDetector:
         too_slow = after < max(IMPACT_MIN_SPEED, abs(accel) * float(np.min(np.diff(times))))
         if separated and too_slow:
             return None  # too slow to leave within one step against gravity: settling, not a bounce
-        names = self.model.body_name
+        names = self.scene.model.body_name
+        a, b = impact.key
         return ImpactEvent(
-            body_a=names[key[0]] if key[0] < self.count else GROUND,
-            body_b=names[key[1]] if key[1] < self.count else GROUND,
+            body_a=names[a] if a < self.scene.count else GROUND,
+            body_b=names[b] if b < self.scene.count else GROUND,
             time_start=impact.start,
             time_end=end,
             time_impulse=centroid,
@@ -205,61 +339,23 @@ class ImpactDetector:
             normal_velocity_after=after,
         )
 
-    def _deepest(self, touching) -> tuple[float, float]:
-        """(deepest overlap m, smaller bounding radius m of that pair) in ``touching``."""
-        if not touching:
-            return 0.0, float("inf")
-        (a, b), (_, _, depth) = max(touching.items(), key=lambda item: item[1][2])
-        radius = min(self.model.body_bound_radius[a], self.model.body_bound_radius[b])
-        return max(depth, 0.0), float(radius)
 
-    def _approach_acceleration(self, key, impact: _OpenImpact, before: float) -> float:
-        """Relative normal acceleration (m/s²) just before contact, from the two observations
-        before it: whatever acts (gravity, a support under the other body, springs). Without
-        two earlier observations: free fall of both bodies, (g_B - g_A)·n."""
-        earlier = self.before_previous
-        if earlier is not None and self.previous is not None and self.previous.time > earlier.time:
-            return (before - self._normal_velocity(earlier, key, impact)) / (
-                self.previous.time - earlier.time
-            )
-        gravity = self.body_gravity[key[1]] - self.body_gravity[key[0]]
-        return float(gravity @ impact.normal)
+def _member(values: np.ndarray, sorted_codes: np.ndarray) -> np.ndarray:
+    """(k,) bool: which ``values`` occur in the sorted array ``sorted_codes``."""
+    if sorted_codes.size == 0:
+        return np.zeros(values.shape, dtype=bool)
+    index = np.minimum(np.searchsorted(sorted_codes, values), sorted_codes.size - 1)
+    return sorted_codes[index] == values
 
-    def _stuck(self, impact: _OpenImpact) -> bool:
-        """Still touching, with no relative normal motion for ``PLASTIC_OBSERVATIONS``
-        observations: the impulse is over and the bodies move together (e = 0)."""
-        recent = [speed for _, speed in impact.history[-PLASTIC_OBSERVATIONS:]]
-        return len(impact.history) > PLASTIC_OBSERVATIONS and all(
-            abs(speed) <= IMPACT_MIN_SPEED for speed in recent
+
+def _concat(*parts: Trajectory) -> Trajectory:
+    """One trajectory of consecutive parts."""
+    return Trajectory(
+        *(
+            np.concatenate([getattr(p, f) for p in parts])
+            for f in ("t", "pos", "quat", "vel", "ang_vel")
         )
-
-    def update(self, snap: Snapshot) -> None:
-        """Feed the next observed state (every step while the scene can touch)."""
-        if not self.can_touch:
-            return
-        touching = self._touching(snap)
-        self.deepest = self._deepest(touching)
-        previous = self.previous
-        pos = self._full(snap, "pos")
-        for key, (point, normal, _) in touching.items():
-            if key not in self.previous_touching and previous is not None and key not in self.open:
-                impact = _OpenImpact(
-                    snap.time, normal, point - pos[key[0]], point - pos[key[1]], []
-                )
-                before = self._normal_velocity(previous, key, impact)
-                if before < -IMPACT_MIN_SPEED:
-                    impact.history.append((previous.time, before))
-                    impact.accel = self._approach_acceleration(key, impact, before)
-                    self.open[key] = impact
-        for key, impact in list(self.open.items()):
-            impact.history.append((snap.time, self._normal_velocity(snap, key, impact)))
-            separated = key not in touching
-            if separated or self._stuck(impact):
-                del self.open[key]
-                event = self._event(key, impact, snap.time, separated)
-                if event is not None:
-                    self.events.append(event)
-        self.before_previous, self.previous, self.previous_touching = self.previous, snap, touching
+    )
 
 
 @dataclass
@@ -270,45 +366,145 @@ class Recording:
     impacts: list[ImpactEvent]
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
+    series: Series
+    """Energy and momenta at the trajectory's samples (computed once, for metrics and plots)."""
+    penetration_max: float | None = None
+    """m, the deepest overlap over every observed state (None when nothing can touch)."""
     unstable: str | None = None
     """Why the run failed (``kind: detail``, kinds in ``stability.KINDS``), or None."""
 
 
-def record(adapter: EngineAdapter, scenario: Scenario, sample_every: int = 1) -> Recording:
+@dataclass
+class _Measurer:
+    """Measures the observed states of one run batch by batch: stability checks, contacts,
+    impacts and the deepest overlap; keeps the samples."""
+
+    scene: CompiledScene
+    sample_every: int
+    checks: StabilityChecks = field(init=False)
+    detector: ImpactDetector = field(init=False)
+    samples: list[Trajectory] = field(default_factory=list)
+    penetration: float = 0.0
+    failure: str | None = None
+
+    def __post_init__(self) -> None:
+        self.checks = StabilityChecks(self.scene)
+        self.detector = ImpactDetector(self.scene)
+
+    def recording(self, stepping_seconds: float) -> Recording:
+        """What was measured, as the run's ``Recording``."""
+        trajectory = _concat(*self.samples)
+        return Recording(
+            trajectory=trajectory,
+            impacts=self.detector.events,
+            stepping_seconds=stepping_seconds,
+            series=invariants(self.scene, trajectory),
+            penetration_max=self.penetration if self.scene.can_touch else None,
+            unstable=self.failure,
+        )
+
+    def measure(self, states: Trajectory, steps, final: int) -> bool:
+        """Judge and measure a batch of consecutive states observed after ``steps`` steps;
+        False once a state has failed (the run must stop; later states are not kept)."""
+        step_index = np.asarray(steps)
+        deepest = radius = touching = None
+        if self.scene.can_touch:
+            finite = np.isfinite(states.pos).reshape(len(states), -1).all(axis=1)
+            finite &= np.isfinite(states.quat).reshape(len(states), -1).all(axis=1)
+            usable = len(states) if finite.all() else int(np.argmin(finite))
+            contacts = self.scene.contacts(states.pos[:usable], states.quat[:usable], DETECTION_GAP)
+            touching = _touching(contacts, self.scene.model.n_bodies)
+            deepest, radius = _deepest_per_state(self.scene, touching, len(states))
+        found = self.checks.first_failure(states, deepest, radius)
+        last = len(states) - 1 if found is None else found[0]
+        if touching is not None:
+            counted = last if found is None or found[1].startswith("deep_penetration") else last - 1
+            if counted >= 0:
+                self.detector.update(states, touching, counted)
+                self.penetration = max(
+                    self.penetration, float(deepest[: counted + 1].max(initial=0.0))
+                )
+        keep = (step_index % self.sample_every == 0) | (step_index == final)
+        if found is not None:
+            self.failure = found[1]
+            keep[last + 1 :] = False
+            keep[last] = not self.failure.startswith(
+                "non_finite"
+            )  # a non-finite state is named, not kept
+        self.samples.append(states.take(np.flatnonzero(keep)))
+        return found is None
+
+
+def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
+    """(count,) deepest overlap m (>= 0) of each state and (count,) the smaller bounding radius
+    of that pair (inf where nothing touches); ties go to the pair detected first."""
+    deepest = np.zeros(count)
+    radius = np.full(count, np.inf)
+    if touching.key.size:
+        order = np.lexsort((touching.rank, -touching.depth, touching.observation))
+        obs = touching.observation[order]
+        first = np.ones(order.size, dtype=bool)
+        first[1:] = obs[1:] != obs[:-1]
+        pick = order[first]
+        a, b = np.divmod(touching.key[pick], scene.model.n_bodies)
+        deepest[touching.observation[pick]] = np.maximum(touching.depth[pick], 0.0)
+        radius[touching.observation[pick]] = np.minimum(
+            scene.bound_radius[a], scene.bound_radius[b]
+        )
+    return deepest, radius
+
+
+def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) -> Recording:
     """Run the loaded ``adapter`` for the scene's duration; sample every ``sample_every`` steps.
 
     Scenes that can touch are observed every step (for the impact detector); the others
     only at the samples, so a contact-free scene pays for nothing it does not need. Every
-    observation goes through the stability taxonomy; the first failure ends the run
-    (``Recording.unstable`` names its kind).
+    observation goes through the stability taxonomy, a batch at a time; the first failing
+    state ends the run (``Recording.unstable`` names its kind).
     """
-    detector = ImpactDetector(scenario)
-    monitor = StabilityMonitor(scenario)
-    every_step = detector.can_touch
-    first = adapter.observe()
-    detector.update(first)
-    samples = [first]
+    measurer = _Measurer(scene, sample_every)
+    steps_total = scene.scenario.steps
+    every_step = scene.can_touch
+    batch, steps = [adapter.observe()], [0]
     stepping = 0.0
     done = 0
-    failure = monitor.check(first)
-    while done < scenario.steps and failure is None:
-        chunk = 1 if every_step else min(sample_every, scenario.steps - done)
+    running = True
+    while done < steps_total and running:
+        chunk = 1 if every_step else min(sample_every - done % sample_every, steps_total - done)
         start = time.perf_counter()
-        adapter.advance(chunk)
+        try:
+            adapter.advance(chunk)
+        except Exception:
+            if measurer.measure(Trajectory.stack(batch), steps, steps_total):
+                raise  # the engine failed on states that all passed the checks
+            batch = []
+            break  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
         done += chunk
-        if every_step or done % sample_every == 0 or done == scenario.steps:
-            snap = adapter.observe()
-            failure = monitor.check(snap)
-            if failure is None:
-                detector.update(snap)
-                failure = monitor.check_overlap(*detector.deepest, snap.time)
-            finite = not failure or not failure.startswith("non_finite")
-            if finite and (
-                failure is not None or done % sample_every == 0 or done == scenario.steps
-            ):
-                samples.append(snap)  # a non-finite state is named in the message, not kept
+        snap = adapter.observe()
+        batch.append(snap)
+        steps.append(done)
+        if len(batch) >= BATCH_OBSERVATIONS or done == steps_total or not _finite(snap):
+            running = measurer.measure(Trajectory.stack(batch), steps, steps_total)
+            batch, steps = [], []
+    if batch:
+        measurer.measure(Trajectory.stack(batch), steps, steps_total)
     warnings = getattr(adapter, "instability_warnings", list)()
-    if failure is None and warnings:
-        failure = "engine_warning: " + "; ".join(warnings)
-    return Recording(Trajectory.from_snapshots(samples), detector.events, stepping, failure)
+    if measurer.failure is None and warnings:
+        measurer.failure = "engine_warning: " + "; ".join(warnings)
+    return measurer.recording(stepping)
+
+
+def measure_trajectory(scene: CompiledScene, states: Trajectory) -> Recording:
+    """The recording of states already observed (consecutive, every one kept), measured as
+    ``record`` measures a run, batch by batch."""
+    measurer = _Measurer(scene, 1)
+    for first in range(0, len(states), BATCH_OBSERVATIONS):
+        batch = states.take(slice(first, first + BATCH_OBSERVATIONS))
+        if not measurer.measure(batch, np.arange(first, first + len(batch)), len(states) - 1):
+            break
+    return measurer.recording(0.0)
+
+
+def _finite(snap: Snapshot) -> bool:
+    return bool(np.isfinite(snap.pos).all() and np.isfinite(snap.vel).all())

@@ -11,7 +11,8 @@ returns an ``EngineRun`` whose ``status`` says what happened:
   instability warning); the run stops there and is kept for the report;
 - ``error``: the engine raised; the message carries the exception.
 
-Metrics and the comparison with tolerances (``failed``) come on top of this (issue 5).
+Metrics and the comparison with tolerances (``failed``) come on top of this
+(``validation.measure.comparator``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from validation.engines.parity import Mismatch, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.measure.recording import Recording, record
-from validation.scenario import Scenario
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
 
@@ -44,21 +45,21 @@ class EngineRun:
     wall_time_s: float = 0.0
 
 
-def run_engine(scenario: Scenario, spec: EngineSpec, sample_every: int = 1) -> EngineRun:
+def run_engine(scene: CompiledScene, spec: EngineSpec, sample_every: int = 1) -> EngineRun:
     """Load, gate, record; every engine failure becomes a status, never an exception."""
     start = time.perf_counter()
-    run = EngineRun(scenario.name or "", spec.label, "error")
+    run = EngineRun(scene.name, spec.label, "error")
     adapter = create_adapter(spec)
     try:
-        adapter.load(scenario)
+        adapter.load(scene)
         run.provenance = adapter.provenance()
-        run.mismatches = compare(adapter.model_report(), reference_report(scenario))
+        run.mismatches = compare(adapter.model_report(), reference_report(scene))
         if run.mismatches:
             run.status = "model_mismatch"
             run.message = "; ".join(str(m) for m in run.mismatches)
             return run
         with np.errstate(over="ignore", invalid="ignore"):  # an explosion is a status, not noise
-            run.recording = record(adapter, scenario, sample_every)
+            run.recording = record(adapter, scene, sample_every)
         run.status = "unstable" if run.recording.unstable else "ok"
         run.message = run.recording.unstable or ""
     except Exception as error:  # an engine's crash is a result for the report, not the harness's

@@ -1,21 +1,19 @@
-"""Numerical stability: what counts as a failed run, and the largest stable step.
+"""Numerical stability: what counts as a failed run.
 
 The taxonomy (``KINDS``) is checked on every observed state of every run, in any engine,
-and never aborts the harness: the run stops, its rows get status ``unstable``, and the
-message names the kind. ``largest_stable_dt`` bisects the step of one scene in one
-engine between a stable and an unstable value.
+and never aborts the harness: the run stops at the first failing state, its rows get status
+``unstable``, and the message names the kind. (The largest stable step is searched in
+``validation.jobs.stability_search``.)
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from validation.engines.base import Snapshot
-from validation.scenario import Scenario
-from validation.scenario.physics import SHAPE_BUILDERS, SceneEnergy
+from validation.measure.states import Trajectory
+from validation.scenario.compiled import CompiledScene
 
 ENERGY_BLOW_UP_FACTOR = 1e6
 """A run whose energy departs from its start by more than this multiple of the scene's
@@ -41,83 +39,75 @@ KINDS = (
     "quaternion_drift",
     "deep_penetration",
     "speed_limit",
-    "engine_error",
     "engine_warning",
 )
 """Every way a run can fail; a message starts with its kind."""
 
 
 @dataclass
-class StabilityMonitor:
-    """Checks observed states of one scene against the taxonomy."""
+class StabilityChecks:
+    """The taxonomy applied to the observed states of one run, batch by batch.
 
-    scenario: Scenario
+    The first observed state fixes the energy reference; ``first_failure`` returns the first
+    state of a batch that fails a check, with its message, so the run can stop there.
+    """
 
-    def __post_init__(self) -> None:
-        bodies = self.scenario.bodies
-        self.moving = np.array([not b.fixed for b in bodies])
-        self.mass = np.where(self.moving, [b.mass for b in bodies], 0.0)
-        self.gravity = np.asarray(self.scenario.gravity, dtype=float)
-        speed = max(np.linalg.norm(b.velocity) for b in bodies)
-        spin = max(np.linalg.norm(b.angular_velocity) * _size(b) for b in bodies)
-        fall = float(np.linalg.norm(self.gravity)) * self.scenario.duration
-        self.energy = SceneEnergy(self.scenario)
-        initial = tuple(
-            np.array([[getattr(b, f) for b in bodies]]) for f in ("position", "orientation")
-        )
-        stored = float(self.energy.spring_energy(*initial)[0])  # what the springs can release
-        release = math.sqrt(
-            2.0 * stored / max(self.mass[self.moving].min(initial=math.inf), 1e-300)
-        )
-        self.speed_limit = SPEED_FACTOR * (1.0 + speed + spin + fall + release)
-        self.energy0: float | None = None
-        self.energy_scale = 1.0
+    scene: CompiledScene
+    energy0: float | None = None
+    energy_scale: float = 1.0
 
-    def _energy(self, snap: Snapshot) -> float:
-        return float(
-            self.energy(*(a[None] for a in (snap.pos, snap.quat, snap.vel, snap.ang_vel)))[0]
-        )
+    @property
+    def speed_limit(self) -> float:
+        """m/s, beyond which a speed cannot come from the scene's physics."""
+        return SPEED_FACTOR * self.scene.speed_scale
 
-    def check_overlap(self, deepest: float, radius: float, time: float) -> str | None:
-        """``deep_penetration`` when the deepest overlap (m) of a state exceeds
-        ``PENETRATION_FRACTION`` of that pair's smaller bounding radius (m)."""
-        if deepest > PENETRATION_FRACTION * radius:
-            return f"deep_penetration: overlap {deepest:.3g} m exceeds the body size {radius:.3g} m at t = {time:.6g} s"
-        return None
+    def first_failure(
+        self,
+        states: Trajectory,
+        deepest: np.ndarray | None = None,
+        radius: np.ndarray | None = None,
+    ) -> tuple[int, str] | None:
+        """(index in ``states``, ``kind: detail at t``) of the first failing state, or None.
 
-    def check(self, snap: Snapshot) -> str | None:
-        """The failure of this state (``kind: detail``), or None."""
-        if not all(np.isfinite(a).all() for a in (snap.pos, snap.quat, snap.vel, snap.ang_vel)):
-            return f"non_finite: state at t = {snap.time:.6g} s"
-        energy = self._energy(snap)
-        if self.energy0 is None:
-            self.energy0 = energy
-            self.energy_scale = max(
-                abs(energy), float(self.mass.sum()) * (1.0 + np.linalg.norm(self.gravity))
-            )
-        growth = abs(energy - self.energy0) / self.energy_scale
-        for kind, failed, detail in (
-            (
-                "energy_blow_up",
-                growth > ENERGY_BLOW_UP_FACTOR,
-                f"energy moved {growth:.3g}x its scale",
+        ``deepest (s,)`` m and ``radius (s,)`` m: each state's deepest overlap and the smaller
+        bounding radius of that pair (``deep_penetration``), when the scene can touch. At one
+        state the kinds are judged in the order non-finite, energy, quaternion, speed, overlap.
+        """
+        finite = np.ones(len(states), dtype=bool)
+        for array in (states.pos, states.quat, states.vel, states.ang_vel):
+            finite &= np.isfinite(array).reshape(len(states), -1).all(axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            energy = self.scene.energy(states.pos, states.quat, states.vel, states.ang_vel)
+        if self.energy0 is None and finite[0]:
+            self.energy0 = float(energy[0])
+            self.energy_scale = max(abs(self.energy0), self.scene.energy_floor)
+        reference = self.energy0 if self.energy0 is not None else 0.0
+        with np.errstate(over="ignore", invalid="ignore"):
+            growth = np.abs(energy - reference) / self.energy_scale
+            norm_drift = np.abs(np.linalg.norm(states.quat, axis=2) - 1.0).max(axis=1)
+            speed = np.linalg.norm(states.vel, axis=2).max(axis=1)
+        failed = {
+            "non_finite": ~finite,
+            "energy_blow_up": finite & (growth > ENERGY_BLOW_UP_FACTOR),
+            "quaternion_drift": finite & (norm_drift > QUATERNION_NORM_DRIFT),
+            "speed_limit": finite & (speed > self.speed_limit),
+        }
+        if deepest is not None:
+            failed["deep_penetration"] = finite & (deepest > PENETRATION_FRACTION * radius)
+        any_failed = np.logical_or.reduce(list(failed.values()))
+        if not any_failed.any():
+            return None
+        index = int(np.argmax(any_failed))
+        kind = next(kind for kind, mask in failed.items() if mask[index])
+        details = {
+            "non_finite": lambda: "state",
+            "energy_blow_up": lambda: f"energy moved {growth[index]:.3g}x its scale",
+            "quaternion_drift": lambda: "an orientation is no longer a unit quaternion",
+            "speed_limit": lambda: (
+                f"speed {speed[index]:.3g} m/s beyond {self.speed_limit:.3g} m/s"
             ),
-            (
-                "quaternion_drift",
-                np.abs(np.linalg.norm(snap.quat, axis=1) - 1.0).max() > QUATERNION_NORM_DRIFT,
-                "an orientation is no longer a unit quaternion",
+            "deep_penetration": lambda: (
+                f"overlap {deepest[index]:.3g} m exceeds the body size {radius[index]:.3g} m"
             ),
-            (
-                "speed_limit",
-                np.linalg.norm(snap.vel, axis=1).max() > self.speed_limit,
-                f"speed {np.linalg.norm(snap.vel, axis=1).max():.3g} m/s beyond {self.speed_limit:.3g} m/s",
-            ),
-        ):
-            if failed:
-                return f"{kind}: {detail} at t = {snap.time:.6g} s"
-        return None
-
-
-def _size(body) -> float:
-    """m, the bounding radius of a scene body's shape (mini_engine's, one definition)."""
-    return SHAPE_BUILDERS[body.shape.type](body.shape).bounding_radius()
+        }
+        return index, f"{kind}: {details[kind]()} at t = {states.t[index]:.6g} s"

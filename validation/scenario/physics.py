@@ -15,7 +15,7 @@ import numpy as np
 from mini_engine import Body, PairProperties, Plane, Spring, build_model
 from mini_engine.collision import detect_contacts
 from mini_engine.forces import spring_energy
-from mini_engine.model import Model, State
+from mini_engine.model import SHARED_WORLD, Model, State
 from mini_engine.rotation import apply, quat_to_matrix
 from mini_engine.shapes import Box, Capsule, Sphere, solid_inertia
 from validation.scenario.schema import BodySpec, Scenario, SpringSpec
@@ -42,19 +42,29 @@ def body_inertia(body: BodySpec) -> np.ndarray:
     return solid_inertia(SHAPE_BUILDERS[body.shape.type](body.shape), body.mass)
 
 
+def pair_rule(quantity: str, value_a: float, value_b: float, stated: float | None = None) -> float:
+    """The one pair rule: the value ``scenario.pairs`` states for the pair, else ``PAIR_RULES``
+    applied to the two bodies' own values."""
+    return stated if stated is not None else PAIR_RULES[quantity](value_a, value_b)
+
+
 def pair_value(scenario: Scenario, a: str, b: str, quantity: str) -> float:
     """The scene's ``quantity`` (restitution or friction) for bodies ``a`` and ``b`` (or "ground")."""
-    for pair in scenario.pairs:
-        stated = getattr(pair, quantity)
-        if {pair.a, pair.b} == {a, b} and stated is not None:
-            return stated
+    stated = next(
+        (
+            getattr(pair, quantity)
+            for pair in scenario.pairs
+            if {pair.a, pair.b} == {a, b} and getattr(pair, quantity) is not None
+        ),
+        None,
+    )
     values = [
         getattr(scenario.ground, quantity)
         if name == "ground"
         else getattr(scenario.body(name), quantity)
         for name in (a, b)
     ]
-    return PAIR_RULES[quantity](*values)
+    return pair_rule(quantity, *values, stated)
 
 
 def rest_length(scenario: Scenario, spring: SpringSpec) -> float:
@@ -152,6 +162,7 @@ def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
                 restitution=scenario.ground.restitution,
                 friction=scenario.ground.friction,
                 name=GROUND,
+                world=SHARED_WORLD,  # one plane for every world when the scene is replicated
             )
         )
     index = {b.name: i for i, b in enumerate(bodies)}

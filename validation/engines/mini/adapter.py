@@ -3,24 +3,16 @@
 from __future__ import annotations
 
 import importlib.metadata
+from dataclasses import replace
 
 import numpy as np
 
 from mini_engine import Settings, step
-from mini_engine.forces import spring_energy
-from mini_engine.quantities import (
-    angular_momentum,
-    centre_of_mass,
-    kinetic_energy,
-    linear_momentum,
-    potential_energy,
-)
 from mini_engine.rotation import quat_to_matrix, world_inertia
 from validation.engines.base import ModelReport, Provenance, Snapshot
-from validation.engines.reference import dynamic_bodies
-from validation.scenario import Scenario
+from validation.engines.reference import scene_report
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
-from validation.scenario.physics import build_mini_model
 
 
 class MiniAdapter:
@@ -29,23 +21,23 @@ class MiniAdapter:
     def __init__(self, spec: EngineSpec):
         self.spec = spec
 
-    def load(self, scenario: Scenario) -> None:
-        self.settings = Settings(dt=scenario.dt, **self.spec.as_dict())
-        self.model, self.state = build_mini_model(scenario)
-        self.count = len(scenario.bodies)
-        self.moving = dynamic_bodies(scenario)
+    def load(self, scene: CompiledScene) -> None:
+        self.scene = scene
+        self.settings = Settings(dt=scene.scenario.dt, **self.spec.as_dict())
+        self.model, self.state = scene.model, scene.initial
+        self.count = scene.count
 
     def model_report(self) -> ModelReport:
-        model, state = self.model, self.state
-        rot = quat_to_matrix(state.quat)
-        energy = kinetic_energy(model, state)[0] + potential_energy(model, state)[0]
-        return ModelReport(
-            mass=model.body_mass[self.moving].copy(),
-            com=state.pos[self.moving].copy(),
-            inertia_world=world_inertia(rot, model.body_inertia)[self.moving],
-            energy=float(energy + spring_energy(model, state, rot)),
-            linear_momentum=linear_momentum(model, state)[0],
-            angular_momentum=angular_momentum(model, state, about=centre_of_mass(model, state))[0],
+        """The model's own masses and world inertias, and the invariants of its state."""
+        n, moving, state = self.count, self.scene.moving, self.state
+        report = scene_report(
+            self.scene, state.pos[:n], state.quat[:n], state.vel[:n], state.ang_vel[:n]
+        )
+        rot = quat_to_matrix(state.quat[:n])
+        return replace(
+            report,
+            mass=self.model.body_mass[:n][moving].copy(),
+            inertia_world=world_inertia(rot, self.model.body_inertia[:n])[moving],
         )
 
     def advance(self, steps: int) -> None:

@@ -16,6 +16,7 @@ from validation.engines.mujoco.mjcf import (
 )
 from validation.engines.reference import dynamic_bodies
 from validation.scenario import Scenario
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
 # --- provenance helpers -------------------------------------------------------------------
@@ -82,9 +83,10 @@ class MujocoAdapter:
         self.spec = spec
         self.settings = {**DEFAULT_SETTINGS, **spec.as_dict()}
 
-    def load(self, scenario: Scenario) -> None:
+    def load(self, scene: CompiledScene) -> None:
         """Compile the scene's MJCF and set the initial state (world ω -> body-frame qvel)."""
-        self.scenario = scenario
+        self.scene = scene
+        self.scenario = scenario = scene.scenario
         self.xml, self.plan, self.solver = build_mjcf(scenario, self.settings)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
@@ -93,7 +95,7 @@ class MujocoAdapter:
 
     def _index_bodies(self, scenario: Scenario) -> None:
         m = self.model
-        self.moving = dynamic_bodies(scenario)
+        self.moving = dynamic_bodies(self.scene)
         self.body_ids = np.array(
             [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name) for b in scenario.bodies],
             dtype=np.int64,

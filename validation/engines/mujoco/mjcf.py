@@ -29,7 +29,7 @@ from itertools import combinations
 import numpy as np
 
 from validation.scenario import BodySpec, Scenario
-from validation.scenario.physics import PAIR_RULES, body_inertia, rest_length
+from validation.scenario.physics import body_inertia, pair_rule, rest_length
 
 # --- constants, each with where its number comes from ------------------------------------
 
@@ -186,12 +186,8 @@ def contact_pairs(scenario: Scenario) -> list[ContactPair]:
         if fixed_a and fixed_b:
             continue
         override = overrides.get(frozenset((name_a, name_b)))
-        e = PAIR_RULES["restitution"](e_a, e_b)
-        mu = PAIR_RULES["friction"](mu_a, mu_b)
-        if override is not None and override.restitution is not None:
-            e = override.restitution
-        if override is not None and override.friction is not None:
-            mu = override.friction
+        e = pair_rule("restitution", e_a, e_b, override and override.restitution)
+        mu = pair_rule("friction", mu_a, mu_b, override and override.friction)
         geom_b = GROUND if name_b == GROUND else _geom_name(name_b)
         pairs.append(ContactPair(_geom_name(name_a), geom_b, e, mu))
     return pairs

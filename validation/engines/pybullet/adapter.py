@@ -33,14 +33,22 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet
 
-from mini_engine.model import WORLD_ANCHOR
-from mini_engine.rotation import cross, quat_multiply, quat_to_matrix
+from mini_engine.forces import spring_forces
+from mini_engine.model import State
+from mini_engine.rotation import quat_multiply, quat_to_matrix
 from validation.engines.base import ModelReport, Provenance, Snapshot
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
 from validation.engines.reference import dynamic_bodies
 from validation.scenario import BodySpec, Scenario
+from validation.scenario.compiled import (
+    CompiledScene,
+    angular_momentum,
+    gravitational_energy,
+    kinetic_energy,
+    linear_momentum,
+)
 from validation.scenario.engine_spec import EngineSpec
-from validation.scenario.physics import PAIR_RULES, body_inertia, build_mini_model
+from validation.scenario.physics import PAIR_RULES, body_inertia
 
 # --- numbers and where they come from ---------------------------------------------------------
 
@@ -222,13 +230,14 @@ class PybulletAdapter:
 
     # -- loading ---------------------------------------------------------------------------
 
-    def load(self, scenario: Scenario) -> None:
+    def load(self, scene: CompiledScene) -> None:
         """Build the scene in a fresh PyBullet world at the scene's dt and gravity."""
         if self.client is None:
             self.client = pybullet.connect(pybullet.DIRECT)
         else:
             pybullet.resetSimulation(physicsClientId=self.client)
-        self.scenario = scenario
+        self.scene = scene
+        self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
         self._set_up_world(scenario)
@@ -397,27 +406,20 @@ class PybulletAdapter:
             )
 
     def _set_up_springs(self, scenario: Scenario) -> None:
-        """Spring arrays from the mini model (the same rest lengths: the anchors' distance
-        at t = 0 unless given); forces are applied explicitly before every step."""
-        model, _ = build_mini_model(scenario)
-        self.springs = {
-            "a": np.asarray(model.spring_body_a),
-            "b": np.asarray(model.spring_body_b),
-            "anchor_a": np.asarray(model.spring_anchor_a),
-            "anchor_b": np.asarray(model.spring_anchor_b),
-            "stiffness": np.asarray(model.spring_stiffness),
-            "damping": np.asarray(model.spring_damping),
-            "rest": np.asarray(model.spring_rest_length),
-        }
+        """The springs are the compiled scene's mini model's (the same rest lengths: the anchors'
+        distance at t = 0 unless given); forces are applied explicitly before every step."""
         self.fixed = np.array([b.fixed for b in scenario.bodies])
+        ends = np.concatenate([self.scene.model.spring_body_a, self.scene.model.spring_body_b])
+        self.spring_ends = np.isin(np.arange(len(scenario.bodies)), ends)
         self.scene_quat = np.array([b.orientation for b in scenario.bodies])
         self.principal = np.array(
             [principal_axes(body_inertia(b))[1] for b in scenario.bodies]
         ).reshape(-1, 4)
         if len(scenario.springs):
             self.notes.append(
-                "springs: forces applied with applyExternalForce at the world anchor points "
-                "before every step, from the state at the start of the step (explicit in time)"
+                "springs: forces applied with applyExternalForce and applyExternalTorque (world "
+                "frame) before every step, from the state at the start of the step (explicit in "
+                "time), by mini_engine's spring law (forces.spring_forces)"
             )
 
     # -- reading back ----------------------------------------------------------------------
@@ -437,58 +439,35 @@ class PybulletAdapter:
         ang_vel[self.fixed] = 0.0
         return pos, quat, vel, ang_vel
 
-    def _spring_geometry(self, pos: np.ndarray, rot: np.ndarray, vel, ang_vel):
-        """World anchor points, arms, anchor velocities, lengths and unit axes (a -> b)."""
-        s = self.springs
-        to_world = s["b"] == WORLD_ANCHOR
-        b = np.where(to_world, 0, s["b"])
-        arm_a = np.einsum("nij,nj->ni", rot[s["a"]], s["anchor_a"])
-        arm_b = np.where(to_world[:, None], 0.0, np.einsum("nij,nj->ni", rot[b], s["anchor_b"]))
-        point_a = pos[s["a"]] + arm_a
-        point_b = np.where(to_world[:, None], s["anchor_b"], pos[b] + arm_b)
-        vel_a = vel[s["a"]] + cross(ang_vel[s["a"]], arm_a)
-        vel_b = np.where(to_world[:, None], 0.0, vel[b] + cross(ang_vel[b], arm_b))
-        offset = point_b - point_a
-        length = np.linalg.norm(offset, axis=1)
-        axis = np.divide(
-            offset, length[:, None], out=np.zeros_like(offset), where=length[:, None] > 0
-        )
-        return point_a, point_b, vel_b - vel_a, length, axis
-
-    def _spring_energy(self, pos: np.ndarray, rot: np.ndarray) -> float:
-        """J, Σ ½ k (L − rest)², at the given COM positions and body-frame rotations."""
-        if not len(self.springs["a"]):
-            return 0.0
-        zeros = np.zeros_like(pos)
-        _, _, _, length, _ = self._spring_geometry(pos, rot, zeros, zeros)
-        s = self.springs
-        return float(np.sum(0.5 * s["stiffness"] * (length - s["rest"]) ** 2))
-
     def _apply_spring_forces(self) -> None:
-        """mini_engine's law (``forces.spring_forces``): tension f = k (L − rest) + c (v_B −
-        v_A)·u; body a gets +f u at its anchor, body b −f u at its own (world frame)."""
+        """mini_engine's law (``forces.spring_forces``) on the state PyBullet holds: each body
+        gets the springs' force at its centre of mass and their torque about it (world frame)."""
         pos, quat, vel, ang_vel = self._read_state()
-        rot = quat_to_matrix(self._body_quat(quat))
-        point_a, point_b, rel_vel, length, axis = self._spring_geometry(pos, rot, vel, ang_vel)
-        s = self.springs
-        tension = s["stiffness"] * (length - s["rest"]) + s["damping"] * np.sum(
-            rel_vel * axis, axis=1
+        model, rest = self.scene.model, self.scene.initial
+        n = len(self.ids)
+        state = State(
+            pos=np.concatenate([pos, rest.pos[n:]]),
+            quat=np.concatenate([self._body_quat(quat), rest.quat[n:]]),
+            vel=np.concatenate([vel, rest.vel[n:]]),
+            ang_vel=np.concatenate([ang_vel, rest.ang_vel[n:]]),
         )
-        force_on_a = tension[:, None] * axis
-        for k in range(len(tension)):
-            ends = [(s["a"][k], point_a[k], force_on_a[k])]
-            if s["b"][k] != WORLD_ANCHOR:
-                ends.append((s["b"][k], point_b[k], -force_on_a[k]))
-            for body, point, force in ends:
-                if not self.fixed[body]:
-                    pybullet.applyExternalForce(
-                        self.ids[body],
-                        -1,
-                        force.tolist(),
-                        point.tolist(),
-                        pybullet.WORLD_FRAME,
-                        physicsClientId=self.client,
-                    )
+        force, torque = spring_forces(model, state, quat_to_matrix(state.quat))
+        for body in np.flatnonzero(~self.fixed & self.spring_ends):
+            pybullet.applyExternalForce(
+                self.ids[body],
+                -1,
+                force[body].tolist(),
+                pos[body].tolist(),
+                pybullet.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
+            pybullet.applyExternalTorque(
+                self.ids[body],
+                -1,
+                torque[body].tolist(),
+                pybullet.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
 
     def _body_quat(self, inertial_quat: np.ndarray) -> np.ndarray:
         """Scene body-frame orientations (n, 4) w x y z: q_body = q_pybullet ⊗ q_P⁻¹."""
@@ -500,8 +479,9 @@ class PybulletAdapter:
     def model_report(self) -> ModelReport:
         """The dynamic bodies as PyBullet holds them: ``getDynamicsInfo`` mass and principal
         moments, rotated to world with the base (inertial-frame) orientation, and the base
-        pose and velocities; energy and momenta from those readbacks."""
-        moving = dynamic_bodies(self.scenario)
+        pose and velocities; energy and momenta from those readbacks and PyBullet's gravity,
+        by the invariants of ``validation.scenario.compiled`` (springs: the scene's law)."""
+        moving = dynamic_bodies(self.scene)
         pos, quat, vel, ang_vel = self._read_state()
         info = [
             pybullet.getDynamicsInfo(self.ids[i], -1, physicsClientId=self.client) for i in moving
@@ -513,21 +493,18 @@ class PybulletAdapter:
         gravity = np.array(
             [self._engine_parameters()[f"gravityAcceleration{axis}"] for axis in ("X", "Y", "Z")]
         )
-        spin = np.einsum("nij,nj->ni", inertia, ang_vel[moving])
-        kinetic = 0.5 * np.sum(mass * np.sum(vel[moving] ** 2, axis=1))
-        kinetic += 0.5 * np.sum(ang_vel[moving] * spin)
-        potential = -np.sum(mass * (pos[moving] @ gravity))
-        springs = self._spring_energy(pos, quat_to_matrix(self._body_quat(quat)))
-        total_mass = mass.sum()
-        centre = (mass @ pos[moving]) / total_mass if total_mass > 0 else np.zeros(3)
-        orbital = np.cross(pos[moving] - centre, mass[:, None] * vel[moving])
+        states = [a[moving][None] for a in (pos, vel, ang_vel)]
+        body_quat = self._body_quat(quat)[None]
+        energy = kinetic_energy(mass, inertia[None], states[1], states[2])
+        energy += gravitational_energy(mass, states[0], gravity)
+        energy += self.scene.spring_energy(pos[None], body_quat)
         return ModelReport(
             mass=mass,
             com=pos[moving],
             inertia_world=inertia,
-            energy=float(kinetic + potential + springs),
-            linear_momentum=mass @ vel[moving],
-            angular_momentum=np.sum(orbital + spin, axis=0),
+            energy=float(energy[0]),
+            linear_momentum=linear_momentum(mass, states[1])[0],
+            angular_momentum=angular_momentum(mass, inertia[None], *states)[0],
         )
 
     def advance(self, steps: int) -> None:
@@ -541,7 +518,7 @@ class PybulletAdapter:
             contactBreakingThreshold=self.profile.contact_breaking_threshold,
             physicsClientId=self.client,
         )
-        has_springs = bool(len(self.springs["a"]))
+        has_springs = self.scene.model.n_springs > 0
         for _ in range(steps):
             if has_springs:
                 self._apply_spring_forces()

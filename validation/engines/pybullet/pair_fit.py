@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from validation.scenario import Scenario
-from validation.scenario.physics import PAIR_RULES
+from validation.scenario.physics import pair_rule
 
 PAIR_VALUE_TOLERANCE = 1e-12
 """Relative. A pair whose product of per-body values differs from the scene's pair value by
@@ -60,7 +60,7 @@ class PairSystem:
 
 def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
     """``quantity`` (restitution or friction) per pair of object classes: the scene's rule
-    (``PAIR_RULES``) unless ``scenario.pairs`` states the pair's value."""
+    (``pair_rule``) unless ``scenario.pairs`` states the pair's value."""
     objects = [*scenario.bodies, *([scenario.ground] if scenario.ground else [])]
     names = [b.name for b in scenario.bodies] + ([GROUND] if scenario.ground else [])
     static = [getattr(b, "fixed", True) for b in objects]
@@ -76,7 +76,6 @@ def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
         members[cls].append(i)
     system = PairSystem(names, static, class_of, members)
     system.anchor = class_of[-1] if scenario.ground else None
-    rule = PAIR_RULES[quantity]
     for a in range(len(members)):
         for b in range(a, len(members)):
             first_a, first_b = members[a][0], members[b][0]
@@ -84,7 +83,7 @@ def pair_system(scenario: Scenario, quantity: str) -> PairSystem:
             count = size_a * (size_a - 1) // 2 if a == b else size_a * size_b
             if count == 0 or (static[first_a] and static[first_b]):
                 continue
-            system.targets[(a, b)] = rule(own[first_a], own[first_b])
+            system.targets[(a, b)] = pair_rule(quantity, own[first_a], own[first_b])
             system.tiers[(a, b)] = 1 if static[first_a] or static[first_b] else 2
             system.counts[(a, b)] = count
     index = {name: i for i, name in enumerate(names)}

@@ -1,0 +1,294 @@
+"""The scene compiled once: what every engine, measurement and check derives from a scenario.
+
+``compile_scene(scenario)`` is called once per scenario (in planning) and the result is passed
+down: the parity reference, every adapter, the recording, the stability checks and the
+metrics read the mini model, the invariants and the scales from here instead of deriving
+them again. Physics formulas of the invariants are defined once, below, as functions of
+arrays (so an adapter can apply them to what its engine reads back).
+
+It lives in ``scenario/`` rather than ``measure/`` because the engine adapters (one layer
+below the measurements) consume it too.
+
+Array conventions: ``s`` states (observations), ``n`` scene bodies in scenario order (the
+ground is never one of them); positions are centres of mass, world frame; quaternions
+w x y z; velocities world frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mini_engine.collision import detect_contacts
+from mini_engine.forces import spring_energies
+from mini_engine.model import Model, State, replicate
+from mini_engine.rotation import quat_to_matrix
+from validation.scenario.physics import SHAPE_BUILDERS, body_inertia, build_mini_model, pair_value
+from validation.scenario.schema import Scenario
+
+MEASURED_BODIES_PER_CALL = 20_000
+"""Bodies per batched collision call (observed states x scene bodies): bounds the memory of
+one call (about 2 kB per body in broad and narrow phase temporaries) while keeping the Python
+calls per observed state far below one."""
+
+
+# --- the invariants, one definition each -------------------------------------------------
+
+
+def rotations(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) body-to-world rotations of unit quaternions ``quat (..., 4)`` w x y z."""
+    return quat_to_matrix(quat.reshape(-1, 4)).reshape(*quat.shape[:-1], 3, 3)
+
+
+def kinetic_energy(
+    mass: np.ndarray, inertia_world: np.ndarray, vel: np.ndarray, ang_vel: np.ndarray
+) -> np.ndarray:
+    """(s,) J, ``Σ ½ m |v|² + ½ ωᵀ I_world ω`` for ``mass (n,)`` kg (0 for a fixed body),
+    ``inertia_world (s, n, 3, 3)`` kg·m², ``vel``, ``ang_vel (s, n, 3)``; fixed bodies must
+    have zero velocities or zero mass (their rotation term is weighted by ``mass > 0``)."""
+    moving = (mass > 0).astype(float)
+    spin = np.einsum("snij,snj->sni", inertia_world, ang_vel)
+    translation = 0.5 * np.einsum("n,sni,sni->s", mass, vel, vel)
+    return translation + 0.5 * np.einsum("sni,sni,n->s", ang_vel, spin, moving)
+
+
+def gravitational_energy(mass: np.ndarray, pos: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """(s,) J, ``Σ -m g·x`` (zero at the origin) for ``mass (n,)``, ``pos (s, n, 3)``."""
+    return -np.einsum("n,sni,i->s", mass, pos, gravity)
+
+
+def linear_momentum(mass: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """(s, 3) kg·m/s, ``Σ m v``."""
+    return np.einsum("n,sni->si", mass, vel)
+
+
+def centre_of_mass(mass: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """(s, 3) m, of the bodies with mass (the origin when none has)."""
+    total = float(mass.sum())
+    if total <= 0.0:
+        return np.zeros((pos.shape[0], 3))
+    return np.einsum("n,sni->si", mass, pos) / total
+
+
+def angular_momentum(
+    mass: np.ndarray,
+    inertia_world: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+) -> np.ndarray:
+    """(s, 3) kg·m²/s about the system's centre of mass: ``Σ (x - c) × m v + I_world ω``."""
+    moving = (mass > 0).astype(float)
+    arm = pos - centre_of_mass(mass, pos)[:, None, :]
+    orbital = np.einsum("n,sni->si", mass, np.cross(arm, vel))
+    spin = np.einsum("snij,snj,n->si", inertia_world, ang_vel, moving)
+    return orbital + spin
+
+
+def world_inertia(inertia: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """(s, n, 3, 3) ``R I Rᵀ`` from body-frame ``inertia (n, 3, 3)`` and ``rot (s, n, 3, 3)``."""
+    return rot @ inertia[None] @ rot.swapaxes(-1, -2)
+
+
+# --- the compiled scene ------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ObservedContacts:
+    """Contacts of ``s`` observed states found in one batched call.
+
+    Attributes:
+        observation: (c,) int, which state. body_a, body_b: (c,) int, model body indices
+            (scene bodies 0..n-1, the ground n). point: (c, 3) m, world. normal: (c, 3) unit,
+            from A to B. depth: (c,) m, positive when overlapping.
+    """
+
+    observation: np.ndarray
+    body_a: np.ndarray
+    body_b: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    depth: np.ndarray
+
+
+@dataclass(eq=False)
+class CompiledScene:
+    """A scenario and everything derived from it once.
+
+    Attributes:
+        scenario: the validated scene.
+        model, initial: the mini_engine model and its state at t = 0 (scene bodies first, in
+            scenario order, then the ground plane in the shared world).
+        count: n, the scene's bodies. moving: (n,) bool, not fixed.
+        mass: (n,) kg, 0 for fixed bodies. inertia: (n, 3, 3) kg·m², body frame.
+        gravity: (3,) m/s². can_touch: whether any two bodies can meet.
+        external_loads: a ground, fixed body or world spring can push the moving bodies (then
+            momentum is not conserved).
+        bound_radius: (n + ground,) m, each body's bounding radius (mini_engine's).
+        energy_floor: J, the smallest scale energy changes are judged against (the stability
+            checks): total moving mass times (1 + |g|).
+        speed_scale: m/s, initial speeds, spin times size, free fall over the run and what
+            the springs can release, plus 1.
+    """
+
+    scenario: Scenario
+    model: Model
+    initial: State
+    count: int
+    moving: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    gravity: np.ndarray
+    can_touch: bool
+    external_loads: bool
+    bound_radius: np.ndarray
+    energy_floor: float = 0.0
+    speed_scale: float = 0.0
+    _replicas: dict[int, tuple[Model, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False
+    )
+
+    def __getstate__(self) -> dict:
+        """Pickled for worker processes without the replica cache (rebuilt on demand)."""
+        return {**self.__dict__, "_replicas": {}}
+
+    @property
+    def name(self) -> str:
+        return self.scenario.name or ""
+
+    # -- invariants of observed states (s, n, ...) --
+
+    def kinetic_energy(self, quat, vel, ang_vel) -> np.ndarray:
+        """(s,) J."""
+        return kinetic_energy(self.mass, world_inertia(self.inertia, rotations(quat)), vel, ang_vel)
+
+    def gravitational_energy(self, pos) -> np.ndarray:
+        """(s,) J."""
+        return gravitational_energy(self.mass, pos, self.gravity)
+
+    def spring_energy(self, pos, quat) -> np.ndarray:
+        """(s,) J stored in the springs (mini_engine's spring law on ``s`` copies of the model)."""
+        samples = pos.shape[0]
+        if self.model.n_springs == 0:
+            return np.zeros(samples)
+        model, full_pos, full_rot = self._replica(samples, pos, quat)
+        return spring_energies(model, full_pos, full_rot).reshape(samples, -1).sum(axis=1)
+
+    def energy(self, pos, quat, vel, ang_vel) -> np.ndarray:
+        """(s,) J, kinetic + gravitational + spring."""
+        return (
+            self.kinetic_energy(quat, vel, ang_vel)
+            + self.gravitational_energy(pos)
+            + self.spring_energy(pos, quat)
+        )
+
+    def linear_momentum(self, vel) -> np.ndarray:
+        """(s, 3) kg·m/s."""
+        return linear_momentum(self.mass, vel)
+
+    def angular_momentum(self, pos, quat, vel, ang_vel) -> np.ndarray:
+        """(s, 3) kg·m²/s about the system's centre of mass."""
+        inertia = world_inertia(self.inertia, rotations(quat))
+        return angular_momentum(self.mass, inertia, pos, vel, ang_vel)
+
+    def centre_of_mass(self, pos) -> np.ndarray:
+        """(s, 3) m, of the moving bodies."""
+        return centre_of_mass(self.mass, pos)
+
+    def pair_value(self, a: str, b: str, quantity: str) -> float:
+        """The scene's restitution or friction of bodies ``a`` and ``b`` (or "ground")."""
+        return pair_value(self.scenario, a, b, quantity)
+
+    # -- contacts of observed states, batched --
+
+    def observations_per_call(self) -> int:
+        """How many observed states one batched collision call takes."""
+        return max(1, MEASURED_BODIES_PER_CALL // max(self.count, 1))
+
+    def contacts(self, pos: np.ndarray, quat: np.ndarray, margin: float) -> ObservedContacts:
+        """Every contact (depth >= -margin) of the ``s`` observed states ``pos (s, n, 3)``,
+        ``quat (s, n, 4)``: the states become ``s`` worlds of one model (one call per
+        ``observations_per_call`` states) instead of ``s`` calls."""
+        parts = []
+        step = self.observations_per_call()
+        for first in range(0, pos.shape[0], step):
+            parts.append(
+                self._contacts(pos[first : first + step], quat[first : first + step], margin, first)
+            )
+        return ObservedContacts(*(np.concatenate(p) for p in zip(*parts, strict=True)))
+
+    def _contacts(self, pos, quat, margin: float, first: int) -> tuple[np.ndarray, ...]:
+        samples = pos.shape[0]
+        model, full_pos, full_rot = self._replica(samples, pos, quat)
+        found = detect_contacts(model, full_pos, full_rot, margin)
+        local = self.count  # scene bodies are copied per world; the ground is shared, after them
+
+        def split(body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            shared = body >= samples * local
+            observation = np.where(shared, -1, body // local)
+            original = np.where(shared, body - samples * local + local, body % local)
+            return observation, original
+
+        obs_a, a = split(found.body_a)
+        obs_b, b = split(found.body_b)
+        observation = np.maximum(obs_a, obs_b) + first
+        return observation, a, b, found.point, found.normal, found.depth
+
+    def _replica(self, samples: int, pos, quat) -> tuple[Model, np.ndarray, np.ndarray]:
+        """The model replicated into ``samples`` worlds, with the states' poses placed in it:
+        (model, pos (N, 3), rot (N, 3, 3)); the ground keeps its own pose."""
+        if samples not in self._replicas:
+            model, state = replicate(self.model, self.initial, samples)
+            self._replicas[samples] = (model, np.array(state.pos), quat_to_matrix(state.quat))
+        model, rest_pos, rest_rot = self._replicas[samples]
+        full_pos, full_rot = rest_pos.copy(), rest_rot.copy()
+        bodies = samples * self.count
+        full_pos[:bodies] = pos.reshape(-1, 3)
+        full_rot[:bodies] = quat_to_matrix(quat.reshape(-1, 4))
+        return model, full_pos, full_rot
+
+
+def _speed_scale(scenario: Scenario, mass: np.ndarray, stored_energy: float) -> float:
+    """m/s: 1 + the fastest initial speed + the fastest spin times its body's size + free fall
+    over the run + the speed the springs' stored energy could give the lightest moving body."""
+    bodies = scenario.bodies
+    speed = max(float(np.linalg.norm(b.velocity)) for b in bodies)
+    spin = max(
+        float(np.linalg.norm(b.angular_velocity))
+        * SHAPE_BUILDERS[b.shape.type](b.shape).bounding_radius()
+        for b in bodies
+    )
+    fall = float(np.linalg.norm(scenario.gravity)) * scenario.duration
+    lightest = float(mass[mass > 0].min(initial=math.inf))
+    release = math.sqrt(2.0 * max(stored_energy, 0.0) / max(lightest, 1e-300))
+    return 1.0 + speed + spin + fall + release
+
+
+def compile_scene(scenario: Scenario) -> CompiledScene:
+    """The scene's mini model, invariants and scales, built once."""
+    model, state = build_mini_model(scenario)
+    moving = np.array([not b.fixed for b in scenario.bodies])
+    mass = np.where(moving, [b.mass for b in scenario.bodies], 0.0)
+    world_springs = any(s.b == "world" for s in scenario.springs)
+    scene = CompiledScene(
+        scenario=scenario,
+        model=model,
+        initial=state,
+        count=len(scenario.bodies),
+        moving=moving,
+        mass=mass,
+        inertia=np.array([body_inertia(b) for b in scenario.bodies]).reshape(-1, 3, 3),
+        gravity=np.asarray(scenario.gravity, dtype=float),
+        can_touch=model.can_touch,
+        external_loads=scenario.ground is not None or not moving.all() or world_springs,
+        bound_radius=np.asarray(model.body_bound_radius),
+    )
+    n = scene.count
+    initial = tuple(
+        np.asarray(a)[None, :n] for a in (state.pos, state.quat, state.vel, state.ang_vel)
+    )
+    scene.energy_floor = float(mass.sum()) * (1.0 + float(np.linalg.norm(scene.gravity)))
+    scene.speed_scale = _speed_scale(scenario, mass, float(scene.spring_energy(*initial[:2])[0]))
+    return scene
