@@ -1,0 +1,105 @@
+"""Jobs in parallel: the same files as a serial run, in the same order; Ctrl-C stops cleanly."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+
+from validation.cli import BUNDLED_SCENARIOS, main
+from validation.jobs.executor import Interrupted, run_jobs
+
+FOUR_SCENES = [
+    BUNDLED_SCENARIOS / "formulas" / "oblique_impact_spin.yaml",
+    BUNDLED_SCENARIOS / "formulas" / "head_on_ratio_1.yaml",
+    BUNDLED_SCENARIOS / "contact" / "box_drop_edge.yaml",
+    BUNDLED_SCENARIOS / "formulas" / "projectile.yaml",
+]
+"""Four quick library scenes: impacts with spin, a head-on pair, a box edge, free flight."""
+
+TIMING_COLUMNS = ("wall_time_s",)
+"""Columns that measure the machine, not the physics: the only ones allowed to differ."""
+
+
+def _run(folder, jobs: int) -> int:
+    return main(
+        [
+            "run",
+            *map(str, FOUR_SCENES),
+            "--engines",
+            "mini, mujoco, pybullet",
+            "--out",
+            str(folder),
+            "--jobs",
+            str(jobs),
+        ]
+    )
+
+
+def test_two_jobs_give_the_files_of_one_job(tmp_path):
+    serial, parallel = tmp_path / "serial", tmp_path / "parallel"
+    assert _run(serial, 1) == _run(parallel, 2)
+    for name in ("results.csv", "impacts.csv", "series.csv"):
+        one = pd.read_csv(serial / name).drop(columns=list(TIMING_COLUMNS), errors="ignore")
+        two = pd.read_csv(parallel / name).drop(columns=list(TIMING_COLUMNS), errors="ignore")
+        assert len(one) > 0, f"{name} is empty"
+        pd.testing.assert_frame_equal(one, two, check_exact=True, obj=name)
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def test_results_come_back_in_job_order_whatever_finishes_first():
+    finished: list[int] = []
+    results = run_jobs(_square, list(range(12)), 2, lambda index, _: finished.append(index))
+    assert results == [x * x for x in range(12)]
+    assert sorted(finished) == list(range(12))
+
+
+def _interrupt(_: int) -> None:
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_in_serial_mode_raises_interrupted():
+    with pytest.raises(Interrupted):
+        run_jobs(_interrupt, [1, 2], 1)
+
+
+def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
+    """A real SIGINT to a parallel run: exit 130, one line, no traceback, nothing published."""
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "validation.cli",
+            "run",
+            str(BUNDLED_SCENARIOS),
+            "--jobs",
+            "2",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
+    time.sleep(8.0)  # planning done, workers busy
+    process.send_signal(signal.SIGINT)
+    try:
+        _, stderr = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        raise
+    lines = [line for line in stderr.splitlines() if not line.startswith("pybullet build time")]
+    assert process.returncode == 130, (process.returncode, stderr[-2000:])
+    assert "Traceback" not in stderr, stderr[-2000:]
+    assert len(lines) == 1 and "interrupted" in lines[0], lines
+    assert not out.exists(), os.listdir(tmp_path)
