@@ -428,3 +428,47 @@ def test_unused_gravity_and_contacts_are_switched_off():
     assert {"mjDSBL_CONTACT", "mjDSBL_GRAVITY"} <= set(lone), lone
     grounded = flags({"ground": {}, "bodies": ball})
     assert not {"mjDSBL_CONTACT", "mjDSBL_GRAVITY"} & set(grounded), grounded
+
+
+def exploding_oscillator() -> Scenario:
+    """k = 1e6 N/m, 1 kg, dt = 5e-3 (ω·dt = 5): MuJoCo's Euler explodes within a few steps,
+    finds a huge qacc, resets the state and warns (mjWARN_BADQACC)."""
+    return Scenario.model_validate(
+        {
+            "name": "exploding_oscillator",
+            "dt": 5e-3,
+            "duration": 1.0,
+            "gravity": [0, 0, 0],
+            "bodies": [
+                {
+                    "name": "m",
+                    "shape": {"type": "sphere", "radius": 0.01},
+                    "mass": 1.0,
+                    "position": [0.01, 0, 0],
+                }
+            ],
+            "springs": [{"a": "m", "b": "world", "stiffness": 1.0e6, "rest_length": 0.0}],
+        }
+    )
+
+
+def test_a_mujoco_warning_is_collected_and_leaves_no_log_in_the_working_folder(
+    tmp_path, monkeypatch, capfd
+):
+    """Without a handler MuJoCo prints the warning and appends it to MUJOCO_LOG.TXT in the
+    current directory; the adapter collects it instead and restores the previous handler."""
+    import mujoco as mujoco_library
+
+    monkeypatch.chdir(tmp_path)
+    before = mujoco_library.get_mju_user_warning()
+    adapter = mujoco(exploding_oscillator())
+    adapter.advance(200)
+    warnings = adapter.instability_warnings()
+    adapter.close()
+    assert any(w.startswith("MuJoCo mjWARN_BADQACC x") for w in warnings), warnings
+    assert list(tmp_path.iterdir()) == [], sorted(p.name for p in tmp_path.iterdir())
+    printed = capfd.readouterr()
+    assert "WARNING" not in printed.out + printed.err, printed
+    assert any("QACC" in w and "unstable" in w for w in warnings), warnings
+    after = mujoco_library.get_mju_user_warning()
+    assert after == before, (after, before)

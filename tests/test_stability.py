@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from validation.jobs.stability_search import BISECTION_RATIO, largest_stable_dt, stability_limit
-from validation.measure.stability import (
-    StabilityChecks,
-)
+from validation.measure.runner import run_engine
+from validation.measure.stability import KINDS, StabilityChecks
 from validation.measure.states import Trajectory
 from validation.scenario import Scenario
 from validation.scenario.compiled import compile_scene
@@ -102,27 +101,75 @@ def test_checks_name_each_kind_at_the_first_failing_state():
     assert first(states(), np.array([0.0, 0.001]), np.array([np.inf, 0.01])) is None
 
 
-@pytest.mark.parametrize("engine", ["mujoco"])
-def test_foreign_engine_instability_warnings_are_read(engine):
-    """MuJoCo resets an exploding state and only warns: the adapter must surface it."""
+EXPLODING_DT = 5e-3
+"""s: ω·dt = 5 on the k = 1e6 N/m oscillator, beyond semi-implicit Euler's limit of 2 (the
+integrator of all three engines here), so the amplitude grows ~23x per step."""
+
+EXPLOSION_KIND = {"mini": "speed_limit", "mujoco": "speed_limit", "pybullet": "speed_limit"}
+"""What each engine's explosion trips first: the speed passes 100x the scene's speed scale
+(1.1e3 m/s) at the second step (t = 0.01 s), before the energy passes a million times its
+scale and long before anything overflows (measured: 1.15e3 m/s in all three)."""
+
+
+@pytest.mark.parametrize("engine", sorted(EXPLOSION_KIND))
+def test_an_exploding_oscillator_is_unstable_in_every_engine(engine):
+    """The run stops at the first failed check, its status is ``unstable`` and the message
+    starts with the kind (one of ``KINDS``)."""
+    scene = oscillator(dt=EXPLODING_DT, duration=1.0)
+    run = run_engine(compile_scene(scene), parse_engine_spec(engine))
+    kind = run.message.split(":")[0]
+    assert run.status == "unstable", (run.status, run.message)
+    assert kind in KINDS and kind == EXPLOSION_KIND[engine], run.message
+    recorded = run.recording.trajectory.t
+    assert recorded[-1] < scene.duration / 10, f"the run went on to t = {recorded[-1]} s"
+
+
+def test_mujoco_adapter_reads_its_own_instability_warning():
+    """ω·dt = 5: MuJoCo's Euler explodes, finds a huge qacc and resets; the adapter reads it."""
     from validation.engines.registry import create_adapter
 
-    adapter = create_adapter(parse_engine_spec(engine))
-    adapter.load(
-        compile_scene(oscillator(dt=5e-3, duration=1.0))
-    )  # ω·dt = 5: MuJoCo Euler explodes
+    adapter = create_adapter(parse_engine_spec("mujoco"))
+    adapter.load(compile_scene(oscillator(dt=EXPLODING_DT, duration=1.0)))
     adapter.advance(200)
     warnings = adapter.instability_warnings()
-    state = adapter.observe()
     adapter.close()
-    exploded = not np.isfinite(state.pos).all() or np.abs(state.pos).max() > 1.0
-    assert warnings or exploded, f"no warning and a bounded state {state.pos}"
+    assert any(w.startswith("MuJoCo mjWARN_BADQACC x") for w in warnings), warnings
+
+
+def reset_by_mujoco() -> Scenario:
+    """k = 2e15 N/m from its rest length at 0.1 m/s, dt = 1e-4: after one step the spring's
+    qacc is 2e15·1e-5 = 2e10 m/s², beyond MuJoCo's 1e10 bound, so MuJoCo resets the state to
+    the model's (at rest at the start) and goes on quietly. The stored energy after that one
+    step is 1e5 J, below the energy blow-up bound, so only MuJoCo's warning tells."""
+    return Scenario.model_validate(
+        {
+            **oscillator(dt=1e-4, duration=0.01).model_dump(),
+            "springs": [{"a": "m", "b": "world", "stiffness": 2.0e15}],
+            "bodies": [
+                {
+                    "name": "m",
+                    "shape": {"type": "sphere", "radius": 0.01},
+                    "mass": MASS,
+                    "position": [0.01, 0, 0],
+                    "velocity": [0.1, 0, 0],
+                }
+            ],
+        }
+    )
+
+
+def test_a_state_mujoco_reset_is_an_engine_warning():
+    """The state MuJoCo leaves looks fine (at rest, bounded): the run's only sign of the
+    breakdown is MuJoCo's warning, which makes the run ``unstable`` with ``engine_warning``."""
+    run = run_engine(compile_scene(reset_by_mujoco()), parse_engine_spec("mujoco"))
+    last = run.recording.trajectory
+    assert np.abs(last.pos[-1]).max() < 1.0 and np.abs(last.vel[-1]).max() < 1.0, last.pos[-1]
+    assert run.status == "unstable", (run.status, run.message)
+    assert run.message.startswith("engine_warning: MuJoCo mjWARN_BADQACC x"), run.message
 
 
 def test_a_stable_spring_with_a_large_stored_energy_is_not_flagged():
     """15 cm out on k = 1e6 N/m is 11 kJ released at 150 m/s: stable at ω·dt = 0.1."""
-    from validation.measure.runner import run_engine
-
     scene = Scenario.model_validate(
         {
             **oscillator(dt=1e-4, duration=0.05).model_dump(),

@@ -31,7 +31,8 @@ RESULTS_COLUMNS = (
     "settings",
     "message",
 )
-"""results.csv, in order (issue 5 fixes the first fifteen names)."""
+"""results.csv, in order: ``validation.measure.comparator`` writes these columns, and CI jobs
+and ``validation.report`` read them by name."""
 
 SERIES_COLUMNS = ("scenario", "engine", "t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
 """series.csv: energy (J), linear momentum (kg·m/s), angular momentum about the system COM."""
@@ -59,7 +60,8 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
     "error": "the engine raised; the message carries the exception",
     "unsupported": "the engine cannot represent something the scene or metric needs",
 }
-"""Every status a result row can carry (issue 5 fixes the names), with its meaning."""
+"""Every status a result row can carry, with its meaning. CI jobs and the report depend on
+these names; ``BAD_STATUSES`` decides the exit code."""
 
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 """Row statuses that make ``physval run`` exit 1."""

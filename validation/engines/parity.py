@@ -14,7 +14,7 @@ import numpy as np
 from validation.engines.base import ModelReport
 
 PARITY_TOLERANCE = 1e-9
-"""Relative (issue 4). Engines store masses and inertias in double precision; anything
+"""Relative. Engines store masses and inertias in double precision; anything
 beyond round-off is a different model (a dropped inertia, a COM offset, a damping term)."""
 
 ABSOLUTE_FLOOR = 1e-12

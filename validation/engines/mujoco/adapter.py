@@ -1,7 +1,15 @@
 """The MuJoCo adapter: the MJCF of ``mjcf`` compiled, stepped by ``mujoco.mj_step`` and read
-back in the scene's conventions (see ``mjcf`` for the model and the state conversion)."""
+back in the scene's conventions (see ``mjcf`` for the model and the state conversion).
+
+MuJoCo's warnings never reach the working folder: while the adapter calls into MuJoCo, a
+``mju_user_warning`` handler collects them (MuJoCo would otherwise print them and append
+them to ``MUJOCO_LOG.TXT`` in the current directory); ``instability_warnings`` and
+``provenance`` report what was collected."""
 
 from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import mujoco
 import numpy as np
@@ -73,6 +81,18 @@ def option_settings(model: mujoco.MjModel) -> dict[str, object]:
     return fields
 
 
+@contextmanager
+def collected_warnings(sink: list[str]) -> Iterator[None]:
+    """MuJoCo's warning messages appended to ``sink`` instead of printed and logged to
+    ``MUJOCO_LOG.TXT``; the previous handler (process-wide) is restored afterwards."""
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(sink.append)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 # --- the adapter --------------------------------------------------------------------------
 
 
@@ -87,9 +107,11 @@ class MujocoAdapter:
         """Compile the scene's MJCF and set the initial state (world ω -> body-frame qvel)."""
         self.scene = scene
         self.scenario = scenario = scene.scenario
+        self.messages: list[str] = []  # MuJoCo's warning messages so far, as it words them
         self.xml, self.plan, self.solver = build_mjcf(scenario, self.settings)
-        self.model = mujoco.MjModel.from_xml_string(self.xml)
-        self.data = mujoco.MjData(self.model)
+        with collected_warnings(self.messages):
+            self.model = mujoco.MjModel.from_xml_string(self.xml)
+            self.data = mujoco.MjData(self.model)
         self._index_bodies(scenario)
         self._set_initial_state(scenario)
 
@@ -130,10 +152,11 @@ class MujocoAdapter:
         d = mujoco.MjData(m)
         d.qpos[:] = self.data.qpos
         d.qvel[:] = self.data.qvel
-        mujoco.mj_forward(m, d)
-        mujoco.mj_energyPos(m, d)
-        mujoco.mj_energyVel(m, d)
-        mujoco.mj_subtreeVel(m, d)
+        with collected_warnings(self.messages):
+            mujoco.mj_forward(m, d)
+            mujoco.mj_energyPos(m, d)
+            mujoco.mj_energyVel(m, d)
+            mujoco.mj_subtreeVel(m, d)
         ids = self.body_ids[self.moving]
         frames = d.ximat[ids].reshape(-1, 3, 3)
         inertia = frames @ (m.body_inertia[ids][:, :, None] * frames.transpose(0, 2, 1))
@@ -148,7 +171,8 @@ class MujocoAdapter:
 
     def advance(self, steps: int) -> None:
         """``steps`` MuJoCo steps of the scene's dt."""
-        mujoco.mj_step(self.model, self.data, nstep=steps)
+        with collected_warnings(self.messages):
+            mujoco.mj_step(self.model, self.data, nstep=steps)
 
     def observe(self) -> Snapshot:
         """COM position, quaternion w x y z, COM velocity and world ω of every scenario body,
@@ -186,6 +210,7 @@ class MujocoAdapter:
                 "profile=defaults: MuJoCo's default geoms and contacts (condim 3, μ = 1, "
                 "solref (0.02, 1)); the scene's restitution and friction are not used"
             )
+        notes += [f"MuJoCo warning: {message}" for message in self.messages]
         return Provenance(
             engine="mujoco", version=mujoco.__version__, settings=settings, notes=notes
         )
@@ -210,12 +235,15 @@ class MujocoAdapter:
 
     def instability_warnings(self) -> list[str]:
         """MuJoCo's own instability warnings raised so far (bad qacc/qpos/qvel: it reset the
-        state; full constraint or contact buffers: it dropped contacts), as text."""
+        state; full constraint or contact buffers: it dropped contacts), as text: one entry
+        per warning kind with its count, then, if there is any, the messages MuJoCo wrote."""
         found = []
         for name in INSTABILITY_WARNINGS:
             count = self.data.warning[int(getattr(mujoco.mjtWarning, name))].number
             if count:
                 found.append(f"MuJoCo {name} x{count}")
+        if found:
+            found += [f"MuJoCo: {message}" for message in dict.fromkeys(self.messages)]
         return found
 
     def close(self) -> None:

@@ -1,0 +1,257 @@
+"""The import structure: no cycles, no upward imports between the wings, engines kept in
+their adapters.
+
+Every ``import`` and ``from ... import`` anywhere in a module (function bodies and
+``if TYPE_CHECKING`` blocks included) of ``validation/`` and ``mini_engine/`` is an edge,
+resolved to project modules: ``from validation.x import y`` is an edge to
+``validation.x.y`` when ``y`` is a submodule, and an edge to a package is an edge to its
+``__init__``. Importing a module also runs its parent packages' ``__init__``, so those are
+edges too (except the importer's own ancestors, which Python has already imported before
+the importer runs; an *explicit* import of one's own package still counts).
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("mini_engine", "validation")
+
+WINGS: dict[str, int] = {
+    "mini_engine": 0,
+    "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
+    "validation.contract": 1,
+    "validation.files": 1,
+    "validation.scenario": 2,
+    "validation.engines": 3,
+    "validation.measure": 4,
+    "validation.report": 4,
+    "validation.jobs": 5,
+    "validation.cli": 6,
+}
+"""Wing (module prefix) -> rank. A wing may import its own modules and those of lower-ranked
+wings, never a higher or an equally ranked other wing (except ``ALSO_ALLOWED``)."""
+
+ALSO_ALLOWED = {("validation.report", "validation.measure")}
+"""Equal-rank imports that are allowed: the report reads the metric definitions of measure
+(``measure.definitions``); measure never imports report."""
+
+ENGINE_HOMES = {"mujoco": "validation/engines/mujoco/", "pybullet": "validation/engines/pybullet/"}
+"""Third-party engine -> the only folder that may import it (``pybullet_data`` and other
+``pybullet*`` modules count as pybullet)."""
+
+
+@dataclass(frozen=True)
+class Edge:
+    source: str
+    target: str
+    file: str
+    line: int
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}: {self.source} -> {self.target}"
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def project_files() -> dict[str, Path]:
+    """Module name -> file, for every .py under the project packages."""
+    return {
+        module_name(path): path
+        for package in PACKAGES
+        for path in sorted((ROOT / package).rglob("*.py"))
+    }
+
+
+MODULES = project_files()
+
+
+def is_package(module: str) -> bool:
+    return MODULES[module].name == "__init__.py"
+
+
+def imported_names(module: str, tree: ast.AST):
+    """(line, absolute dotted name) of every import in ``tree``: the module imported, plus
+    ``module.name`` for each ``from module import name`` (a submodule if it is one)."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                package = module if is_package(module) else module.rpartition(".")[0]
+                for _ in range(node.level - 1):
+                    package = package.rpartition(".")[0]
+                base = ".".join(p for p in (package, node.module or "") if p)
+            else:
+                base = node.module or ""
+            yield node.lineno, base
+            for alias in node.names:
+                if alias.name != "*":
+                    yield node.lineno, f"{base}.{alias.name}"
+
+
+def ancestors(module: str) -> list[str]:
+    parts = module.split(".")
+    return [".".join(parts[:k]) for k in range(1, len(parts))]
+
+
+def project_edges() -> list[Edge]:
+    edges = set()
+    for source, path in MODULES.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        own_ancestors = set(ancestors(source))
+        for line, name in imported_names(source, tree):
+            if name not in MODULES:
+                continue  # third-party, or ``from module import function``
+            implied = [p for p in ancestors(name) if p not in own_ancestors and p in MODULES]
+            for target in [*implied, name]:
+                if target != source:
+                    edges.add(Edge(source, target, str(path.relative_to(ROOT)), line))
+    return sorted(edges, key=lambda e: (e.file, e.line, e.target))
+
+
+EDGES = project_edges()
+
+
+def wing(module: str) -> str:
+    return max((w for w in WINGS if module == w or module.startswith(w + ".")), key=len)
+
+
+def allowed(source: str, target: str) -> bool:
+    a, b = wing(source), wing(target)
+    return a == b or WINGS[b] < WINGS[a] or (a, b) in ALSO_ALLOWED
+
+
+def cycles(edges: list[Edge]) -> list[list[Edge]]:
+    """One cycle (as its edges) per strongly connected component of more than one module
+    (Tarjan's algorithm, iterative)."""
+    graph: dict[str, list[Edge]] = {}
+    for edge in edges:
+        graph.setdefault(edge.source, []).append(edge)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components: list[set[str]] = []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(graph.get(start, [])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            edge = next(children, None)
+            if edge is not None:
+                child = edge.target
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(graph.get(child, []))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = set()
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.add(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    components.append(component)
+    found = []
+    for component in components:
+        start = min(component)
+        path = _path_back(graph, component, start)
+        found.append(path)
+    return found
+
+
+def _path_back(graph: dict[str, list[Edge]], component: set[str], start: str) -> list[Edge]:
+    """Edges of a shortest cycle through ``start`` inside ``component`` (breadth first)."""
+    previous: dict[str, Edge] = {}
+    frontier = [start]
+    while frontier:
+        following = []
+        for node in frontier:
+            for edge in graph.get(node, []):
+                if edge.target not in component or edge.target in previous:
+                    continue
+                previous[edge.target] = edge
+                if edge.target == start:
+                    path, at = [], start
+                    while True:
+                        path.append(previous[at])
+                        at = previous[at].source
+                        if at == start:
+                            return path[::-1]
+                following.append(edge.target)
+        frontier = following
+    raise AssertionError(f"no cycle through {start}")
+
+
+def test_the_walk_sees_the_project():
+    """The checks below mean something only if the walk found the modules and their edges."""
+    assert {"validation.cli", "validation.engines.mujoco.adapter", "mini_engine.step"} <= set(
+        MODULES
+    ), sorted(MODULES)
+    assert any(e.source == "validation.cli" and e.target == "validation.jobs.run" for e in EDGES), (
+        "validation.cli -> validation.jobs.run not found"
+    )
+    assert all(wing(m) in WINGS for m in MODULES)
+
+
+def test_no_import_cycles():
+    found = cycles(EDGES)
+    shown = [" ; ".join(str(e) for e in cycle) for cycle in found]
+    assert found == [], "import cycles:\n" + "\n".join(shown)
+
+
+def test_no_upward_imports_between_wings():
+    upward = [
+        f"{edge} ({wing(edge.source)} rank {WINGS[wing(edge.source)]} imports "
+        f"{wing(edge.target)} rank {WINGS[wing(edge.target)]})"
+        for edge in EDGES
+        if not allowed(edge.source, edge.target)
+    ]
+    assert upward == [], "upward imports:\n" + "\n".join(upward)
+
+
+def test_mini_engine_imports_nothing_from_validation():
+    found = [
+        str(e)
+        for e in EDGES
+        if e.source.startswith("mini_engine") and wing(e.target) != "mini_engine"
+    ]
+    assert found == [], found
+
+
+@pytest.mark.parametrize("engine", sorted(ENGINE_HOMES))
+def test_each_engine_is_imported_only_by_its_adapter(engine):
+    home = ENGINE_HOMES[engine]
+    found = []
+    for module, path in MODULES.items():
+        relative = path.relative_to(ROOT).as_posix()
+        if relative.startswith(home):
+            continue
+        for line, name in imported_names(module, ast.parse(path.read_text())):
+            if name.split(".")[0].startswith(engine):
+                found.append(f"{relative}:{line}: {name}")
+    assert found == [], f"{engine} imported outside {home}:\n" + "\n".join(sorted(set(found)))
