@@ -1,0 +1,297 @@
+"""What the harness costs on top of the engines' own stepping, per engine, as a ratio.
+
+For each engine (mini, MuJoCo, PyBullet) on the same library scenes (``SCENES``):
+
+1. **whole run**: ``python -m validation.cli run SCENES --engines ENGINE --out TMP`` in a
+   subprocess, wall clock (loading, the parity gate, recording with observations and the
+   impact detector, metrics, the comparison, the report files).
+2. **start-up**: the same command on ``STARTUP_SCENE``, one sphere in free fall for one
+   step, written to a temporary file: the interpreter, the imports, the engine's own
+   import and a (nearly empty) report, none of which grows with the scenes.
+3. **stepping only**: each scene loaded, its adapter created and loaded, then
+   ``adapter.advance(scenario.steps)`` timed once for the whole duration at the scene's
+   dt; the sum over the scenes.
+
+Each of the three is the median of ``REPEATS`` measurements (the repeats are interleaved
+engine by engine, so slow minutes on a shared machine hit every engine alike).
+``ratio = (whole - startup) / stepping``; the total is the sum over engines of
+``whole - startup`` over the sum of ``stepping``. Target (the issue): total <= 1.25.
+
+``--tree PATH`` benchmarks another checkout with the same interpreter and packages: every
+subprocess gets ``PYTHONPATH=PATH`` and the scenes are PATH's own files; the stepping-only
+timing then runs in a subprocess too (this file with ``--stepping-worker``), and imports
+the harness's names from the current layout or, failing that, the old one (modules
+``validation.scenario``, ``validation.engine_spec``, ``validation.engines``). The
+subprocesses run in a scratch folder, not in PATH, so nothing (MuJoCo's MUJOCO_LOG.TXT,
+for one) is written into the checkout being measured.
+
+Prints a table and writes ``benchmarks/results/harness_overhead-<tree folder name>.csv``.
+Not a test: wall-clock numbers depend on the machine and on its load.
+
+    python benchmarks/harness_overhead.py [--tree PATH] [--scenes FILE ...] [--repeats N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+
+HERE_TREE = Path(__file__).resolve().parents[1]
+"""The checkout this file belongs to: the default ``--tree``."""
+
+SCENES = (
+    "scenarios/formulas/projectile.yaml",
+    "scenarios/formulas/bounce_ladder.yaml",
+    "scenarios/contact/box_stack.yaml",
+    "scenarios/contact/box_drop_flat.yaml",
+    "scenarios/rotation/dzhanibekov_box.yaml",
+    "scenarios/stiff/stiff_spring_oscillator.yaml",
+)
+"""Paths relative to the tree: free flight, bounces, resting and dropped boxes, a long
+free rotation (10 000 steps) and a stiff spring at dt = 1e-4: 21 000 steps in all, a whole
+run of 13 to 26 s per engine on this machine (mini's stepping alone about 16 s)."""
+
+ENGINES = ("mini", "mujoco", "pybullet")
+"""Engine specs, as ``--engines`` takes them; each engine's default (matched) profile."""
+
+REPEATS = 3
+"""Median of 3: one invocation takes about 4 minutes on the shared 2-core machine when it is
+quiet (6 when another job is busy), while a single whole run can be 50 % off under load."""
+
+STARTUP_SCENE = """\
+description: start-up probe of benchmarks/harness_overhead.py, one sphere in free fall, one step
+dt: 0.001
+duration: 0.001
+engines: [mini]
+bodies:
+  - name: ball
+    shape: {type: sphere, radius: 0.1}
+    mass: 1.0
+    position: [0.0, 0.0, 1.0]
+"""
+"""The trivial workload whose whole run is the start-up: valid in the old and the new
+layout; touches nothing, so the impact detector and the metrics have nothing to do."""
+
+RUN_EXIT_CODES = (0, 1)
+"""``physval run`` exits 1 when some check failed: still a whole run (PyBullet fails some of
+these scenes by design); 2 (bad input) or a crash stops the benchmark."""
+
+SUBPROCESS_TIMEOUT = 600.0
+"""s; a whole run of ``SCENES`` takes about 13 to 50 s."""
+
+TARGET_RATIO = 1.25
+"""Total (whole - startup) / stepping the issue asks for."""
+
+RESULTS = Path(__file__).parent / "results"
+
+
+# --- stepping only, in this process (or in a worker subprocess for another tree) -------------
+
+
+def _harness_api():
+    """``(load_scenario, parse_engine_spec, create_adapter)`` from the current layout, or
+    from the old one (``validation.scenario`` a module, ``validation.engine_spec``,
+    ``create_adapter`` in ``validation/engines/__init__.py``)."""
+    from validation.scenario import load_scenario  # package now, module before: same name
+
+    try:
+        from validation.scenario.engine_spec import parse_engine_spec
+    except ImportError:
+        from validation.engine_spec import parse_engine_spec
+    try:
+        from validation.engines.registry import create_adapter
+    except ImportError:
+        from validation.engines import create_adapter
+    return load_scenario, parse_engine_spec, create_adapter
+
+
+def _load_adapter(create_adapter, spec, scenario):
+    """A loaded adapter for ``scenario``: the one place to change when ``load`` takes a
+    compiled scene instead of the scenario."""
+    adapter = create_adapter(spec)
+    adapter.load(scenario)
+    return adapter
+
+
+def stepping_seconds(scenes: list[Path], engine: str) -> float:
+    """Seconds spent in ``advance`` alone, summed over ``scenes``, one run of each."""
+    load_scenario, parse_engine_spec, create_adapter = _harness_api()
+    spec = parse_engine_spec(engine)
+    total = 0.0
+    for path in scenes:
+        scenario = load_scenario(path)
+        adapter = _load_adapter(create_adapter, spec, scenario)
+        try:
+            start = time.perf_counter()
+            adapter.advance(scenario.steps)
+            total += time.perf_counter() - start
+        finally:
+            adapter.close()
+    return total
+
+
+# --- subprocesses --------------------------------------------------------------------------------
+
+
+def _environment(tree: Path) -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(tree)}
+
+
+def _run(command: list[str], tree: Path, scratch: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        command,
+        cwd=scratch,
+        env=_environment(tree),
+        capture_output=True,
+        text=True,
+        timeout=SUBPROCESS_TIMEOUT,
+        check=False,
+    )
+
+
+def _cli_run_prefix(tree: Path, scratch: Path) -> list[str]:
+    """``python -m validation.cli run``, plus ``--jobs 1`` where that tree's CLI has it."""
+    found = _run([sys.executable, "-m", "validation.cli", "run", "--help"], tree, scratch)
+    if found.returncode != 0:
+        raise RuntimeError(f"validation.cli run --help failed in {tree}:\n{found.stderr}")
+    jobs = ["--jobs", "1"] if "--jobs" in found.stdout else []
+    return [sys.executable, "-m", "validation.cli", "run", *jobs]
+
+
+def whole_run_seconds(
+    prefix: list[str], scenes: list[Path], engine: str, tree: Path, scratch: Path
+) -> float:
+    """Wall-clock seconds of one ``physval run`` of ``scenes`` in ``engine``."""
+    out = Path(tempfile.mkdtemp(prefix="run-", dir=scratch))
+    command = [*prefix, *map(str, scenes), "--engines", engine, "--out", str(out / "report")]
+    start = time.perf_counter()
+    done = _run(command, tree, scratch)
+    seconds = time.perf_counter() - start
+    if done.returncode not in RUN_EXIT_CODES or not (out / "report" / "results.csv").exists():
+        raise RuntimeError(f"{' '.join(command)} exited {done.returncode}:\n{done.stderr}")
+    return seconds
+
+
+def worker_stepping_seconds(scenes: list[Path], engine: str, tree: Path, scratch: Path) -> float:
+    """``stepping_seconds`` in a subprocess that imports ``tree``'s harness."""
+    command = [sys.executable, __file__, "--stepping-worker", engine, "--scenes", *map(str, scenes)]
+    done = _run(command, tree, scratch)
+    if done.returncode != 0:
+        raise RuntimeError(f"stepping worker for {engine} in {tree} failed:\n{done.stderr}")
+    return float(json.loads(done.stdout.strip().splitlines()[-1])["seconds"])
+
+
+# --- the table -----------------------------------------------------------------------------------
+
+
+def _rows(samples: dict[str, dict[str, list[float]]]) -> list[dict]:
+    rows = []
+    for engine, kinds in samples.items():
+        whole, startup, stepping = (
+            statistics.median(kinds[k]) for k in ("whole", "startup", "stepping")
+        )
+        rows.append(
+            {
+                "engine": engine,
+                "whole_s": whole,
+                "startup_s": startup,
+                "stepping_s": stepping,
+                "harness_s": whole - startup - stepping,
+                "ratio": (whole - startup) / stepping,
+                **{f"{k}_samples": " ".join(f"{v:.3f}" for v in kinds[k]) for k in kinds},
+            }
+        )
+    whole, startup, stepping = (
+        sum(r[k] for r in rows) for k in ("whole_s", "startup_s", "stepping_s")
+    )
+    rows.append(
+        {
+            "engine": "total",
+            "whole_s": whole,
+            "startup_s": startup,
+            "stepping_s": stepping,
+            "harness_s": whole - startup - stepping,
+            "ratio": (whole - startup) / stepping,
+        }
+    )
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tree", type=Path, default=HERE_TREE, help="checkout to benchmark")
+    parser.add_argument(
+        "--scenes", nargs="+", default=list(SCENES), help="scene files (relative to the tree)"
+    )
+    parser.add_argument("--engines", nargs="+", default=list(ENGINES))
+    parser.add_argument("--repeats", type=int, default=REPEATS)
+    parser.add_argument("--stepping-worker", metavar="ENGINE", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.stepping_worker:  # a subprocess of another tree's run: PYTHONPATH is that tree
+        seconds = stepping_seconds([Path(s) for s in args.scenes], args.stepping_worker)
+        print(json.dumps({"seconds": seconds}))
+        return
+
+    tree = args.tree.resolve()
+    scenes = [s if s.is_absolute() else tree / s for s in map(Path, args.scenes)]
+    missing = [str(s) for s in scenes if not s.is_file()]
+    if missing:
+        parser.error(f"no such scene file: {', '.join(missing)}")
+    in_process = tree == HERE_TREE
+    if in_process:
+        sys.path.insert(0, str(tree))
+    began = time.perf_counter()
+    samples = {e: {"whole": [], "startup": [], "stepping": []} for e in args.engines}
+    with tempfile.TemporaryDirectory(prefix="harness_overhead-") as name:
+        scratch = Path(name)
+        probe = scratch / "startup_probe.yaml"
+        probe.write_text(STARTUP_SCENE)
+        prefix = _cli_run_prefix(tree, scratch)
+        for repeat in range(args.repeats):
+            for engine in args.engines:
+                samples[engine]["startup"].append(
+                    whole_run_seconds(prefix, [probe], engine, tree, scratch)
+                )
+                samples[engine]["whole"].append(
+                    whole_run_seconds(prefix, scenes, engine, tree, scratch)
+                )
+                samples[engine]["stepping"].append(
+                    stepping_seconds(scenes, engine)
+                    if in_process
+                    else worker_stepping_seconds(scenes, engine, tree, scratch)
+                )
+                print(
+                    f"repeat {repeat + 1}/{args.repeats} {engine}: "
+                    + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in samples[engine].items()),
+                    file=sys.stderr,
+                )
+    table = pd.DataFrame(_rows(samples))
+    table["tree"], table["scenes"], table["repeats"] = str(tree), len(scenes), args.repeats
+    table["cli_prefix"] = " ".join(prefix[1:])
+    results = RESULTS / f"harness_overhead-{tree.name}.csv"
+    results.parent.mkdir(parents=True, exist_ok=True)
+    temporary = results.with_suffix(".tmp")
+    table.to_csv(temporary, index=False)
+    temporary.replace(results)
+    shown = table[["engine", "whole_s", "startup_s", "stepping_s", "harness_s", "ratio"]]
+    print(f"tree {tree}: {len(scenes)} scenes, median of {args.repeats}")
+    print(shown.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    total = table["ratio"].iloc[-1]
+    verdict = "meets" if total <= TARGET_RATIO else "misses"
+    print(
+        f"total ratio {total:.2f} {verdict} the target <= {TARGET_RATIO}; "
+        f"{time.perf_counter() - began:.0f} s; results in {results}"
+    )
+
+
+if __name__ == "__main__":
+    main()
