@@ -36,6 +36,7 @@ from validation.contract import (
 )
 from validation.jobs.executor import Interrupted, run_jobs
 from validation.jobs.plan import BadInputError, Plan, plan_run
+from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
@@ -53,28 +54,6 @@ MAX_SERIES_POINTS = 1000
 
 def _sample_every(scene: CompiledScene) -> int:
     return max(1, -(-scene.scenario.steps // MAX_SAMPLES))
-
-
-class Progress:
-    """A one-line progress bar on a terminal; silent when stderr is not one."""
-
-    def __init__(self, total: int):
-        self.total, self.done = total, 0
-        self.active = sys.stderr.isatty()
-
-    def step(self, label: str) -> None:
-        self.done += 1
-        if self.active:
-            width = 30
-            filled = width * self.done // self.total
-            sys.stderr.write(
-                f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {label[:60]:<60}"
-            )
-            sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.active:
-            sys.stderr.write("\n")
 
 
 def _series_rows(scene: CompiledScene, run: EngineRun) -> pd.DataFrame:
@@ -166,14 +145,13 @@ def execute(
     """Run every (scene, engine) on ``jobs`` workers; returns rows, series frames, impact rows
     and the runs, all in plan order whatever order the jobs finished in."""
     work = plan.jobs
-    progress = Progress(len(work))
-    done = run_jobs(
-        run_job,
-        work,
-        jobs,
-        lambda index, _: progress.step(f"{work[index][0].name} · {work[index][1].label}"),
-    )
-    progress.close()
+    with Progress(len(work)) as progress:
+        done = run_jobs(
+            run_job,
+            work,
+            jobs,
+            lambda index, _: progress.advance(f"{work[index][0].name} · {work[index][1].label}"),
+        )
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
@@ -225,40 +203,6 @@ def render_html(folder: Path) -> str:
     return ""
 
 
-def summary(rows: list[dict]) -> str:
-    """Scenes x engines: PASS, FAIL or the status, with the worst error/tolerance ratio."""
-    table = pd.DataFrame(rows, columns=list(COLUMNS))
-    if table.empty:
-        return "(no rows)"
-    cells = {}
-    for (scene, engine), group in table.groupby(["scenario", "engine"], sort=False):
-        statuses = set(group["status"])
-        bad = [s for s in BAD_STATUSES if s in statuses]
-        checked = group.dropna(subset=["tolerance"])
-        ratio = (
-            (
-                checked["error"].astype(float)
-                / checked["tolerance"].astype(float).clip(lower=1e-300)
-            ).max()
-            if not checked.empty
-            else None
-        )
-        word = (
-            (bad[0] if bad[0] != "failed" else "FAIL")
-            if bad
-            else ("PASS" if not checked.empty else "-")
-        )
-        cells[(scene, engine)] = (
-            word if ratio is None or not np.isfinite(ratio) else f"{word} {ratio:.2g}"
-        )
-    scenes = list(dict.fromkeys(table["scenario"]))
-    engines = list(dict.fromkeys(table["engine"]))
-    grid = pd.DataFrame(
-        [[cells.get((s, e), "") for e in engines] for s in scenes], index=scenes, columns=engines
-    )
-    return grid.to_string()
-
-
 def run_main(
     paths: list[Path],
     engines: str | None,
@@ -294,7 +238,7 @@ def run_main(
     if out is None:  # the default run also keeps a timestamped copy
         stamp = dt_module.datetime.now(dt_module.UTC).strftime("%Y%m%d-%H%M%S")
         shutil.copytree(destination, destination.parent / "runs" / stamp, dirs_exist_ok=True)
-    print(summary(rows))
+    print(summary(rows, color=sys.stdout.isatty()))
     bad = sum(row["status"] in BAD_STATUSES for row in rows)
     print(
         f"{len(rows)} rows, {bad} failed or unstable -> {destination / RESULTS_FILE}"
