@@ -1,1 +1,1 @@
-"""physval validation layer: scenarios, engine adapters, metrics, reports (later issues)."""
+"""physval's harness: scenarios, engine adapters, measuring, jobs and reports (see README, Layout)."""

@@ -1,4 +1,4 @@
-"""One line per metric: the definition the report's legend prints (issue 5 fixes the names).
+"""One line per metric: the definition the report's legend prints (scene files and CI depend on the names).
 
 The code that computes each metric is in ``validation.measure.metrics``; this table is its
 contract, kept apart so that a report can be rendered without importing any engine.

@@ -48,7 +48,7 @@ ENGINE_OPTIONS: dict[str, dict[str, Option]] = {
         "solver_iterations": int,
     },
 }
-"""Settings each engine accepts in a spec (the adapters read them; issue 4)."""
+"""Settings each engine accepts in a spec (the adapters read them)."""
 
 DEFAULT_ENGINES = ("mini", "mujoco", "pybullet")
 

@@ -14,7 +14,6 @@ import numpy as np
 
 from mini_engine import Body, PairProperties, Plane, Spring, build_model
 from mini_engine.collision import detect_contacts
-from mini_engine.forces import spring_energy
 from mini_engine.model import SHARED_WORLD, Model, State
 from mini_engine.rotation import apply, quat_to_matrix
 from mini_engine.shapes import Box, Capsule, Sphere, solid_inertia
@@ -84,45 +83,6 @@ def rest_length(scenario: Scenario, spring: SpringSpec) -> float:
             world_point(spring.b, spring.anchor_b) - world_point(spring.a, spring.anchor_a)
         )
     )
-
-
-class SceneEnergy:
-    """Total energy J of a scene's states: kinetic (translational + rotational), gravitational
-    potential ``-m g·x`` and spring energy; fixed bodies contribute nothing.
-
-    One definition for every consumer (the ``energy_drift`` metric, the stability checks).
-    """
-
-    def __init__(self, scenario: Scenario):
-        self.moving = np.array([not b.fixed for b in scenario.bodies], dtype=float)
-        self.mass = self.moving * np.array([b.mass for b in scenario.bodies])
-        self.inertia = np.array([body_inertia(b) for b in scenario.bodies])
-        self.gravity = np.asarray(scenario.gravity, dtype=float)
-        self.count = len(scenario.bodies)
-        self.springs = build_mini_model(scenario) if scenario.springs else None
-
-    def __call__(self, pos, quat, vel, ang_vel) -> np.ndarray:
-        """(s,) J for states ``pos (s, n, 3)`` m, ``quat (s, n, 4)``, ``vel``, ``ang_vel (s, n, 3)``."""
-        samples = pos.shape[0]
-        rot = quat_to_matrix(quat.reshape(-1, 4)).reshape(samples, self.count, 3, 3)
-        spin = np.einsum("snij,njk,snlk,snl->sni", rot, self.inertia, rot, ang_vel)
-        kinetic = 0.5 * np.einsum("n,sni,sni->s", self.mass, vel, vel)
-        kinetic += 0.5 * np.einsum("sni,sni,n->s", ang_vel, spin, self.moving)
-        potential = -np.einsum("n,sni,i->s", self.mass, pos, self.gravity)
-        return kinetic + potential + self.spring_energy(pos, quat)
-
-    def spring_energy(self, pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
-        """(s,) J stored in the springs at ``pos (s, n, 3)`` m, ``quat (s, n, 4)``."""
-        if self.springs is None:
-            return np.zeros(pos.shape[0])
-        model, state = self.springs
-        energies = []
-        for k in range(pos.shape[0]):  # per sample; only scenes with springs pay for it
-            full_pos, full_quat = state.pos.copy(), state.quat.copy()
-            full_pos[: self.count], full_quat[: self.count] = pos[k], quat[k]
-            sample = State(full_pos, full_quat, state.vel, state.ang_vel)
-            energies.append(spring_energy(model, sample, quat_to_matrix(full_quat)))
-        return np.array(energies)
 
 
 # --- the scene as a mini_engine model ---

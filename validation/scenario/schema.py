@@ -55,7 +55,7 @@ METRIC_NAMES = (
     "penetration_max",
     "divergence",
 )
-"""The metrics a ``checks`` entry may name besides the scene's own expectations (issue 5)."""
+"""The metrics a ``checks`` entry may name besides the scene's own expectations (CI jobs and scene files use these names)."""
 
 # --- field types -------------------------------------------------------------------------
 
