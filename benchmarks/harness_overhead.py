@@ -115,10 +115,16 @@ def _harness_api():
 
 
 def _load_adapter(create_adapter, spec, scenario):
-    """A loaded adapter for ``scenario``: the one place to change when ``load`` takes a
-    compiled scene instead of the scenario."""
+    """A loaded adapter for ``scenario``: compiled first in the current layout (``load``
+    takes a ``CompiledScene``), the scenario itself in the old one."""
+    try:
+        from validation.scenario.compiled import compile_scene
+    except ImportError:
+        loadable = scenario
+    else:
+        loadable = compile_scene(scenario)
     adapter = create_adapter(spec)
-    adapter.load(scenario)
+    adapter.load(loadable)
     return adapter
 
 

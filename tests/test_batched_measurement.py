@@ -83,3 +83,26 @@ def test_batched_measurement_matches_the_per_observation_fixture(scene_name, eng
         recording.penetration_max,
         penetration[0],
     )
+
+
+BATCH_SIZES = (256, 7)
+"""The default batch, and a small one that puts batch boundaries inside impacts."""
+
+
+def test_impacts_do_not_depend_on_how_the_states_are_batched(monkeypatch):
+    """49 balls bouncing at once (simultaneous impacts), measured in batches of 256 and of 7
+    states: the same events in the same order, bit for bit."""
+    from validation.measure import recording as recording_module
+
+    scene = compile_scene(load_scenario(SCENES["simbenchmark_bouncing_7x7"]))
+    states = run_engine(scene, parse_engine_spec("mini"), 1).recording.trajectory
+    measured = []
+    for size in BATCH_SIZES:
+        monkeypatch.setattr(recording_module, "BATCH_OBSERVATIONS", size)
+        measured.append(recording_module.measure_trajectory(scene, states))
+    first, second = measured
+    assert len(first.impacts) > 49, f"only {len(first.impacts)} impacts"
+    assert first.impacts == second.impacts, next(
+        (a, b) for a, b in zip(first.impacts, second.impacts, strict=False) if a != b
+    )
+    assert first.penetration_max == second.penetration_max

@@ -38,6 +38,47 @@ class Snapshot:
 
 
 @dataclass(frozen=True)
+class Trajectory:
+    """Observed states of one run (s states, n scene bodies, scenario order).
+
+    Attributes:
+        t: (s,) s. pos: (s, n, 3) m, world, centres of mass. quat: (s, n, 4) w x y z.
+        vel: (s, n, 3) m/s, world. ang_vel: (s, n, 3) rad/s, world.
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    vel: np.ndarray
+    ang_vel: np.ndarray
+
+    @staticmethod
+    def stack(snapshots: list[Snapshot]) -> Trajectory:
+        return Trajectory(
+            t=np.array([s.time for s in snapshots]),
+            pos=np.stack([s.pos for s in snapshots]),
+            quat=np.stack([s.quat for s in snapshots]),
+            vel=np.stack([s.vel for s in snapshots]),
+            ang_vel=np.stack([s.ang_vel for s in snapshots]),
+        )
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def take(self, index) -> Trajectory:
+        """The states at ``index`` (an int array or a slice)."""
+        return Trajectory(
+            *(a[index] for a in (self.t, self.pos, self.quat, self.vel, self.ang_vel))
+        )
+
+    @staticmethod
+    def concat(*parts: Trajectory) -> Trajectory:
+        """One trajectory of consecutive parts."""
+        fields = ("t", "pos", "quat", "vel", "ang_vel")
+        return Trajectory(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields))
+
+
+@dataclass(frozen=True)
 class ModelReport:
     """What an engine built, read back from the engine itself after loading (parity gate).
 
@@ -81,6 +122,10 @@ class EngineAdapter(Protocol):
 
     def advance(self, steps: int) -> None:
         """Advance ``steps`` fixed steps."""
+
+    # Optional: ``advance_observed(steps) -> Trajectory``, the state after each of ``steps``
+    # steps, for engines whose per-step observation costs more than their step (MuJoCo,
+    # PyBullet). Without it the recording calls ``advance(1)`` and ``observe()`` per step.
 
     def observe(self) -> Snapshot:
         """The current state, in the scene's conventions."""

@@ -118,7 +118,10 @@ class _Touching:
 
     Attributes:
         observation: (r,) int. key: (r,) int pair code ``a * N + b``. point, normal: (r, 3).
-        depth: (r,) m. rank: (r,) int, the pair's first contact in detection order (ties).
+        depth: (r,) m.
+
+    Orders that decide ties (events closing at one state, the deepest pair of a state) go by
+    pair code, never by detection order, so they do not depend on how states are batched.
     """
 
     observation: np.ndarray
@@ -126,19 +129,16 @@ class _Touching:
     point: np.ndarray
     normal: np.ndarray
     depth: np.ndarray
-    rank: np.ndarray
 
 
 def _touching(contacts: ObservedContacts, bodies: int) -> _Touching:
-    """Reduce a batch's contacts to the deepest point of each (state, pair) (first on ties)."""
+    """Reduce a batch's contacts to the deepest point of each (state, pair); on equal depths
+    the pair's first point (the narrow phase's order within one pair)."""
     key = contacts.body_a * bodies + contacts.body_b
-    rank = np.arange(key.size)
-    order = np.lexsort((rank, -contacts.depth, key, contacts.observation))
+    order = np.lexsort((np.arange(key.size), -contacts.depth, key, contacts.observation))
     obs, key_sorted = contacts.observation[order], key[order]
     first = np.ones(order.size, dtype=bool)
     first[1:] = (obs[1:] != obs[:-1]) | (key_sorted[1:] != key_sorted[:-1])
-    starts = np.flatnonzero(first)
-    ranks = np.minimum.reduceat(rank[order], starts) if starts.size else starts
     pick = order[first]
     return _Touching(
         contacts.observation[pick],
@@ -146,7 +146,6 @@ def _touching(contacts: ObservedContacts, bodies: int) -> _Touching:
         contacts.point[pick],
         contacts.normal[pick],
         contacts.depth[pick],
-        ranks,
     )
 
 
@@ -197,7 +196,7 @@ class ImpactDetector:
                 *(getattr(touching, f)[keep] for f in _Touching.__dataclass_fields__)
             )
         offset = 0 if self.context is None else len(self.context)
-        ext = states if self.context is None else _concat(self.context, states)
+        ext = states if self.context is None else Trajectory.concat(self.context, states)
         codes_all = np.concatenate(
             [
                 self.context_touching - self.bodies**2,
@@ -212,10 +211,7 @@ class ImpactDetector:
 
         new = ~touching_at(touching.observation - 1, touching.key)
         new &= (touching.observation + offset) >= 1  # a state before the touch was observed
-        candidates = np.flatnonzero(new)
-        candidates = candidates[
-            np.lexsort((touching.rank[candidates], touching.observation[candidates]))
-        ]
+        candidates = np.flatnonzero(new)  # in (state, pair) order: the order impacts open
         opens: list[tuple[int, _OpenImpact]] = []
         for row in candidates:
             impact = self._open(ext, offset, touching, int(row))
@@ -348,16 +344,6 @@ def _member(values: np.ndarray, sorted_codes: np.ndarray) -> np.ndarray:
     return sorted_codes[index] == values
 
 
-def _concat(*parts: Trajectory) -> Trajectory:
-    """One trajectory of consecutive parts."""
-    return Trajectory(
-        *(
-            np.concatenate([getattr(p, f) for p in parts])
-            for f in ("t", "pos", "quat", "vel", "ang_vel")
-        )
-    )
-
-
 @dataclass
 class Recording:
     """What one engine run produced."""
@@ -393,7 +379,7 @@ class _Measurer:
 
     def recording(self, stepping_seconds: float) -> Recording:
         """What was measured, as the run's ``Recording``."""
-        trajectory = _concat(*self.samples)
+        trajectory = Trajectory.concat(*self.samples)
         return Recording(
             trajectory=trajectory,
             impacts=self.detector.events,
@@ -437,11 +423,11 @@ class _Measurer:
 
 def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
     """(count,) deepest overlap m (>= 0) of each state and (count,) the smaller bounding radius
-    of that pair (inf where nothing touches); ties go to the pair detected first."""
+    of that pair (inf where nothing touches); ties go to the lower pair code."""
     deepest = np.zeros(count)
     radius = np.full(count, np.inf)
     if touching.key.size:
-        order = np.lexsort((touching.rank, -touching.depth, touching.observation))
+        order = np.lexsort((touching.key, -touching.depth, touching.observation))
         obs = touching.observation[order]
         first = np.ones(order.size, dtype=bool)
         first[1:] = obs[1:] != obs[:-1]
@@ -464,21 +450,32 @@ def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) 
     """
     measurer = _Measurer(scene, sample_every)
     steps_total = scene.scenario.steps
-    every_step = scene.can_touch
+    observed = getattr(adapter, "advance_observed", None) if scene.can_touch else None
+    advance = _batched if observed is not None else _stepwise
+    stepping = advance(adapter, measurer, steps_total, sample_every if not scene.can_touch else 1)
+    warnings = getattr(adapter, "instability_warnings", list)()
+    if measurer.failure is None and warnings:
+        measurer.failure = "engine_warning: " + "; ".join(warnings)
+    return measurer.recording(stepping)
+
+
+def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int, every: int) -> float:
+    """Advance ``every`` steps at a time (1 when every state is observed), observing after
+    each advance; measure a batch at a time; stop at the first failing state. Returns the
+    seconds spent in ``advance``."""
     batch, steps = [adapter.observe()], [0]
     stepping = 0.0
     done = 0
     running = True
     while done < steps_total and running:
-        chunk = 1 if every_step else min(sample_every - done % sample_every, steps_total - done)
+        chunk = min(every - done % every, steps_total - done)
         start = time.perf_counter()
         try:
             adapter.advance(chunk)
         except Exception:
             if measurer.measure(Trajectory.stack(batch), steps, steps_total):
                 raise  # the engine failed on states that all passed the checks
-            batch = []
-            break  # an earlier state had already failed: that is the finding
+            return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
         done += chunk
         snap = adapter.observe()
@@ -489,10 +486,30 @@ def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) 
             batch, steps = [], []
     if batch:
         measurer.measure(Trajectory.stack(batch), steps, steps_total)
-    warnings = getattr(adapter, "instability_warnings", list)()
-    if measurer.failure is None and warnings:
-        measurer.failure = "engine_warning: " + "; ".join(warnings)
-    return measurer.recording(stepping)
+    return stepping
+
+
+def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int, every: int) -> float:
+    """Every state observed by the adapter's own ``advance_observed``, a batch at a time.
+    Returns the seconds spent in it (stepping and the raw copies)."""
+    first = adapter.observe()
+    states = Trajectory(
+        np.array([first.time]),
+        *(a[None] for a in (first.pos, first.quat, first.vel, first.ang_vel)),
+    )
+    if not measurer.measure(states, [0], steps_total):
+        return 0.0
+    stepping = 0.0
+    done = 0
+    while done < steps_total:
+        chunk = min(BATCH_OBSERVATIONS, steps_total - done)
+        start = time.perf_counter()
+        states = adapter.advance_observed(chunk)
+        stepping += time.perf_counter() - start
+        if not measurer.measure(states, np.arange(done + 1, done + chunk + 1), steps_total):
+            break
+        done += chunk
+    return stepping
 
 
 def measure_trajectory(scene: CompiledScene, states: Trajectory) -> Recording:

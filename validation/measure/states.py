@@ -1,4 +1,5 @@
-"""Observed states of a run, as one structure of arrays (the same for every engine)."""
+"""What a run's observed states imply: the invariants over its samples (``Trajectory`` is
+the adapters' own record, ``validation.engines.base``)."""
 
 from __future__ import annotations
 
@@ -6,43 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from validation.engines.base import Snapshot
+from validation.engines.base import Trajectory
 from validation.scenario.compiled import CompiledScene
 
-
-@dataclass(frozen=True)
-class Trajectory:
-    """Observed states of one run (s states, n scene bodies, scenario order).
-
-    Attributes:
-        t: (s,) s. pos: (s, n, 3) m, world, centres of mass. quat: (s, n, 4) w x y z.
-        vel: (s, n, 3) m/s, world. ang_vel: (s, n, 3) rad/s, world.
-    """
-
-    t: np.ndarray
-    pos: np.ndarray
-    quat: np.ndarray
-    vel: np.ndarray
-    ang_vel: np.ndarray
-
-    @staticmethod
-    def stack(snapshots: list[Snapshot]) -> Trajectory:
-        return Trajectory(
-            t=np.array([s.time for s in snapshots]),
-            pos=np.stack([s.pos for s in snapshots]),
-            quat=np.stack([s.quat for s in snapshots]),
-            vel=np.stack([s.vel for s in snapshots]),
-            ang_vel=np.stack([s.ang_vel for s in snapshots]),
-        )
-
-    def __len__(self) -> int:
-        return int(self.t.size)
-
-    def take(self, index) -> Trajectory:
-        """The states at ``index`` (an int array or a slice)."""
-        return Trajectory(
-            *(a[index] for a in (self.t, self.pos, self.quat, self.vel, self.ang_vel))
-        )
+__all__ = ["Series", "Trajectory", "invariants"]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from mini_engine.rotation import quat_to_matrix
-from validation.engines.base import ModelReport, Provenance, Snapshot
+from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.mujoco.mjcf import (
     DEFAULT_SETTINGS,
     INERTIAL_ORIGIN_TOLERANCE,
@@ -174,24 +174,48 @@ class MujocoAdapter:
         with collected_warnings(self.messages):
             mujoco.mj_step(self.model, self.data, nstep=steps)
 
+    def advance_observed(self, steps: int) -> Trajectory:
+        """``steps`` single steps, the raw ``time, qpos, qvel`` copied after each (a few µs),
+        converted to the scene's conventions in one vectorized pass at the end."""
+        m, d = self.model, self.data
+        times = np.empty(steps)
+        qpos = np.empty((steps, m.nq))
+        qvel = np.empty((steps, m.nv))
+        with collected_warnings(self.messages):
+            for k in range(steps):
+                mujoco.mj_step(m, d)
+                times[k] = d.time
+                qpos[k] = d.qpos
+                qvel[k] = d.qvel
+        return self._states(times, qpos, qvel)
+
     def observe(self) -> Snapshot:
-        """COM position, quaternion w x y z, COM velocity and world ω of every scenario body,
-        read from qpos/qvel (kinematic arrays such as ``xpos`` lag one step after
-        ``mj_step``). Fixed bodies: their constant pose and zero velocity."""
+        """The current state (see ``_states``)."""
         d = self.data
-        pos, quat = (a.copy() for a in self.fixed_pose)
-        vel = np.zeros_like(pos)
-        ang_vel = np.zeros_like(pos)
+        states = self._states(np.array([d.time]), d.qpos[None], d.qvel[None])
+        return Snapshot(
+            float(d.time), *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel))
+        )
+
+    def _states(self, times: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> Trajectory:
+        """COM position, quaternion w x y z, COM velocity and world ω of every scenario body
+        for ``s`` raw states ``qpos (s, nq)``, ``qvel (s, nv)`` (kinematic arrays such as
+        ``xpos`` lag one step after ``mj_step``). Fixed bodies: their constant pose, at rest."""
+        samples, n = times.size, len(self.body_ids)
+        pos = np.repeat(self.fixed_pose[0][None], samples, axis=0)
+        quat = np.repeat(self.fixed_pose[1][None], samples, axis=0)
+        vel = np.zeros((samples, n, 3))
+        ang_vel = np.zeros((samples, n, 3))
         if self.moving.size:
-            index = self.qpos_adr[:, None] + np.arange(7)
-            qpos = d.qpos[index]
-            moving_quat = qpos[:, 3:] / np.linalg.norm(qpos[:, 3:], axis=1, keepdims=True)
-            qvel = d.qvel[self.dof_adr[:, None] + np.arange(6)]
-            pos[self.moving] = qpos[:, :3]
-            quat[self.moving] = moving_quat
-            vel[self.moving] = qvel[:, :3]
-            ang_vel[self.moving] = np.einsum("nij,nj->ni", quat_to_matrix(moving_quat), qvel[:, 3:])
-        return Snapshot(float(d.time), pos, quat, vel, ang_vel)
+            body_q = qpos[:, self.qpos_adr[:, None] + np.arange(7)]
+            moving_quat = body_q[..., 3:] / np.linalg.norm(body_q[..., 3:], axis=2, keepdims=True)
+            body_v = qvel[:, self.dof_adr[:, None] + np.arange(6)]
+            rot = quat_to_matrix(moving_quat.reshape(-1, 4)).reshape(samples, -1, 3, 3)
+            pos[:, self.moving] = body_q[..., :3]
+            quat[:, self.moving] = moving_quat
+            vel[:, self.moving] = body_v[..., :3]
+            ang_vel[:, self.moving] = np.einsum("snij,snj->sni", rot, body_v[..., 3:])
+        return Trajectory(times.astype(float), pos, quat, vel, ang_vel)
 
     def provenance(self) -> Provenance:
         """MuJoCo's version, every ``m.opt`` field, the profile and the contact calibration."""

@@ -36,7 +36,7 @@ import pybullet
 from mini_engine.forces import spring_forces
 from mini_engine.model import State
 from mini_engine.rotation import quat_multiply, quat_to_matrix
-from validation.engines.base import ModelReport, Provenance, Snapshot
+from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
 from validation.engines.reference import dynamic_bodies
 from validation.scenario import BodySpec, Scenario
@@ -195,8 +195,8 @@ def to_xyzw(quat: np.ndarray) -> list[float]:
 
 
 def from_xyzw(quat) -> np.ndarray:
-    """PyBullet's x y z w -> w x y z."""
-    return np.array([quat[3], quat[0], quat[1], quat[2]], dtype=float)
+    """PyBullet's x y z w -> w x y z (one quaternion (4,) or many (..., 4))."""
+    return np.asarray(quat, dtype=float)[..., [3, 0, 1, 2]]
 
 
 def conjugate(quat: np.ndarray) -> np.ndarray:
@@ -426,18 +426,11 @@ class PybulletAdapter:
 
     def _read_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """COM pos (n, 3), PyBullet inertial-frame quat (n, 4) w x y z, vel, world ω."""
-        n = len(self.ids)
-        pos, quat = np.zeros((n, 3)), np.zeros((n, 4))
-        vel, ang_vel = np.zeros((n, 3)), np.zeros((n, 3))
-        for i, body in enumerate(self.ids):
-            position, orientation = pybullet.getBasePositionAndOrientation(
-                body, physicsClientId=self.client
-            )
-            linear, angular = pybullet.getBaseVelocity(body, physicsClientId=self.client)
-            pos[i], quat[i], vel[i], ang_vel[i] = position, from_xyzw(orientation), linear, angular
+        raw = np.array(self._raw_state()).reshape(-1, 13)
+        vel, ang_vel = raw[:, 7:10].copy(), raw[:, 10:13].copy()
         vel[self.fixed] = 0.0
         ang_vel[self.fixed] = 0.0
-        return pos, quat, vel, ang_vel
+        return raw[:, 0:3].copy(), from_xyzw(raw[:, 3:7]), vel, ang_vel
 
     def _apply_spring_forces(self) -> None:
         """mini_engine's law (``forces.spring_forces``) on the state PyBullet holds: each body
@@ -469,10 +462,13 @@ class PybulletAdapter:
                 physicsClientId=self.client,
             )
 
-    def _body_quat(self, inertial_quat: np.ndarray) -> np.ndarray:
-        """Scene body-frame orientations (n, 4) w x y z: q_body = q_pybullet ⊗ q_P⁻¹."""
-        quat = quat_multiply(inertial_quat, conjugate(self.principal))
-        return np.where(self.fixed[:, None], self.scene_quat, quat)
+    def _body_quat(self, inertial_quat: np.ndarray, copies: int = 1) -> np.ndarray:
+        """Scene body-frame orientations w x y z of ``copies`` states of the n bodies
+        (``inertial_quat (copies * n, 4)``): q_body = q_pybullet ⊗ q_P⁻¹."""
+        principal = np.tile(self.principal, (copies, 1))
+        quat = quat_multiply(inertial_quat, conjugate(principal))
+        fixed = np.tile(self.fixed, copies)
+        return np.where(fixed[:, None], np.tile(self.scene_quat, (copies, 1)), quat)
 
     # -- the protocol ----------------------------------------------------------------------
 
@@ -514,24 +510,65 @@ class PybulletAdapter:
         may have changed it since this one loaded, and Bullet reads it whenever a new
         contact manifold is created.
         """
+        self._reset_threshold()
+        for _ in range(steps):
+            self._step()
+
+    def advance_observed(self, steps: int) -> Trajectory:
+        """``steps`` steps, PyBullet's raw base states read after each, converted to the
+        scene's conventions in one vectorized pass at the end."""
+        self._reset_threshold()
+        raw = np.empty((steps, len(self.ids), 13))
+        for k in range(steps):
+            self._step()
+            raw[k] = self._raw_state()
+        times = (self.steps_taken - steps + 1 + np.arange(steps)) * self.scenario.dt
+        return self._states(times, raw)
+
+    def _reset_threshold(self) -> None:
         pybullet.setPhysicsEngineParameter(
             contactBreakingThreshold=self.profile.contact_breaking_threshold,
             physicsClientId=self.client,
         )
-        has_springs = self.scene.model.n_springs > 0
-        for _ in range(steps):
-            if has_springs:
-                self._apply_spring_forces()
-            pybullet.stepSimulation(physicsClientId=self.client)
-        self.steps_taken += steps
+
+    def _step(self) -> None:
+        if self.scene.model.n_springs:
+            self._apply_spring_forces()
+        pybullet.stepSimulation(physicsClientId=self.client)
+        self.steps_taken += 1
+
+    def _raw_state(self) -> list[list[float]]:
+        """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω."""
+        rows = []
+        for body in self.ids:
+            position, orientation = pybullet.getBasePositionAndOrientation(
+                body, physicsClientId=self.client
+            )
+            linear, angular = pybullet.getBaseVelocity(body, physicsClientId=self.client)
+            rows.append([*position, *orientation, *linear, *angular])
+        return rows
+
+    def _states(self, times: np.ndarray, raw: np.ndarray) -> Trajectory:
+        """World COM positions, body-frame quaternions w x y z, COM velocities, world ω of
+        ``s`` raw states ``raw (s, n, 13)``; fixed bodies keep the scene's pose, at rest."""
+        samples, n = raw.shape[:2]
+        pos = raw[..., 0:3].copy()
+        inertial = from_xyzw(raw[..., 3:7].reshape(-1, 4))
+        quat = self._body_quat(inertial.reshape(samples * n, 4), samples).reshape(samples, n, 4)
+        vel, ang_vel = raw[..., 7:10].copy(), raw[..., 10:13].copy()
+        pos[:, self.fixed] = np.array([b.position for b in self.scenario.bodies])[self.fixed]
+        vel[:, self.fixed] = 0.0
+        ang_vel[:, self.fixed] = 0.0
+        return Trajectory(times, pos, quat, vel, ang_vel)
 
     def observe(self) -> Snapshot:
         """World COM positions, body-frame quaternions w x y z, COM velocities, world ω."""
-        pos, quat, vel, ang_vel = self._read_state()
-        for i in np.flatnonzero(self.fixed):
-            pos[i] = self.scenario.bodies[i].position
+        states = self._states(
+            np.array([self.steps_taken * self.scenario.dt]), np.array([self._raw_state()])
+        )
         return Snapshot(
-            self.steps_taken * self.scenario.dt, pos, self._body_quat(quat), vel, ang_vel
+            float(states.t[0]),
+            *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel)),
         )
 
     def _engine_parameters(self) -> dict[str, object]:
