@@ -443,16 +443,18 @@ def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
 def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) -> Recording:
     """Run the loaded ``adapter`` for the scene's duration; sample every ``sample_every`` steps.
 
-    Scenes that can touch are observed every step (for the impact detector); the others
-    only at the samples, so a contact-free scene pays for nothing it does not need. Every
-    observation goes through the stability taxonomy, a batch at a time; the first failing
-    state ends the run (``Recording.unstable`` names its kind).
+    Scenes that can touch are observed every step (for the impact detector). The others are
+    observed only at the samples, unless the adapter observes a batch of steps at the cost
+    of a copy (``advance_observed``: MuJoCo, PyBullet), which is cheaper than observing
+    the samples one by one. Every observation goes through the stability taxonomy, a batch
+    at a time; the first failing state ends the run (``Recording.unstable`` names its kind).
     """
     measurer = _Measurer(scene, sample_every)
     steps_total = scene.scenario.steps
-    observed = getattr(adapter, "advance_observed", None) if scene.can_touch else None
-    advance = _batched if observed is not None else _stepwise
-    stepping = advance(adapter, measurer, steps_total, sample_every if not scene.can_touch else 1)
+    if hasattr(adapter, "advance_observed"):  # every state observed at the cost of a copy
+        stepping = _batched(adapter, measurer, steps_total)
+    else:  # scenes that can touch: every state; the others: only the samples
+        stepping = _stepwise(adapter, measurer, steps_total, 1 if scene.can_touch else sample_every)
     warnings = getattr(adapter, "instability_warnings", list)()
     if measurer.failure is None and warnings:
         measurer.failure = "engine_warning: " + "; ".join(warnings)
@@ -489,7 +491,7 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int, eve
     return stepping
 
 
-def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int, every: int) -> float:
+def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> float:
     """Every state observed by the adapter's own ``advance_observed``, a batch at a time.
     Returns the seconds spent in it (stepping and the raw copies)."""
     first = adapter.observe()
