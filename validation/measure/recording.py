@@ -167,25 +167,6 @@ class ImpactDetector:
         self.context_touching: np.ndarray = np.zeros(0, dtype=np.int64)
         self.closed: list[tuple[float, int, ImpactEvent]] = []
 
-    # -- kinematics on the batch extended by the context states --
-
-    def _normal_velocity(self, ext: Trajectory, obs: np.ndarray, key, normal, arm_a, arm_b):
-        """(v_PB - v_PA)·n at states ``obs`` with arms and normal frozen at first contact (for
-        spinning spheres the arms stay on the line of centres: ω × r adds nothing)."""
-        a, b = key
-
-        def point_velocity(body: int, arm) -> np.ndarray:
-            if body >= self.scene.count:  # the ground
-                return np.zeros((obs.size, 3))
-            return ext.vel[obs, body] + np.cross(ext.ang_vel[obs, body], arm)
-
-        return (point_velocity(b, arm_b) - point_velocity(a, arm_a)) @ normal
-
-    def _position(self, ext: Trajectory, obs: int, body: int) -> np.ndarray:
-        if body >= self.scene.count:
-            return np.asarray(self.scene.initial.pos[body])
-        return ext.pos[obs, body]
-
     def update(self, states: Trajectory, touching: _Touching, last: int | None = None) -> None:
         """Feed a batch of consecutive observed states (every step while the scene can touch)
         and its touching pairs; only states up to ``last`` (inclusive) count when given."""
@@ -211,20 +192,16 @@ class ImpactDetector:
 
         new = ~touching_at(touching.observation - 1, touching.key)
         new &= (touching.observation + offset) >= 1  # a state before the touch was observed
-        candidates = np.flatnonzero(new)  # in (state, pair) order: the order impacts open
-        opens: list[tuple[int, _OpenImpact]] = []
-        for row in candidates:
-            impact = self._open(ext, offset, touching, int(row))
-            if impact is not None:
-                opens.append((int(touching.observation[row]), impact))
+        kinematics = self._with_ground(ext)
+        opens = self._approaching(kinematics, offset, touching, np.flatnonzero(new))
         count = len(states)
         for impact in list(self.open.values()):
-            self._follow(ext, offset, impact, 0, count, touching_at)
+            self._follow(kinematics, offset, impact, 0, count, touching_at)
         for obs, impact in opens:
             if impact.key in self.open:
                 continue  # still in contact from an impact that has not closed: no new touch
             self.open[impact.key] = impact
-            self._follow(ext, offset, impact, obs, count, touching_at)
+            self._follow(kinematics, offset, impact, obs, count, touching_at)
         self.closed.sort(key=lambda item: (item[0], item[1]))
         self.events += [event for _, _, event in self.closed]
         self.closed = []
@@ -232,39 +209,71 @@ class ImpactDetector:
         last_keys = touching.key[touching.observation == count - 1]
         self.context_touching = np.unique(last_keys)
 
-    def _open(
-        self, ext: Trajectory, offset: int, touching: _Touching, row: int
-    ) -> _OpenImpact | None:
-        """An impact opened by the new touch ``row``, if the pair approaches fast enough."""
-        obs = int(touching.observation[row]) + offset
-        key = divmod(int(touching.key[row]), self.bodies)
-        point, normal = touching.point[row], touching.normal[row]
-        arm_a = point - self._position(ext, obs, key[0])
-        arm_b = point - self._position(ext, obs, key[1])
-        before = float(
-            self._normal_velocity(ext, np.array([obs - 1]), key, normal, arm_a, arm_b)[0]
-        )
-        if before >= -IMPACT_MIN_SPEED:
-            return None
-        if obs >= 2 and ext.t[obs - 1] > ext.t[obs - 2]:
-            earlier = float(
-                self._normal_velocity(ext, np.array([obs - 2]), key, normal, arm_a, arm_b)[0]
+    def _approaching(
+        self, ext: Trajectory, offset: int, touching: _Touching, rows: np.ndarray
+    ) -> list[tuple[int, _OpenImpact]]:
+        """The impacts the new touches ``rows`` open: those approaching faster than
+        ``IMPACT_MIN_SPEED`` at the state before (all rows judged at once), in (state, pair)
+        order, each with the batch state it opens at."""
+        obs = touching.observation[rows] + offset
+        a, b = np.divmod(touching.key[rows], self.bodies)
+        point, normal = touching.point[rows], touching.normal[rows]
+        arm_a, arm_b = point - ext.pos[obs, a], point - ext.pos[obs, b]
+        before = self._relative_normal_velocity(ext, obs - 1, a, b, normal, arm_a, arm_b)
+        approaching = np.flatnonzero(before < -IMPACT_MIN_SPEED)
+        earlier = np.maximum(obs - 2, 0)
+        gap = ext.t[obs - 1] - ext.t[earlier]
+        measured = (obs >= 2) & (gap > 0)
+        previous = self._relative_normal_velocity(ext, earlier, a, b, normal, arm_a, arm_b)
+        gravity = np.einsum("ci,ci->c", self.body_gravity[b] - self.body_gravity[a], normal)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # without two earlier observations: free fall of both bodies, (g_B - g_A)·n
+            accel = np.where(measured, (before - previous) / np.where(measured, gap, 1.0), gravity)
+        opens = []
+        for k in approaching:
+            self.opened += 1
+            impact = _OpenImpact(
+                (int(a[k]), int(b[k])),
+                self.opened,
+                float(ext.t[obs[k]]),
+                normal[k],
+                arm_a[k],
+                arm_b[k],
+                [float(ext.t[obs[k] - 1])],
+                [float(before[k])],
+                float(accel[k]),
             )
-            accel = (before - earlier) / float(ext.t[obs - 1] - ext.t[obs - 2])
-        else:  # without two earlier observations: free fall of both bodies, (g_B - g_A)·n
-            accel = float((self.body_gravity[key[1]] - self.body_gravity[key[0]]) @ normal)
-        self.opened += 1
-        return _OpenImpact(
-            key,
-            self.opened,
-            float(ext.t[obs]),
-            normal,
-            arm_a,
-            arm_b,
-            [float(ext.t[obs - 1])],
-            [before],
-            accel,
+            opens.append((int(obs[k]) - offset, impact))
+        return opens
+
+    def _with_ground(self, states: Trajectory) -> Trajectory:
+        """``states`` with the ground appended as a body (its pose, at rest), so model body
+        indices index every array."""
+        extra = self.bodies - self.scene.count
+        samples = len(states)
+
+        def padded(values: np.ndarray, rest: np.ndarray) -> np.ndarray:
+            ground = np.broadcast_to(rest, (samples, *rest.shape))
+            return np.concatenate([values, ground], axis=1)
+
+        rest = self.scene.initial
+        at_rest = np.zeros((extra, 3))
+        return Trajectory(
+            states.t,
+            padded(states.pos, rest.pos[self.scene.count :]),
+            padded(states.quat, rest.quat[self.scene.count :]),
+            padded(states.vel, at_rest),
+            padded(states.ang_vel, at_rest),
         )
+
+    def _relative_normal_velocity(self, ext, obs, a, b, normal, arm_a, arm_b) -> np.ndarray:
+        """(c,) m/s, ``(v_PB - v_PA)·n`` of contact ``c`` at state ``obs[c]`` (the ground at
+        rest), arms and normal frozen at first contact: every observation of one impact is
+        measured along the impulse's own direction (for spinning spheres the arms stay on the
+        line of centres: ω × r adds nothing)."""
+        v_a = ext.vel[obs, a] + np.cross(ext.ang_vel[obs, a], arm_a)
+        v_b = ext.vel[obs, b] + np.cross(ext.ang_vel[obs, b], arm_b)
+        return np.einsum("ci,ci->c", v_b - v_a, normal)
 
     def _follow(
         self, ext, offset, impact: _OpenImpact, first: int, count: int, touching_at
@@ -275,9 +284,11 @@ class ImpactDetector:
             return
         obs = np.arange(first, count)
         code = impact.key[0] * self.bodies + impact.key[1]
-        speeds = self._normal_velocity(
-            ext, obs + offset, impact.key, impact.normal, impact.arm_a, impact.arm_b
+        a, b = (np.full(obs.size, body) for body in impact.key)
+        frozen = (
+            np.broadcast_to(v, (obs.size, 3)) for v in (impact.normal, impact.arm_a, impact.arm_b)
         )
+        speeds = self._relative_normal_velocity(ext, obs + offset, a, b, *frozen)
         separated = ~touching_at(obs, code)
         history = np.concatenate([impact.speeds, speeds])
         slow = np.abs(history) <= IMPACT_MIN_SPEED
