@@ -14,14 +14,17 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from validation.contract import EXIT_OK
+from validation.contract import EXIT_INTERRUPTED, EXIT_OK
 from validation.jobs.check import check_main
-from validation.jobs.executor import default_jobs
+from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.run import run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
 from validation.report.render import report_command
 from validation.scenario import json_schema
+
+INTERRUPTED_MESSAGE = "interrupted: every worker stopped; nothing was written or replaced"
+"""The one line a Ctrl-C prints (results are published only after every job has finished)."""
 
 BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 """The library shipped with the project (the repository's scenarios/ folder)."""
@@ -188,7 +191,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(argv)
     args.argv = argv
-    return COMMANDS[args.command][0](args)
+    try:
+        return COMMANDS[args.command][0](args)
+    except (Interrupted, KeyboardInterrupt):
+        print(INTERRUPTED_MESSAGE, file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

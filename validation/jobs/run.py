@@ -26,7 +26,6 @@ from validation.contract import (
     BAD_STATUSES,
     EXIT_BAD_INPUT,
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     EXIT_OK,
     IMPACTS_COLUMNS,
     IMPACTS_FILE,
@@ -34,7 +33,7 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_FILE,
 )
-from validation.jobs.executor import Interrupted, run_jobs
+from validation.jobs.executor import run_jobs
 from validation.jobs.plan import BadInputError, Plan, plan_run
 from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
@@ -218,13 +217,7 @@ def run_main(
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    try:
-        rows, series, impacts, runs = execute(plan, jobs)
-    except Interrupted:
-        print(
-            "interrupted: every worker stopped; the previous report is unchanged", file=sys.stderr
-        )
-        return EXIT_INTERRUPTED
+    rows, series, impacts, runs = execute(plan, jobs)  # Ctrl-C: Interrupted, nothing published
     destination = out or Path("reports") / "latest"
     destination.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{destination.name}-staging-", dir=destination.parent))
