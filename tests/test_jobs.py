@@ -71,28 +71,30 @@ def test_ctrl_c_in_serial_mode_raises_interrupted():
         run_jobs(_interrupt, [1, 2], 1)
 
 
+PREVIOUS_REPORT = "scenario,engine,metric\nprevious,run,kept\n"
+"""A previous run's record at ``--out``: an interrupted run must leave it as it was."""
+
+INTERRUPT_AFTER_S = 8.0
+"""s: planning the library takes about a second; by then the workers are running jobs."""
+
+
 def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
-    """A real SIGINT to a parallel run: exit 130, one line, no traceback, nothing published."""
+    """Ctrl-C (SIGINT to the whole process group: the run, its fork server and its workers)
+    on a parallel run: exit 130, one line, no traceback, the previous report untouched."""
     out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.csv").write_text(PREVIOUS_REPORT)
+    command = [sys.executable, "-m", "validation.cli", "run", str(BUNDLED_SCENARIOS)]
     process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "validation.cli",
-            "run",
-            str(BUNDLED_SCENARIOS),
-            "--jobs",
-            "2",
-            "--out",
-            str(out),
-        ],
+        [*command, "--jobs", "2", "--out", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         cwd=tmp_path,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
     )
-    time.sleep(8.0)  # planning done, workers busy
-    process.send_signal(signal.SIGINT)
+    time.sleep(INTERRUPT_AFTER_S)
+    os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C does: every process of the group
     try:
         _, stderr = process.communicate(timeout=60)
     except subprocess.TimeoutExpired:
@@ -102,4 +104,7 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     assert process.returncode == 130, (process.returncode, stderr[-2000:])
     assert "Traceback" not in stderr, stderr[-2000:]
     assert len(lines) == 1 and "interrupted" in lines[0], lines
-    assert not out.exists(), os.listdir(tmp_path)
+    assert (out / "results.csv").read_text() == PREVIOUS_REPORT
+    assert sorted(p.name for p in out.iterdir()) == ["results.csv"]
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name != "out"]
+    assert leftovers == [], leftovers
