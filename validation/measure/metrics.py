@@ -18,6 +18,7 @@ import numpy as np
 from mini_engine.rotation import quat_to_matrix
 from validation.measure.recording import Recording
 from validation.scenario.compiled import CompiledScene
+from validation.scenario.physics import symmetry_frame
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
@@ -187,11 +188,24 @@ def _nearest_sample(ctx: Context, time: float) -> int:
 
 
 def _vector_expectation(ctx, expectation, field: str, sample: int) -> Measurement:
+    """``value`` |measured|, ``expected`` |target|, ``error`` the distance between the two
+    vectors (the message gives both in full)."""
     body = _body_index(ctx, expectation.body)
     got = getattr(ctx.trajectory, field)[sample, body]
-    error = float(np.linalg.norm(got - np.asarray(expectation.value)))
-    note = f"{field} at t = {ctx.trajectory.t[sample]:.6g} s: {np.round(got, 6).tolist()}"
-    return Measurement(expectation.metric, error, 0.0, "analytic", error, note)
+    target = np.asarray(expectation.value, dtype=float)
+    error = float(np.linalg.norm(got - target))
+    note = (
+        f"{field} at t = {ctx.trajectory.t[sample]:.6g} s: {np.round(got, 6).tolist()}"
+        f" (expected {np.round(target, 6).tolist()})"
+    )
+    return Measurement(
+        expectation.metric,
+        float(np.linalg.norm(got)),
+        float(np.linalg.norm(target)),
+        "analytic",
+        error,
+        note,
+    )
 
 
 def _position_at(ctx, expectation) -> Measurement:
@@ -228,14 +242,15 @@ def _bounce_heights(ctx, expectation) -> Measurement:
     if len(apexes) < len(expectation.value):
         message = f"{len(apexes)} apexes seen, {len(expectation.value)} expected"
         return Measurement(expectation.metric, float("inf"), 0.0, "analytic", float("inf"), message)
-    error = float(np.max(np.abs(np.array(apexes) - np.array(expectation.value))))
+    misses = np.abs(np.array(apexes) - np.array(expectation.value))
+    worst = int(np.argmax(misses))
     return Measurement(
         expectation.metric,
-        error,
-        0.0,
+        apexes[worst],
+        float(expectation.value[worst]),
         "analytic",
-        error,
-        f"apexes {np.round(apexes, 5).tolist()} m",
+        float(misses[worst]),
+        f"apexes {np.round(apexes, 5).tolist()} m (worst: apex {worst + 1})",
     )
 
 
@@ -245,12 +260,20 @@ def _body_frame_omega(ctx, body: int) -> np.ndarray:
 
 
 def _precession_rate(ctx, expectation) -> Measurement:
-    omega = _body_frame_omega(ctx, _body_index(ctx, expectation.body))
-    angle = np.unwrap(np.arctan2(omega[:, 1], omega[:, 0]))
+    """The rate at which ω turns about the body's symmetry axis, seen in the body frame."""
+    body = _body_index(ctx, expectation.body)
+    axis, first, second = symmetry_frame(ctx.scene.inertia[body])  # checked at load time
+    axis_name = "xyz"[axis] if axis is not None else "symmetry"
+    omega = _body_frame_omega(ctx, body)
+    angle = np.unwrap(np.arctan2(omega @ second, omega @ first))
     rate = float(np.polyfit(ctx.trajectory.t, angle, 1)[0])
-    error = abs(rate - expectation.value)
     return Measurement(
-        expectation.metric, error, expectation.value, "analytic", error, f"rate {rate:.6g} rad/s"
+        expectation.metric,
+        rate,
+        float(expectation.value),
+        "analytic",
+        abs(rate - expectation.value),
+        f"rate {rate:.6g} rad/s about the body's {axis_name} axis",
     )
 
 
@@ -258,9 +281,13 @@ def _flips(ctx, expectation) -> Measurement:
     omega = _body_frame_omega(ctx, _body_index(ctx, expectation.body))
     component = omega[:, "xyz".index(expectation.axis)]
     flips = int(np.sum(np.diff(np.sign(component[component != 0.0])) != 0))
-    error = float(abs(flips - expectation.value))
     return Measurement(
-        expectation.metric, error, float(expectation.value), "analytic", error, f"{flips} flips"
+        expectation.metric,
+        float(flips),
+        float(expectation.value),
+        "analytic",
+        float(abs(flips - expectation.value)),
+        f"{flips} flips",
     )
 
 

@@ -1,114 +1,170 @@
-"""Whole-document rules: checks that need the whole scenario, run after the schema."""
+"""Whole-document rules: checks that need the whole scenario, run after the schema.
+
+Each rule is one function in ``RULES``: it reads the validated ``Scenario`` and yields
+``(location, message)`` for every problem, the location being the field path it is reported
+at (``("bodies", 2, "name")``). ``document_problems`` runs them all and places each problem
+at its line and column.
+"""
 
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable, Iterator
 
-from validation.scenario.engine_spec import (
-    EngineSpecError,
-    parse_engine_spec,
-)
+from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
+from validation.scenario.physics import body_inertia, symmetry_frame
 from validation.scenario.problems import Problem, path_text
-from validation.scenario.schema import (
-    MAX_STEPS,
-    METRIC_NAMES,
-    Scenario,
-)
+from validation.scenario.schema import MAX_STEPS, METRIC_NAMES, Scenario
 from validation.scenario.yaml_source import SourceMap
 
+Location = tuple[str | int, ...]
+Found = Iterator[tuple[Location, str]]
 
-def _cross_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
-    """Checks that need the whole document; each reported at its own field."""
-    problems: list[tuple[tuple[str | int, ...], str]] = []
-    names: dict[str, int] = {}
+RESERVED_NAMES = ("world", "ground")
+"""Names that mean the world frame (springs) and the ground plane (pairs): no body may take them."""
+
+
+def _hint(name: str, choices: list[str]) -> str:
+    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.5)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def unique_body_names(scenario: Scenario) -> Found:
+    """Body names are unique and not reserved."""
+    first: dict[str, int] = {}
     for i, body in enumerate(scenario.bodies):
-        if body.name in names:
-            problems.append(
-                (
-                    ("bodies", i, "name"),
-                    f"duplicate body name {body.name!r} (also bodies[{names[body.name]}])",
-                )
+        if body.name in first:
+            yield (
+                ("bodies", i, "name"),
+                f"duplicate body name {body.name!r} (also bodies[{first[body.name]}])",
             )
-        names.setdefault(body.name, i)
-        if body.name in ("world", "ground"):
-            problems.append(
-                (("bodies", i, "name"), f"{body.name!r} is reserved; choose another name")
-            )
+        first.setdefault(body.name, i)
+        if body.name in RESERVED_NAMES:
+            yield ("bodies", i, "name"), f"{body.name!r} is reserved; choose another name"
 
-    def known(name: str, loc: tuple[str | int, ...], extra: tuple[str, ...]) -> None:
-        if name not in names and name not in extra:
-            close = difflib.get_close_matches(name, [*names, *extra], n=1, cutoff=0.5)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            problems.append(
-                (
-                    loc,
-                    f"expected a body name{' or ' + ' or '.join(repr(e) for e in extra) if extra else ''}; got {name!r}{hint}",
-                )
-            )
 
+def _reference(scenario: Scenario, name: str, loc: Location, extra: tuple[str, ...]) -> Found:
+    names = [b.name for b in scenario.bodies]
+    if name not in names and name not in extra:
+        alternatives = f"{' or ' + ' or '.join(repr(e) for e in extra) if extra else ''}"
+        yield (
+            loc,
+            f"expected a body name{alternatives}; got {name!r}{_hint(name, [*names, *extra])}",
+        )
+
+
+def spring_ends(scenario: Scenario) -> Found:
+    """A spring joins two different bodies, or a body and the world."""
     for i, spring in enumerate(scenario.springs):
-        known(spring.a, ("springs", i, "a"), ())
-        known(spring.b, ("springs", i, "b"), ("world",))
+        yield from _reference(scenario, spring.a, ("springs", i, "a"), ())
+        yield from _reference(scenario, spring.b, ("springs", i, "b"), ("world",))
         if spring.a == spring.b:
-            problems.append((("springs", i, "b"), "a spring needs two different ends"))
+            yield ("springs", i, "b"), "a spring needs two different ends"
+
+
+def pair_bodies(scenario: Scenario) -> Found:
+    """A pair override names two bodies, or a body and the ground (when there is one)."""
+    ground = ("ground",) if scenario.ground else ()
     for i, pair in enumerate(scenario.pairs):
-        known(pair.a, ("pairs", i, "a"), ())
-        known(pair.b, ("pairs", i, "b"), ("ground",) if scenario.ground else ())
+        yield from _reference(scenario, pair.a, ("pairs", i, "a"), ())
+        yield from _reference(scenario, pair.b, ("pairs", i, "b"), ground)
+
+
+def expectations(scenario: Scenario) -> Found:
+    """Each expectation names a body, has a metric name of its own and a time within the run."""
     metrics = set(METRIC_NAMES)
     for i, expectation in enumerate(scenario.expect):
-        known(expectation.body, ("expect", i, "body"), ())
+        yield from _reference(scenario, expectation.body, ("expect", i, "body"), ())
         if expectation.metric in metrics:
-            problems.append(
-                (("expect", i, "name"), f"metric name {expectation.metric!r} is already taken")
-            )
+            yield ("expect", i, "name"), f"metric name {expectation.metric!r} is already taken"
         metrics.add(expectation.metric)
         if getattr(expectation, "time", 0.0) > scenario.duration:
-            problems.append(
-                (
-                    ("expect", i, "time"),
-                    f"expected a time within the run (<= {scenario.duration} s)",
-                )
+            yield (
+                ("expect", i, "time"),
+                f"expected a time within the run (<= {scenario.duration} s)",
             )
-    engine_labels: set[str] = set()
+
+
+def precession_needs_a_symmetry_axis(scenario: Scenario) -> Found:
+    """``precession_rate`` is defined about a symmetry axis: the body needs two equal moments."""
+    names = {b.name: b for b in scenario.bodies}
+    for i, expectation in enumerate(scenario.expect):
+        body = names.get(expectation.body)
+        if expectation.kind != "precession_rate" or body is None:
+            continue
+        if symmetry_frame(body_inertia(body)) is None:
+            yield (
+                ("expect", i, "body"),
+                f"precession_rate needs a body with two equal principal moments (a symmetry "
+                f"axis); {body.name!r} has three different ones",
+            )
+
+
+def engine_specs(scenario: Scenario) -> Found:
+    """Engine specs parse and are not listed twice."""
+    labels: set[str] = set()
     for i, text in enumerate(scenario.engines):
         try:
             label = parse_engine_spec(text).label
         except EngineSpecError as error:
-            problems.append((("engines", i), str(error)))
+            yield ("engines", i), str(error)
             continue
-        if label in engine_labels:
-            problems.append((("engines", i), f"engine {label!r} is listed twice"))
-        engine_labels.add(label)
+        if label in labels:
+            yield ("engines", i), f"engine {label!r} is listed twice"
+        labels.add(label)
+
+
+def check_names(scenario: Scenario) -> Found:
+    """A ``checks`` entry names a metric of this scene; a per-engine key names one of its engines."""
+    metrics = sorted({*METRIC_NAMES, *(e.metric for e in scenario.expect)})
+    labels = set()
+    for text in scenario.engines:
+        try:
+            labels.add(parse_engine_spec(text).label)
+        except EngineSpecError:
+            continue  # reported by engine_specs
     for metric, tolerance in scenario.checks.items():
         if metric not in metrics:
-            close = difflib.get_close_matches(metric, sorted(metrics), n=1, cutoff=0.5)
             hint = (
-                f"did you mean {close[0]!r}?"
-                if close
-                else f"expected one of {', '.join(sorted(metrics))}"
+                _hint(metric, metrics).removeprefix("; ") or f"expected one of {', '.join(metrics)}"
             )
-            problems.append((("checks", metric), f"unknown metric {metric!r}; {hint}"))
-        if isinstance(tolerance, dict):
-            for key in tolerance:
-                if key != "default" and key not in engine_labels:
-                    problems.append(
-                        (
-                            ("checks", metric, key),
-                            f"expected 'default' or an engine of this scene ({', '.join(sorted(engine_labels))}); got {key!r}",
-                        )
-                    )
+            yield ("checks", metric), f"unknown metric {metric!r}; {hint}"
+        for key in tolerance if isinstance(tolerance, dict) else ():
+            if key != "default" and key not in labels:
+                yield (
+                    ("checks", metric, key),
+                    f"expected 'default' or an engine of this scene ({', '.join(sorted(labels))}); got {key!r}",
+                )
+
+
+def step_count(scenario: Scenario) -> Found:
+    """At least one step, at most ``MAX_STEPS``."""
     if scenario.duration < scenario.dt:
-        problems.append(
-            (("duration",), f"expected duration >= dt ({scenario.dt} s); got {scenario.duration} s")
-        )
+        yield ("duration",), f"expected duration >= dt ({scenario.dt} s); got {scenario.duration} s"
     if scenario.duration / scenario.dt > MAX_STEPS:
-        problems.append(
-            (
-                ("duration",),
-                f"{scenario.duration / scenario.dt:.3g} steps (duration / dt); at most {MAX_STEPS} are allowed",
-            )
+        yield (
+            ("duration",),
+            f"{scenario.duration / scenario.dt:.3g} steps (duration / dt); at most {MAX_STEPS} are allowed",
         )
+
+
+RULES: tuple[Callable[[Scenario], Found], ...] = (
+    unique_body_names,
+    spring_ends,
+    pair_bodies,
+    expectations,
+    precession_needs_a_symmetry_axis,
+    engine_specs,
+    check_names,
+    step_count,
+)
+"""Every whole-document rule, in the order their problems are listed."""
+
+
+def document_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
+    """Every problem the rules find, each placed at its field's line and column."""
     return [
         Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)))
-        for loc, message in problems
+        for rule in RULES
+        for loc, message in rule(scenario)
     ]

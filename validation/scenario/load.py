@@ -9,7 +9,7 @@ from pydantic import (
     ValidationError,
 )
 
-from validation.scenario.checks import _cross_problems
+from validation.scenario.checks import document_problems
 from validation.scenario.physics import initial_overlaps
 from validation.scenario.problems import Problem, ScenarioError, _found, _schema_problem
 from validation.scenario.schema import (
@@ -36,7 +36,7 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     except ValidationError as error:
         problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
-    problems = _cross_problems(scenario, file, source)
+    problems = document_problems(scenario, file, source)
     return (None if problems else scenario), problems
 
 

@@ -41,6 +41,36 @@ def body_inertia(body: BodySpec) -> np.ndarray:
     return solid_inertia(SHAPE_BUILDERS[body.shape.type](body.shape), body.mass)
 
 
+AXISYMMETRY_TOLERANCE = 1e-9
+"""Relative. Two principal moments within this of each other are equal: a body of
+revolution's formulas give them bit-equal, so anything above round-off is a real asymmetry."""
+
+
+def symmetry_frame(inertia: np.ndarray) -> tuple[int | None, np.ndarray, np.ndarray] | None:
+    """The symmetry axis of a body with two equal principal moments, as a right-handed frame
+    ``(axis index, e1, e2)`` with ``e1 × e2`` along the axis (body frame): the axis index is
+    0, 1 or 2 when the axis is a body axis (then e1, e2 are the next two body axes, cyclic),
+    else None. A body whose moments all differ has no such axis: None. Three equal moments
+    (a sphere): every axis is one; the body's z axis is taken."""
+    moments, vectors = np.linalg.eigh(np.asarray(inertia, dtype=float))
+    scale = max(float(np.abs(moments).max()), 1e-300)
+    equal = np.abs(np.diff(moments)) <= AXISYMMETRY_TOLERANCE * scale
+    if equal.all():
+        return 2, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    if not equal.any():
+        return None
+    axis = vectors[:, 2] if equal[0] else vectors[:, 0]  # the moment that differs
+    axis = axis * np.sign(axis[np.argmax(np.abs(axis))])  # towards the nearest +body axis
+    aligned = np.flatnonzero(np.abs(axis) > 1.0 - AXISYMMETRY_TOLERANCE)
+    if aligned.size:
+        k = int(aligned[0])
+        basis = np.eye(3)
+        return k, basis[(k + 1) % 3], basis[(k + 2) % 3]
+    first = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
+    first /= np.linalg.norm(first)
+    return None, first, np.cross(axis, first)
+
+
 def pair_rule(quantity: str, value_a: float, value_b: float, stated: float | None = None) -> float:
     """The one pair rule: the value ``scenario.pairs`` states for the pair, else ``PAIR_RULES``
     applied to the two bodies' own values."""
