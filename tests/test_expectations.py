@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS
+from validation.jobs.run import run_job
 from validation.measure.comparator import compare_scene
-from validation.measure.runner import run_engine
 from validation.scenario import Scenario, ScenarioError, load_scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
@@ -57,10 +60,11 @@ def top(axis: int) -> Scenario:
 
 
 def measure_rows(scenario: Scenario, engine: str) -> dict[str, dict]:
-    """The result rows of one engine run of ``scenario``, by metric."""
+    """The result rows of one engine run of ``scenario`` as ``physval run`` makes them (with
+    its sampling of the trajectory), by metric."""
     scene = compile_scene(scenario)
-    rows = compare_scene(scene, [run_engine(scene, parse_engine_spec(engine))])
-    return {row["metric"]: row for row in rows}
+    run, measured = run_job((scene, parse_engine_spec(engine)))
+    return {row["metric"]: row for row in compare_scene(scene, [run], [measured])}
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2], ids=["x", "y", "z"])
@@ -91,3 +95,86 @@ def test_rows_carry_the_measured_value_the_target_and_their_difference():
     rate = measure_rows(top(2), "mujoco(integrator=RK4)")["precession_rate.top"]
     assert rate["expected"] == PRECESSION, rate
     assert abs(rate["error"] - abs(rate["value"] - rate["expected"])) < 1e-15, rate
+
+
+DROP_HEIGHT, RESTITUTION, RADIUS = 1.0, 0.5, 0.1
+"""m, -, m: a ball dropped onto the ground."""
+
+REBOUND = RESTITUTION * math.sqrt(2 * 9.81 * (DROP_HEIGHT - RADIUS))
+"""m/s, the rebound of the continuous-time impact (v = sqrt(2 g h), times e)."""
+
+
+def drop(duration: float) -> Scenario:
+    return Scenario.model_validate(
+        {
+            "name": "drop",
+            "dt": 1e-3,
+            "duration": duration,
+            "ground": {"restitution": RESTITUTION},
+            "engines": ["mini"],
+            "bodies": [
+                {
+                    "name": "ball",
+                    "shape": {"type": "sphere", "radius": RADIUS},
+                    "mass": 1.0,
+                    "position": [0, 0, DROP_HEIGHT],
+                    "restitution": RESTITUTION,
+                }
+            ],
+            "expect": [
+                {"kind": "velocity_after_impact", "body": "ball", "value": [0, 0, REBOUND]},
+                {"kind": "bounce_heights", "body": "ball", "value": [0.325]},
+                {"kind": "position_at", "body": "ball", "time": 0.3, "value": [0, 0, 0.5586]},
+            ],
+        }
+    )
+
+
+SHORT_RUN_S, LONG_RUN_S = 2.9, 6.0
+"""s: 2 900 steps are all kept as samples; 6 000 are more than ``MAX_SAMPLES``, so the long
+run's trajectory keeps every second state."""
+
+
+def test_expectations_do_not_depend_on_the_run_length():
+    """The first bounce of one drop, measured in a 2.9 s and a 6 s run: the same numbers
+    (issue-10 finding 4: the sampled long run read the rebound g·dt off)."""
+    short = measure_rows(drop(SHORT_RUN_S), "mini")
+    long = measure_rows(drop(LONG_RUN_S), "mini")
+    for metric in ("velocity_after_impact.ball", "bounce_heights.ball", "position_at.ball"):
+        assert short[metric]["value"] == long[metric]["value"], (
+            metric,
+            short[metric],
+            long[metric],
+        )
+        assert short[metric]["error"] == long[metric]["error"], (
+            metric,
+            short[metric],
+            long[metric],
+        )
+
+
+SOFT_CONTACT = "mujoco(restitution=soft)"
+"""MuJoCo's own soft contact: the impact lasts several steps (critically damped spring)."""
+
+FREE_FLIGHT_TOLERANCE = 1e-9
+"""m/s. After the contact has ended the ball is in free flight: its velocity at the first
+state apart, carried back to the impulse centroid with g, is the reading (round-off only)."""
+
+
+def test_velocity_after_a_soft_impact_is_read_once_the_contact_has_ended():
+    """Issue-10 finding 3: with a soft contact the impulse centroid falls mid-contact, where
+    the ball still moves down (-0.22 m/s); the reading must be the ball leaving, carried back."""
+    scenario = drop(1.0)
+    scene = compile_scene(scenario)
+    run, measured = run_job((scene, parse_engine_spec(SOFT_CONTACT)))
+    event = next(e for e in run.recording.impacts if "ball" in (e.body_a, e.body_b))
+    assert event.time_end - event.time_start > 3 * scenario.dt, "the contact should last steps"
+    rows = {m.metric: m for m in measured}
+    trajectory = run.recording.trajectory
+    apart = int(np.flatnonzero(trajectory.t >= event.time_end - 1e-12)[0])
+    leaving = trajectory.vel[apart, 0, 2] + 9.81 * (event.time_end - event.time_impulse)
+    row = rows["velocity_after_impact.ball"]
+    assert leaving > 0.0, f"the ball leaves at {leaving} m/s"
+    assert abs(row.value - leaving) <= FREE_FLIGHT_TOLERANCE, (row.value, leaving, row.message)
+    # the error is the distance to the target straight up: |leaving - e v|, not leaving + e v
+    assert abs(row.error - abs(REBOUND - leaving)) <= FREE_FLIGHT_TOLERANCE, (row, leaving)

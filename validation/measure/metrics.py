@@ -11,34 +11,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
-from mini_engine.rotation import quat_to_matrix
+from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
 from validation.scenario.compiled import CompiledScene
-from validation.scenario.physics import symmetry_frame
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
 zero, and its drift is reported as an absolute difference instead of a relative one."""
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """A metric's value and what it was compared against.
-
-    ``error`` is the number a tolerance applies to; ``expected_kind`` is ``analytic``,
-    ``conserved`` or ``engine:<spec>``.
-    """
-
-    metric: str
-    value: float
-    expected: float | None
-    expected_kind: str
-    error: float
-    message: str = ""
 
 
 class Context:
@@ -176,132 +158,6 @@ def divergence(ctx: Context, reference: Context, reference_label: str) -> Measur
     return Measurement("divergence", value, 0.0, f"engine:{reference_label}", value)
 
 
-# --- the scene's own expectations ---------------------------------------------------------
-
-
-def _body_index(ctx: Context, name: str) -> int:
-    return next(i for i, b in enumerate(ctx.scenario.bodies) if b.name == name)
-
-
-def _nearest_sample(ctx: Context, time: float) -> int:
-    return int(np.argmin(np.abs(ctx.trajectory.t - time)))
-
-
-def _vector_expectation(ctx, expectation, field: str, sample: int) -> Measurement:
-    """``value`` |measured|, ``expected`` |target|, ``error`` the distance between the two
-    vectors (the message gives both in full)."""
-    body = _body_index(ctx, expectation.body)
-    got = getattr(ctx.trajectory, field)[sample, body]
-    target = np.asarray(expectation.value, dtype=float)
-    error = float(np.linalg.norm(got - target))
-    note = (
-        f"{field} at t = {ctx.trajectory.t[sample]:.6g} s: {np.round(got, 6).tolist()}"
-        f" (expected {np.round(target, 6).tolist()})"
-    )
-    return Measurement(
-        expectation.metric,
-        float(np.linalg.norm(got)),
-        float(np.linalg.norm(target)),
-        "analytic",
-        error,
-        note,
-    )
-
-
-def _position_at(ctx, expectation) -> Measurement:
-    return _vector_expectation(ctx, expectation, "pos", _nearest_sample(ctx, expectation.time))
-
-
-def _velocity_at(ctx, expectation) -> Measurement:
-    return _vector_expectation(ctx, expectation, "vel", _nearest_sample(ctx, expectation.time))
-
-
-def _velocity_after_impact(ctx, expectation) -> Measurement | None:
-    mine = [i for i in ctx.recording.impacts if expectation.body in (i.body_a, i.body_b)]
-    if not mine:
-        return Measurement(
-            expectation.metric, float("inf"), 0.0, "analytic", float("inf"), "no impact"
-        )
-    # the first sample at the end of the impulse, before gravity acts any further
-    sample = int(np.searchsorted(ctx.trajectory.t, mine[0].time_impulse - 1e-12))
-    sample = min(sample, ctx.trajectory.t.size - 1)
-    return _vector_expectation(ctx, expectation, "vel", sample)
-
-
-def _bounce_heights(ctx, expectation) -> Measurement:
-    body = _body_index(ctx, expectation.body)
-    z, vz = ctx.trajectory.pos[:, body, 2], ctx.trajectory.vel[:, body, 2]
-    impacts = [
-        i.time_end for i in ctx.recording.impacts if expectation.body in (i.body_a, i.body_b)
-    ]
-    apexes = []
-    for start in impacts[: len(expectation.value)]:
-        after = np.flatnonzero((ctx.trajectory.t >= start) & (vz <= 0.0))
-        if after.size:
-            apexes.append(float(z[max(after[0] - 1, 0) : after[0] + 1].max()))
-    if len(apexes) < len(expectation.value):
-        message = f"{len(apexes)} apexes seen, {len(expectation.value)} expected"
-        return Measurement(expectation.metric, float("inf"), 0.0, "analytic", float("inf"), message)
-    misses = np.abs(np.array(apexes) - np.array(expectation.value))
-    worst = int(np.argmax(misses))
-    return Measurement(
-        expectation.metric,
-        apexes[worst],
-        float(expectation.value[worst]),
-        "analytic",
-        float(misses[worst]),
-        f"apexes {np.round(apexes, 5).tolist()} m (worst: apex {worst + 1})",
-    )
-
-
-def _body_frame_omega(ctx, body: int) -> np.ndarray:
-    rot = quat_to_matrix(ctx.trajectory.quat[:, body])
-    return np.einsum("sji,sj->si", rot, ctx.trajectory.ang_vel[:, body])
-
-
-def _precession_rate(ctx, expectation) -> Measurement:
-    """The rate at which ω turns about the body's symmetry axis, seen in the body frame."""
-    body = _body_index(ctx, expectation.body)
-    axis, first, second = symmetry_frame(ctx.scene.inertia[body])  # checked at load time
-    axis_name = "xyz"[axis] if axis is not None else "symmetry"
-    omega = _body_frame_omega(ctx, body)
-    angle = np.unwrap(np.arctan2(omega @ second, omega @ first))
-    rate = float(np.polyfit(ctx.trajectory.t, angle, 1)[0])
-    return Measurement(
-        expectation.metric,
-        rate,
-        float(expectation.value),
-        "analytic",
-        abs(rate - expectation.value),
-        f"rate {rate:.6g} rad/s about the body's {axis_name} axis",
-    )
-
-
-def _flips(ctx, expectation) -> Measurement:
-    omega = _body_frame_omega(ctx, _body_index(ctx, expectation.body))
-    component = omega[:, "xyz".index(expectation.axis)]
-    flips = int(np.sum(np.diff(np.sign(component[component != 0.0])) != 0))
-    return Measurement(
-        expectation.metric,
-        float(flips),
-        float(expectation.value),
-        "analytic",
-        float(abs(flips - expectation.value)),
-        f"{flips} flips",
-    )
-
-
-EXPECTATIONS: dict[str, Callable] = {
-    "position_at": _position_at,
-    "velocity_at": _velocity_at,
-    "velocity_after_impact": _velocity_after_impact,
-    "bounce_heights": _bounce_heights,
-    "precession_rate": _precession_rate,
-    "flips": _flips,
-}
-"""Expectation kind -> its metric function (named ``<kind>.<body>`` or by its ``name``)."""
-
-
 def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measurement | None:
     """A metric's result, or a NaN measurement carrying the exception: one broken metric
     (on an exploded trajectory, say) must not take the other rows down with it."""
@@ -321,7 +177,5 @@ def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measuremen
 def measure(ctx: Context) -> list[Measurement]:
     """Every metric the scene can define for this recording (divergence excluded)."""
     found = [_guarded(name, lambda metric=metric: metric(ctx)) for name, metric in METRICS.items()]
-    found += [
-        _guarded(e.metric, lambda e=e: EXPECTATIONS[e.kind](ctx, e)) for e in ctx.scenario.expect
-    ]
+    found += ctx.recording.expectations  # evaluated online while recording (``expectations``)
     return [result for result in found if result is not None]

@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from validation.engines.base import EngineAdapter, Snapshot
+from validation.measure.expectations import trackers
+from validation.measure.measurement import Measurement
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
 from validation.scenario.compiled import CompiledScene, ObservedContacts
@@ -365,6 +367,8 @@ class Recording:
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     series: Series
     """Energy and momenta at the trajectory's samples (computed once, for metrics and plots)."""
+    expectations: list[Measurement] = field(default_factory=list)
+    """The scene's expectations, evaluated online over every observed state (``expectations``)."""
     penetration_max: float | None = None
     """m, the deepest overlap over every observed state (None when nothing can touch)."""
     unstable: str | None = None
@@ -387,6 +391,7 @@ class _Measurer:
     def __post_init__(self) -> None:
         self.checks = StabilityChecks(self.scene)
         self.detector = ImpactDetector(self.scene)
+        self.trackers = trackers(self.scene)
 
     def recording(self, stepping_seconds: float) -> Recording:
         """What was measured, as the run's ``Recording``."""
@@ -396,6 +401,7 @@ class _Measurer:
             impacts=self.detector.events,
             stepping_seconds=stepping_seconds,
             series=invariants(self.scene, trajectory),
+            expectations=[tracker.result() for tracker in self.trackers],
             penetration_max=self.penetration if self.scene.can_touch else None,
             unstable=self.failure,
         )
@@ -414,13 +420,17 @@ class _Measurer:
             deepest, radius = _deepest_per_state(self.scene, touching, len(states))
         found = self.checks.first_failure(states, deepest, radius)
         last = len(states) - 1 if found is None else found[0]
-        if touching is not None:
-            counted = last if found is None or found[1].startswith("deep_penetration") else last - 1
-            if counted >= 0:
-                self.detector.update(states, touching, counted)
-                self.penetration = max(
-                    self.penetration, float(deepest[: counted + 1].max(initial=0.0))
-                )
+        # the states that count: up to the failing one (included when only the overlap failed:
+        # its pose was measured before the check)
+        counted = last if found is None or found[1].startswith("deep_penetration") else last - 1
+        closed = len(self.detector.events)
+        if touching is not None and counted >= 0:
+            self.detector.update(states, touching, counted)
+            self.penetration = max(self.penetration, float(deepest[: counted + 1].max(initial=0.0)))
+        new_events = self.detector.events[closed:]
+        judged = states.take(slice(0, counted + 1))
+        for tracker in self.trackers:
+            tracker.update(judged, new_events)
         keep = (step_index % self.sample_every == 0) | (step_index == final)
         if found is not None:
             self.failure = found[1]
@@ -464,8 +474,9 @@ def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) 
     steps_total = scene.scenario.steps
     if hasattr(adapter, "advance_observed"):  # every state observed at the cost of a copy
         stepping = _batched(adapter, measurer, steps_total)
-    else:  # scenes that can touch: every state; the others: only the samples
-        stepping = _stepwise(adapter, measurer, steps_total, 1 if scene.can_touch else sample_every)
+    else:  # scenes that can touch or expect something: every state; the others: the samples
+        every = 1 if scene.can_touch or scene.scenario.expect else sample_every
+        stepping = _stepwise(adapter, measurer, steps_total, every)
     warnings = getattr(adapter, "instability_warnings", list)()
     if measurer.failure is None and warnings:
         measurer.failure = "engine_warning: " + "; ".join(warnings)
