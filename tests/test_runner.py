@@ -82,5 +82,7 @@ def test_an_exploding_engine_becomes_an_unstable_row_and_stops_early():
         100,
     )
     assert run.status == "unstable", run.status
-    assert run.message.startswith(("energy_blow_up", "non_finite")), run.message
-    assert run.recording.trajectory.t[-1] < 10.0, "the run must stop at the explosion"
+    # every state is checked: the speed passes 100x the scene's scale (1.1e3 m/s) first,
+    # about 7 steps in, before the energy passes a million times its scale
+    assert run.message.startswith("speed_limit"), run.message
+    assert run.recording.trajectory.t[-1] < 0.1, "the run must stop at the explosion"

@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from validation.cli import BUNDLED_SCENARIOS
 from validation.jobs.stability_search import BISECTION_RATIO, largest_stable_dt, stability_limit
 from validation.measure.runner import run_engine
 from validation.measure.stability import KINDS, StabilityChecks
 from validation.measure.states import Trajectory
-from validation.scenario import Scenario
+from validation.scenario import Scenario, load_scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 
@@ -195,3 +196,39 @@ def test_a_model_mismatch_is_reported_as_not_run(monkeypatch):
     limit = stability_limit(oscillator(duration=0.1), parse_engine_spec("mujoco"))
     assert limit.stable_dt is None and limit.unstable_dt is None, limit
     assert "was not run" in limit.sentence() and "model_mismatch" in limit.reason
+
+
+SYMPLECTIC_LIMIT = 2.0 / 1000.0
+"""s: semi-implicit Euler on ω = 1000 rad/s is stable for ω·dt < 2 (its amplification matrix
+has unit eigenvalues up to there)."""
+
+RK4_LIMIT = 2.0 * np.sqrt(2.0) / 1000.0
+"""s: RK4's stability interval on the imaginary axis ends at ω·dt = 2√2 (|R(iωdt)| = 1)."""
+
+SYMPLECTIC_BAND, RK4_BAND = 0.01, 0.02
+"""Relative: how close the bisection must come to each limit (issue 10, finding 9)."""
+
+LIBRARY_OSCILLATOR = BUNDLED_SCENARIOS / "stiff" / "stiff_spring_oscillator.yaml"
+DURATIONS = (0.2, 2.0)
+"""s: the bundled oscillator's own duration, and ten times it (the limit must not move)."""
+
+
+@pytest.mark.parametrize("duration", DURATIONS)
+@pytest.mark.parametrize(
+    ("engine", "limit", "band"),
+    [("mini", SYMPLECTIC_LIMIT, SYMPLECTIC_BAND), ("mujoco(integrator=RK4)", RK4_LIMIT, RK4_BAND)],
+    ids=["symplectic_euler", "rk4"],
+)
+def test_the_stability_limit_does_not_depend_on_the_horizon(engine, limit, band, duration):
+    """Growth of the energy error's envelope, not only a blow-up within the run: RK4 was
+    reported stable up to 2.93e-3 s on the 0.2 s scene (3.5 % above its limit)."""
+    scenario = load_scenario(LIBRARY_OSCILLATOR)
+    scenario = Scenario.model_validate(
+        {**scenario.model_dump(), "duration": duration, "source": scenario.source}
+    )
+    found = stability_limit(scenario, parse_engine_spec(engine))
+    assert found.stable_dt is not None and found.unstable_dt is not None, found.sentence()
+    assert found.stable_dt <= limit * (1 + band) and found.unstable_dt >= limit * (1 - band), (
+        found.sentence(),
+        limit,
+    )

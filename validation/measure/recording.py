@@ -387,6 +387,8 @@ class _Measurer:
     samples: list[Trajectory] = field(default_factory=list)
     penetration: float = 0.0
     failure: str | None = None
+    last_time: float = 0.0
+    """s, the last state that counted."""
 
     def __post_init__(self) -> None:
         self.checks = StabilityChecks(self.scene)
@@ -419,6 +421,9 @@ class _Measurer:
             touching = _touching(contacts, self.scene.model.n_bodies)
             deepest, radius = _deepest_per_state(self.scene, touching, len(states))
         found = self.checks.first_failure(states, deepest, radius)
+        if found is None:  # geometric growth, judged on the windows finished so far
+            growth = self.checks.growth_failure(float(states.t[-1]))
+            found = None if growth is None else (len(states) - 1, growth)
         last = len(states) - 1 if found is None else found[0]
         # the states that count: up to the failing one (included when only the overlap failed:
         # its pose was measured before the check)
@@ -439,6 +444,8 @@ class _Measurer:
                 "non_finite"
             )  # a non-finite state is named, not kept
         self.samples.append(states.take(np.flatnonzero(keep)))
+        if counted >= 0:
+            self.last_time = float(states.t[counted])
         return found is None
 
 
@@ -462,46 +469,45 @@ def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
 
 
 def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) -> Recording:
-    """Run the loaded ``adapter`` for the scene's duration; sample every ``sample_every`` steps.
+    """Run the loaded ``adapter`` for the scene's duration; keep every ``sample_every``-th state.
 
-    Scenes that can touch are observed every step (for the impact detector). The others are
-    observed only at the samples, unless the adapter observes a batch of steps at the cost
-    of a copy (``advance_observed``: MuJoCo, PyBullet), which is cheaper than observing
-    the samples one by one. Every observation goes through the stability taxonomy, a batch
-    at a time; the first failing state ends the run (``Recording.unstable`` names its kind).
+    Every state is observed and measured (impacts, stability, expectations, full time
+    resolution); only the kept samples make the trajectory (series and plots). Adapters that
+    observe a batch of steps at the cost of a copy (``advance_observed``: MuJoCo, PyBullet)
+    do so; the others are observed after each step. The stability taxonomy judges a batch at
+    a time; the first failing state ends the run (``Recording.unstable`` names its kind).
     """
     measurer = _Measurer(scene, sample_every)
     steps_total = scene.scenario.steps
-    if hasattr(adapter, "advance_observed"):  # every state observed at the cost of a copy
+    if hasattr(adapter, "advance_observed"):
         stepping = _batched(adapter, measurer, steps_total)
-    else:  # scenes that can touch or expect something: every state; the others: the samples
-        every = 1 if scene.can_touch or scene.scenario.expect else sample_every
-        stepping = _stepwise(adapter, measurer, steps_total, every)
+    else:
+        stepping = _stepwise(adapter, measurer, steps_total)
+    if measurer.failure is None:  # the last windows of the energy error's envelope
+        measurer.failure = measurer.checks.growth_failure(measurer.last_time, complete=True)
     warnings = getattr(adapter, "instability_warnings", list)()
     if measurer.failure is None and warnings:
         measurer.failure = "engine_warning: " + "; ".join(warnings)
     return measurer.recording(stepping)
 
 
-def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int, every: int) -> float:
-    """Advance ``every`` steps at a time (1 when every state is observed), observing after
-    each advance; measure a batch at a time; stop at the first failing state. Returns the
-    seconds spent in ``advance``."""
+def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> float:
+    """Advance one step at a time, observing after each; measure a batch at a time; stop at
+    the first failing state. Returns the seconds spent in ``advance``."""
     batch, steps = [adapter.observe()], [0]
     stepping = 0.0
     done = 0
     running = True
     while done < steps_total and running:
-        chunk = min(every - done % every, steps_total - done)
         start = time.perf_counter()
         try:
-            adapter.advance(chunk)
+            adapter.advance(1)
         except Exception:
             if measurer.measure(Trajectory.stack(batch), steps, steps_total):
                 raise  # the engine failed on states that all passed the checks
             return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
-        done += chunk
+        done += 1
         snap = adapter.observe()
         batch.append(snap)
         steps.append(done)
