@@ -98,7 +98,9 @@ def test_restitution_error_is_the_worst_impact_and_undefined_without_impacts():
     ]
     ctx = context(ground, np.zeros((3, 3)), np.zeros((3, 3)), impacts)
     result = METRICS["restitution_error"](ctx)
-    assert result.value == pytest.approx(0.05) and result.expected == 0.5
+    assert result.error == pytest.approx(0.05) and result.expected == 0.5
+    assert result.value == pytest.approx(0.45), "value is the worst impact's measured e"
+    assert result.band == 0.0, "events without an approach acceleration have no band"
     assert METRICS["restitution_error"](context(ground, np.zeros((3, 3)), np.zeros((3, 3)))) is None
 
 

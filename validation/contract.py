@@ -30,6 +30,7 @@ RESULTS_COLUMNS = (
     "engine_version",
     "settings",
     "message",
+    "band",
 )
 """results.csv, in order: ``validation.measure.comparator`` writes these columns, and CI jobs
 and ``validation.report`` read them by name."""
@@ -47,8 +48,11 @@ IMPACTS_COLUMNS = (
     "e_measured",
     "normal_velocity_before",
     "normal_velocity_after",
+    "delta_e",
+    "band",
 )
-"""impacts.csv: one row per impact event."""
+"""impacts.csv: one row per impact event; ``delta_e`` = e_measured - e_requested and its
+discretization ``band`` (``validation.measure.restitution``)."""
 
 STATUS_DESCRIPTIONS: dict[str, str] = {
     "ok": "the engine ran the whole scene and the row's check (if any) passed",

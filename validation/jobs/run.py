@@ -81,12 +81,16 @@ def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
             "body_a": event.body_a,
             "body_b": event.body_b,
             "time": event.time_start,
-            "e_requested": scene.pair_value(event.body_a, event.body_b, "restitution"),
+            "e_requested": requested,
             "e_measured": event.restitution,
             "normal_velocity_before": event.normal_velocity_before,
             "normal_velocity_after": event.normal_velocity_after,
+            "delta_e": event.restitution - requested,
+            "band": event.band(requested),
         }
-        for event in run.recording.impacts
+        for event, requested in (
+            (e, scene.pair_value(e.body_a, e.body_b, "restitution")) for e in run.recording.impacts
+        )
     ]
 
 

@@ -154,12 +154,18 @@ def _missing(value) -> bool:
         return True
 
 
+def _band(row: dict) -> float:
+    """The row's discretization band (0 when it has none)."""
+    band = row.get("band")
+    return 0.0 if _missing(band) else float(band)
+
+
 def _cell(group: list[dict]) -> tuple[str, float | None]:
     """The worst outcome of one (scene, engine)'s rows and its worst finite error/tolerance."""
     statuses = {row["status"] for row in group}
     checked = [row for row in group if not _missing(row["tolerance"])]
     ratios = [
-        float(row["error"]) / max(float(row["tolerance"]), TOLERANCE_FLOOR)
+        float(row["error"]) / max(float(row["tolerance"]) + _band(row), TOLERANCE_FLOOR)
         for row in checked
         if not _missing(row["error"])
     ]

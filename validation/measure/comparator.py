@@ -40,7 +40,7 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
     passed = (
         None
         if tolerance is None
-        else bool(math.isfinite(result.error) and result.error <= tolerance)
+        else bool(math.isfinite(result.error) and result.error <= tolerance + result.band)
     )
     if status == "ok" and passed is False:
         status = "failed"
@@ -52,6 +52,7 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
         "expected_kind": result.expected_kind,
         "error": result.error,
         "tolerance": tolerance,
+        "band": result.band,
         "passed": passed,
         "status": status,
         "message": result.message,
@@ -67,6 +68,7 @@ def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
         "expected_kind": "",
         "error": None,
         "tolerance": None,
+        "band": None,
         "passed": False,
         "status": run.status,
         "message": run.message,

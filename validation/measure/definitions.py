@@ -18,8 +18,10 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "trajectory; only for scenes where nothing can touch and no spring acts",
     "velocity_error": "max over t and bodies of the distance (m/s) from the analytic ballistic "
     "velocity; only for scenes where nothing can touch and no spring acts",
-    "restitution_error": "max over impacts of |e_measured - e_requested|, e_measured = "
-    "-(v_rel'·n)/(v_rel·n) from the impact events (velocities carried to the impulse centroid)",
+    "restitution_error": "|e_measured - e_requested| of the impact farthest beyond its band, "
+    "e_measured = -(v_rel'·n)/(v_rel·n) from the impact events (velocities carried to the "
+    "impulse centroid); passes when |Δe| <= tolerance + band, band = (1 + e)·|a·n|·dt/|v_before| "
+    "(engines take e before or after the step's forces: the two differ by exactly this)",
     "penetration_max": "the deepest overlap (m) of any two shapes over the sampled states",
     "divergence": "max over t of the centre-of-mass distance (m) between this engine and the "
     "reference engine of the scene (the first engine listed) on the same scene",

@@ -19,3 +19,6 @@ class Measurement:
     expected_kind: str
     error: float
     message: str = ""
+    band: float = 0.0
+    """Allowance the physics leaves at O(dt) (derived, never guessed): the row passes when
+    ``error <= tolerance + band`` (restitution: ``validation.measure.restitution``)."""

@@ -116,16 +116,29 @@ def requested_restitution(ctx: Context, body_a: str, body_b: str) -> float:
 
 
 def restitution_error(ctx: Context) -> Measurement | None:
+    """The impact with the largest |Δe| beyond its discretization band (``restitution``):
+    value its e_measured, expected its e, error |Δe|, band its band."""
     impacts = ctx.recording.impacts
     if not impacts:
         return None
-    errors = [abs(i.restitution - requested_restitution(ctx, i.body_a, i.body_b)) for i in impacts]
-    worst = int(np.argmax(errors))
+    requested = [requested_restitution(ctx, i.body_a, i.body_b) for i in impacts]
+    errors = [abs(i.restitution - e) for i, e in zip(impacts, requested, strict=True)]
+    bands = [i.band(e) for i, e in zip(impacts, requested, strict=True)]
+    worst = int(np.argmax(np.array(errors) - np.array(bands)))
     event = impacts[worst]
-    expected = requested_restitution(ctx, event.body_a, event.body_b)
-    note = f"worst of {len(impacts)} impacts: {event.body_a}-{event.body_b} at t = {event.time_start:.4g} s"
+    note = (
+        f"worst of {len(impacts)} impacts: {event.body_a}-{event.body_b} at t = "
+        f"{event.time_start:.4g} s, |Δe| {errors[worst]:.3g}, band {bands[worst]:.3g} at "
+        f"{abs(event.normal_velocity_before):.3g} m/s"
+    )
     return Measurement(
-        "restitution_error", errors[worst], expected, "analytic", errors[worst], note
+        "restitution_error",
+        event.restitution,
+        requested[worst],
+        "analytic",
+        errors[worst],
+        note,
+        bands[worst],
     )
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from validation.engines.base import EngineAdapter, Snapshot
 from validation.measure.expectations import trackers
 from validation.measure.measurement import Measurement
+from validation.measure.restitution import restitution_band
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
 from validation.scenario.compiled import CompiledScene, ObservedContacts
@@ -80,6 +81,8 @@ class ImpactEvent:
         normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
         normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
         time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
+        approach_acceleration: m/s², the relative normal acceleration before contact (what
+            acts besides the impulse: gravity, a support); step: s, between observations.
     """
 
     body_a: str
@@ -90,11 +93,20 @@ class ImpactEvent:
     normal: tuple[float, float, float]
     normal_velocity_before: float
     normal_velocity_after: float
+    approach_acceleration: float = 0.0
+    step: float = 0.0
 
     @property
     def restitution(self) -> float:
         """Measured e = -(v_rel'·n)/(v_rel·n) (formulas.md section 5)."""
         return -self.normal_velocity_after / self.normal_velocity_before
+
+    def band(self, requested: float) -> float:
+        """The discretization band of e_measured for a requested ``e`` (module docstring of
+        ``validation.measure.restitution``): ``(1 + e) |a·n| h / |v_before|``."""
+        return restitution_band(
+            requested, self.approach_acceleration, self.step, self.normal_velocity_before
+        )
 
 
 @dataclass
@@ -346,6 +358,8 @@ class ImpactDetector:
             normal=tuple(float(x) for x in impact.normal),
             normal_velocity_before=float(speeds[0] + accel * (centroid - times[0])),
             normal_velocity_after=after,
+            approach_acceleration=float(accel),
+            step=float(np.min(np.diff(times))),
         )
 
 

@@ -33,7 +33,7 @@ from validation.report.outcomes import (
     outcome_label,
     worst_first,
 )
-from validation.report.plots import engine_styles, plot_scene_series
+from validation.report.plots import engine_styles, plot_restitution, plot_scene_series
 from validation.report.read import RunData
 
 # --- page size limits --------------------------------------------------------------------------
@@ -189,6 +189,8 @@ def build_impacts(impacts: pd.DataFrame | None, scene: str) -> dict[str, Any]:
         return {"available": False, "rows": [], "total": 0, "hidden": 0, "worst": []}
     mine = impacts[impacts["scenario"] == scene].copy()
     mine["delta_e"] = (mine["e_measured"] - mine["e_requested"]).abs()
+    band = pd.to_numeric(mine["band"], errors="coerce") if "band" in mine else math.nan
+    mine["band"] = band
     mine = mine.sort_values(["engine", "time"], kind="stable")
     worst = [
         {"engine": engine, "count": len(group), "max_delta": format_number(group["delta_e"].max())}
@@ -203,6 +205,8 @@ def build_impacts(impacts: pd.DataFrame | None, scene: str) -> dict[str, Any]:
             "e_requested": format_number(row["e_requested"]),
             "e_measured": format_number(row["e_measured"]),
             "delta_e": format_number(row["delta_e"]),
+            "band": format_number(row["band"]),
+            "beyond": bool(row["delta_e"] > row["band"]) if row["band"] == row["band"] else False,
             "v_before": format_number(row["normal_velocity_before"]),
             "v_after": format_number(row["normal_velocity_after"]),
         }
@@ -300,11 +304,17 @@ def build_scene(
             plot_note = "no time series recorded for this scene"
         else:
             svg = Markup(plot_scene_series(scene, series, engines, colours))
+    restitution_svg = None
+    if run.impacts is not None:
+        mine = run.impacts[run.impacts["scenario"] == scene]
+        if not mine.empty:
+            restitution_svg = Markup(plot_restitution(scene, mine, engines, colours))
     return {
         "name": scene,
         "anchor": anchor,
         "runs": build_runs(rows, engines),
         "svg": svg,
+        "restitution_svg": restitution_svg,
         "plot_note": plot_note,
         "impacts": build_impacts(run.impacts, scene),
         "rows": build_rows(rows),

@@ -62,7 +62,8 @@ def row_outcome(status: str, passed: bool | None) -> str:
 
 
 def error_ratio(error: float, tolerance: float) -> float:
-    """|error| / tolerance (NaN when either is missing; a zero tolerance gives 0 or inf)."""
+    """|error| / allowance, the allowance being tolerance + band (NaN when either is missing;
+    a zero allowance gives 0 or inf)."""
     if not (math.isfinite(tolerance) and not math.isnan(error)):
         return math.nan
     if tolerance <= 0:
@@ -80,7 +81,8 @@ def classify_rows(results: pd.DataFrame, warnings: list[str]) -> pd.DataFrame:
         row_outcome(s, p) for s, p in zip(table["status"], table["passed"], strict=True)
     ]
     table["ratio"] = [
-        error_ratio(e, t) for e, t in zip(table["error"], table["tolerance"], strict=True)
+        error_ratio(e, t + (0.0 if math.isnan(b) else b))
+        for e, t, b in zip(table["error"], table["tolerance"], table["band"], strict=True)
     ]
     table["severity"] = [OUTCOME_ORDER.index(o) for o in table["outcome"]]
     return table

@@ -150,3 +150,58 @@ def plot_scene_series(
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": f"physval-{scene}"}):
         figure.savefig(buffer, format="svg", metadata={"Date": None})
     return svg_for_html(buffer.getvalue())
+
+
+RESTITUTION_FIGURE_IN = (6.0, 3.2)
+"""Size of the restitution-against-speed plot of a scene card."""
+
+
+def plot_restitution(
+    scene: str, impacts: pd.DataFrame, engines: list[str], colours: dict[str, tuple[str, str]]
+) -> str:
+    """e_measured against impact speed |v_n before| (log axis), one marker series per engine;
+    in grey each impact's requested e with its band (where the run wrote it): an inline
+    ``<svg>``. Markers, not lines: a scene's impacts may ask for several values of e."""
+    figure = Figure(figsize=RESTITUTION_FIGURE_IN)
+    axis = figure.subplots()
+    speed = impacts["normal_velocity_before"].abs().to_numpy(float)
+    band = (
+        pd.to_numeric(impacts["band"], errors="coerce").fillna(0.0).to_numpy(float)
+        if "band" in impacts
+        else np.zeros(speed.size)
+    )
+    axis.errorbar(
+        speed,
+        impacts["e_requested"].to_numpy(float),
+        yerr=band,
+        fmt="_",
+        color="#aaaaaa",
+        elinewidth=3,
+        markersize=8,
+        label="e requested ± band",
+    )
+    for engine in engines:
+        mine = impacts[impacts["engine"] == engine]
+        if mine.empty:
+            continue
+        colour, _ = colours[engine]
+        axis.plot(
+            mine["normal_velocity_before"].abs().to_numpy(float),
+            mine["e_measured"].to_numpy(float),
+            linestyle="none",
+            marker="o",
+            markersize=3.5,
+            color=colour,
+            label=engine,
+        )
+    axis.set_xscale("log")
+    axis.set_xlabel("impact speed |v_n| (m/s)", fontsize=PLOT_FONT_SIZE)
+    axis.set_ylabel("e measured", fontsize=PLOT_FONT_SIZE)
+    axis.tick_params(labelsize=PLOT_FONT_SIZE)
+    axis.grid(True, color="#e6e6e6", linewidth=0.6)
+    axis.legend(fontsize=PLOT_FONT_SIZE - 1, frameon=False, loc="best")
+    figure.subplots_adjust(left=0.13, right=0.98, bottom=0.16, top=0.96)
+    buffer = io.StringIO()
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": f"physval-e-{scene}"}):
+        figure.savefig(buffer, format="svg", metadata={"Date": None})
+    return svg_for_html(buffer.getvalue())

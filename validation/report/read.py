@@ -29,7 +29,22 @@ from validation.contract import (
     SERIES_FILE,
 )
 
-NUMERIC_RESULTS_COLUMNS = ("value", "expected", "error", "tolerance", "dt", "steps", "wall_time_s")
+NUMERIC_RESULTS_COLUMNS = (
+    "value",
+    "expected",
+    "error",
+    "tolerance",
+    "band",
+    "dt",
+    "steps",
+    "wall_time_s",
+)
+
+OPTIONAL_RESULTS_COLUMNS = ("band",)
+
+OPTIONAL_IMPACTS_COLUMNS = ("delta_e", "band")
+"""impacts.csv columns added after its first version (derived again when absent)."""
+"""Columns added to results.csv after its first version: empty when an older record lacks them."""
 """results.csv columns parsed as numbers; their raw text is kept in ``<column>_text``."""
 
 
@@ -65,6 +80,9 @@ def read_results(path: Path) -> pd.DataFrame:
     """results.csv with numeric columns parsed, ``passed`` as True/False/None, and the raw
     text of value/expected/error/tolerance kept in ``<column>_text`` for display."""
     table = _read_csv(path, dtype=str, keep_default_na=False)
+    for column in OPTIONAL_RESULTS_COLUMNS:  # record files written before the column existed
+        if column not in table.columns:
+            table[column] = ""
     missing = [c for c in RESULTS_COLUMNS if c not in table.columns]
     if missing:
         raise ReportInputError(f"{path.name}: missing columns {', '.join(missing)}")
@@ -125,7 +143,7 @@ def load_run(run_dir: Path) -> RunData:
     )
     run.impacts = _read_optional_table(
         run_dir / IMPACTS_FILE,
-        IMPACTS_COLUMNS,
+        tuple(c for c in IMPACTS_COLUMNS if c not in OPTIONAL_IMPACTS_COLUMNS),
         ("scenario", "engine", "body_a", "body_b"),
         run.warnings,
     )
