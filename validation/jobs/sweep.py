@@ -1,19 +1,28 @@
 """``physval sweep``: error against run time over a timestep sweep, for any scene and engine.
 
-For each scene, engine spec and dt the sweep records the scene's error against its
-best available reference, the wall time of stepping alone, steps per second, the
-real-time factor and the status (unstable points are kept, never dropped). References,
-in order of preference, named in every row's ``expected_kind``:
+For each scene, engine spec and dt the sweep records two errors that see the whole state
+(``SWEEP_METRICS``): ``position_error``, the largest distance over time and bodies of a
+centre of mass from the reference's, and ``orientation_error``, the largest rotation angle
+|log(R_refᵀ R)| between a body's orientation and the reference's; with the wall time of
+stepping alone, steps per second, the real-time factor, the status (unstable points are
+kept, never dropped) and the scene's own metrics at that dt (one column each). References,
+named in every row's ``expected_kind``:
 
-1. ``analytic``: the ballistic trajectory (``position_error``) where nothing touches and
-   no spring acts, else the scene's first analytic expectation;
-2. ``engine:mujoco(integrator=RK4)@<dt>``: for scenes without contact, MuJoCo's RK4 at a
-   tenth of the smallest swept step (4th order: far below the first-order errors swept);
+1. ``dop853``: for scenes where nothing can touch, the Newton–Euler equations integrated by
+   SciPy's DOP853 at rtol 1e-12 (``validation.measure.newton_euler``), independent of every
+   engine. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
+   ``reference_cross_check``);
+2. ``analytic:<expectation>``: scenes that can touch and state an expectation: its error
+   (the expectation constrains a position or a velocity, not an orientation);
 3. ``self:<spec>@<dt>``: the same engine at a quarter of the smallest swept step, as Erez,
    Tassa and Todorov do: the run is cut into ``SEGMENTS`` segments; each segment restarts
    both the swept step and the fine step from the fine run's state at its start, and the
-   error is the mean over segments of the largest centre-of-mass distance at the segment's
-   end, so chaotic divergence of two whole runs is not counted as error.
+   error is the mean over segments of the largest distance (angle) at the segment's end, so
+   chaotic divergence of two whole runs is not counted as error.
+
+A curve that is zero at every dt says the reference cannot see that motion (a body whose
+centre never moves, an orientation no analytic expectation constrains): its points carry
+the note ``IDENTICALLY_ZERO`` and the page prints it instead of a curve.
 
 Stepping time: a separate pass per point: load, ``WARMUP_STEPS``, then the median of
 ``REPEATS`` blocks of ``BLOCK_STEPS`` (recording and observation excluded).
@@ -36,6 +45,7 @@ from validation.files import write_table
 from validation.jobs.executor import run_jobs
 from validation.jobs.plan import BadInputError, plan_run
 from validation.measure.metrics import Context, measure
+from validation.measure.newton_euler import reference_motion, rotation_angle
 from validation.measure.runner import EngineRun, run_engine
 from validation.report.sweep_page import render_sweep
 from validation.scenario import MAX_STEPS, Scenario
@@ -57,6 +67,16 @@ REFINE_REFERENCE = 10.0
 SEGMENTS = 4
 
 HIGH_ACCURACY = "mujoco(integrator=RK4)"
+"""The cross-check of the DOP853 reference: MuJoCo's RK4 at a tenth of the smallest step."""
+
+SWEEP_METRICS = ("position_error", "orientation_error")
+"""The two errors of every sweep point (module docstring), defined once (and in the legend)."""
+
+SCENE_METRIC_PREFIX = "scene:"
+"""Columns of a sweep row holding the scene's own metrics at that dt (``scene:energy_drift``)."""
+
+IDENTICALLY_ZERO = "identically zero at every dt: the reference cannot see this motion"
+"""The note of a curve that measures nothing."""
 
 DEFAULT_ENGINES = (
     "mini, mini(gyroscopic=explicit), mini(gyroscopic=implicit), mini(integrator=explicit_euler), "
@@ -129,17 +149,52 @@ def _run(scenario: Scenario, spec: EngineSpec, sample_every: int) -> EngineRun:
 
 def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -> Reference:
     """The best reference this scene offers (module docstring)."""
-    if not _can_touch(scenario) and not scenario.springs:
-        return Reference("analytic:position_error")
+    if not _can_touch(scenario):
+        return Reference("dop853")
     if scenario.expect:
         return Reference(f"analytic:{scenario.expect[0].metric}")
-    if not _can_touch(scenario):
-        dt = max(smallest_dt / REFINE_REFERENCE, scenario.duration / MAX_STEPS)
-        fine = _run(scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt))
-        return Reference(f"engine:{HIGH_ACCURACY}@{dt!r}", fine, dt)
     dt = max(smallest_dt / REFINE_SELF, scenario.duration / MAX_STEPS)
     fine = _run(scene_at(scenario, dt), spec, _every(scenario, dt))
     return Reference(f"self:{spec.label}@{dt!r}", fine, dt)
+
+
+def cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
+    """The DOP853 reference against MuJoCo's RK4 at a tenth of the smallest step: the largest
+    position and orientation differences over the run (a row for each, ``of`` names it)."""
+    dt = max(smallest_dt / REFINE_REFERENCE, scenario.duration / MAX_STEPS)
+    row = {
+        "scenario": scenario.name,
+        "engine": HIGH_ACCURACY,
+        "dt": dt,
+        "metric": "reference_cross_check",
+        "expected_kind": "dop853",
+    }
+    run = _run(scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt))
+    if run.recording is None or run.status != "ok":
+        return [
+            {**row, "of": m, "status": run.status, "message": run.message} for m in SWEEP_METRICS
+        ]
+    errors = _against_motion(compile_scene(scenario), run.recording.trajectory)
+    return [
+        {
+            **row,
+            "of": m,
+            "value": errors[m],
+            "error": errors[m],
+            "status": "ok",
+            "message": "MuJoCo RK4 against the DOP853 reference",
+        }
+        for m in SWEEP_METRICS
+    ]
+
+
+def _against_motion(scene, trajectory) -> dict[str, float]:
+    """Both sweep errors of ``trajectory`` against the DOP853 motion at its own times."""
+    reference = reference_motion(scene, trajectory.t)
+    return {
+        "position_error": float(np.linalg.norm(trajectory.pos - reference.pos, axis=2).max()),
+        "orientation_error": float(rotation_angle(trajectory.quat, reference.quat).max()),
+    }
 
 
 def _every(scenario: Scenario, dt: float) -> int:
@@ -159,94 +214,109 @@ def restarted(scenario: Scenario, trajectory, sample: int, dt: float, duration: 
     return Scenario.model_validate(data)
 
 
-def _end_position(scenario: Scenario, spec: EngineSpec) -> np.ndarray | None:
+def _end_state(scenario: Scenario, spec: EngineSpec) -> tuple[np.ndarray, np.ndarray] | None:
     run = _run(scenario, spec, max(1, scenario.steps))
     if run.status != "ok" or run.recording is None:
         return None
-    return run.recording.trajectory.pos[-1]
+    return run.recording.trajectory.pos[-1], run.recording.trajectory.quat[-1]
 
 
-def _position_at(scenario: Scenario, spec: EngineSpec, time: float) -> np.ndarray | None:
-    """Body positions (n, 3) at ``time``, interpolated between the run's per-step samples."""
+def _state_at(scenario: Scenario, spec: EngineSpec, time: float):
+    """Positions (n, 3) at ``time`` interpolated between the run's per-step samples, and the
+    orientations (n, 4) of the sample nearest to it."""
     run = _run(scenario, spec, 1)
     if run.status != "ok" or run.recording is None:
         return None
     traj = run.recording.trajectory
-    return np.stack(
+    pos = np.stack(
         [
             [np.interp(time, traj.t, traj.pos[:, b, a]) for a in range(3)]
             for b in range(traj.pos.shape[1])
         ]
     )
+    return pos, traj.quat[int(np.argmin(np.abs(traj.t - time)))]
 
 
-def segment_error(scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference) -> float:
-    """Mean over segments of the end-of-segment COM distance between ``dt`` and the fine step,
-    both restarted from the fine run's state at the segment's start."""
+def segment_error(
+    scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference
+) -> dict[str, float]:
+    """Mean over segments of the end-of-segment distance and rotation angle between ``dt`` and
+    the fine step, both restarted from the fine run's state at the segment's start."""
     fine = reference.run.recording.trajectory
-    fine_dt = reference.dt
     length = scenario.duration / SEGMENTS
-    errors = []
+    positions, angles = [], []
     for k in range(SEGMENTS):
         sample = int(np.argmin(np.abs(fine.t - k * length)))
         coarse = restarted(scenario, fine, sample, dt, length)
-        coarse_end = _end_position(coarse, spec)
+        coarse_end = _end_state(coarse, spec)
         end_time = coarse.steps * coarse.dt  # compare both at exactly this time
-        fine_end = _position_at(
-            restarted(scenario, fine, sample, fine_dt, end_time + fine_dt), spec, end_time
+        fine_end = _state_at(
+            restarted(scenario, fine, sample, reference.dt, end_time + reference.dt),
+            spec,
+            end_time,
         )
         if coarse_end is None or fine_end is None:
-            return math.inf
-        errors.append(float(np.linalg.norm(coarse_end - fine_end, axis=1).max()))
-    return float(np.mean(errors))
+            return dict.fromkeys(SWEEP_METRICS, math.inf)
+        positions.append(float(np.linalg.norm(coarse_end[0] - fine_end[0], axis=1).max()))
+        angles.append(float(rotation_angle(coarse_end[1], fine_end[1]).max()))
+    return {
+        "position_error": float(np.mean(positions)),
+        "orientation_error": float(np.mean(angles)),
+    }
 
 
-def point_error(
+def point_errors(
     scenario: Scenario, spec: EngineSpec, run: EngineRun, reference: Reference
-) -> float:
-    """The error of one sweep point against ``reference`` (units of the reference's metric)."""
+) -> dict[str, float]:
+    """Both sweep errors of one point against ``reference`` (NaN where it cannot say)."""
+    if reference.kind == "dop853":
+        return _against_motion(compile_scene(scenario), run.recording.trajectory)
     if reference.kind.startswith("analytic:"):
         metric = reference.kind.split(":", 1)[1]
-        found = [
-            m
-            for m in measure(Context(compile_scene(scenario), run.recording))
-            if m.metric == metric
-        ]
-        return found[0].error if found else math.nan
+        found = [m for m in _scene_metrics(scenario, run) if m.metric == metric]
+        position = found[0].error if found else math.nan
+        return {"position_error": position, "orientation_error": math.nan}
     if reference.run is None or reference.run.status != "ok":
-        return math.nan  # an unstable or failed reference measures nothing (see its message)
-    if reference.kind.startswith("self:"):
-        return segment_error(scenario, spec, scenario.dt, reference)
-    mine, theirs = run.recording.trajectory, reference.run.recording.trajectory
-    error = 0.0
-    for body in range(mine.pos.shape[1]):  # the reference interpolated at this run's samples
-        theirs_at = np.stack(
-            [np.interp(mine.t, theirs.t, theirs.pos[:, body, a]) for a in range(3)], axis=1
-        )
-        error = max(error, float(np.linalg.norm(mine.pos[:, body] - theirs_at, axis=1).max()))
-    return error
+        return dict.fromkeys(SWEEP_METRICS, math.nan)  # an unstable reference measures nothing
+    return segment_error(scenario, spec, scenario.dt, reference)
 
 
-def sweep_point(scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference) -> dict:
-    """One row: the scene at ``dt`` in ``spec``."""
+def _scene_metrics(scenario: Scenario, run: EngineRun) -> list:
+    return measure(Context(compile_scene(scenario), run.recording))
+
+
+def sweep_point(
+    scenario: Scenario, spec: EngineSpec, dt: float, reference: Reference
+) -> list[dict]:
+    """The rows of the scene at ``dt`` in ``spec``: one per sweep metric, each with the
+    scene's own metrics at that dt as columns."""
     probe = scene_at(scenario, dt)
-    row = {
+    common = {
         "scenario": scenario.name,
         "engine": spec.label,
         "dt": dt,
         "steps": probe.steps,
-        "metric": "sweep_error",
         "expected_kind": reference.kind,
     }
     if probe.steps < 1 or probe.steps > MAX_STEPS:
-        return {**row, "status": "unsupported", "message": f"{probe.steps} steps is out of range"}
+        message = f"{probe.steps} steps is out of range"
+        return [
+            {**common, "metric": m, "status": "unsupported", "message": message}
+            for m in SWEEP_METRICS
+        ]
     run = _run(probe, spec, _every(probe, dt))
     seconds = stepping_seconds(probe, spec) if run.status == "ok" else math.nan
-    error = point_error(probe, spec, run, reference) if run.recording is not None else math.nan
-    return {
-        **row,
-        "value": error,
-        "error": error,
+    errors = (
+        point_errors(probe, spec, run, reference)
+        if run.recording is not None
+        else dict.fromkeys(SWEEP_METRICS, math.nan)
+    )
+    own = (
+        {f"{SCENE_METRIC_PREFIX}{m.metric}": m.value for m in _scene_metrics(probe, run)}
+        if run.recording is not None
+        else {}
+    )
+    timing = {
         "status": run.status,
         "wall_time_s": seconds,
         "steps_per_second": probe.steps / seconds if seconds > 0 else math.nan,
@@ -254,6 +324,10 @@ def sweep_point(scenario: Scenario, spec: EngineSpec, dt: float, reference: Refe
         "engine_version": run.provenance.version if run.provenance else "",
         "message": run.message,
     }
+    return [
+        {**common, "metric": m, "value": errors[m], "error": errors[m], **timing, **own}
+        for m in SWEEP_METRICS
+    ]
 
 
 def convergence_order(rows: list[dict]) -> float:
@@ -270,28 +344,48 @@ def convergence_order(rows: list[dict]) -> float:
 
 
 def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
-    """Every dt of one (scene, engine) pair, plus its fitted convergence order."""
+    """Every dt of one (scene, engine) pair, plus each sweep metric's fitted convergence
+    order (or the note that the curve is identically zero)."""
     scenario, spec, dts = job
     reference = choose_reference(scenario, spec, min(dts))
-    rows = [sweep_point(scenario, spec, dt, reference) for dt in dts]
-    order = convergence_order(rows)
-    rows.append(
-        {
-            "scenario": scenario.name,
-            "engine": spec.label,
-            "metric": "convergence_order",
-            "value": order,
-            "expected_kind": reference.kind,
-            "status": "ok" if np.isfinite(order) else "unsupported",
-        }
-    )
+    rows = [row for dt in dts for row in sweep_point(scenario, spec, dt, reference)]
+    for metric in SWEEP_METRICS:
+        mine = [r for r in rows if r["metric"] == metric]
+        measured = [
+            r for r in mine if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan))
+        ]
+        zero = bool(measured) and all(r["error"] == 0.0 for r in measured)
+        for r in mine if zero else ():
+            r["message"] = IDENTICALLY_ZERO
+        order = convergence_order(mine)
+        rows.append(
+            {
+                "scenario": scenario.name,
+                "engine": spec.label,
+                "metric": "convergence_order",
+                "of": metric,
+                "value": order,
+                "expected_kind": reference.kind,
+                "status": "ok" if np.isfinite(order) else "unsupported",
+                "message": IDENTICALLY_ZERO if zero else "",
+            }
+        )
     return rows
+
+
+def _sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict]:
+    """One (scene, engine) dt grid, or (engine None) the cross-check of a scene's reference."""
+    scenario, spec, dts = job
+    return cross_check(scenario, min(dts)) if spec is None else sweep_scene(job)
 
 
 def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int) -> list[dict]:
     """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
-    shipping to a worker); rows in job order."""
-    return [row for rows in run_jobs(sweep_scene, jobs, workers) for row in rows]
+    shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
+    job order."""
+    scenes = {id(scenario): (scenario, dts) for scenario, _, dts in jobs}
+    checks = [(s, None, dts) for s, dts in scenes.values() if not _can_touch(s)]
+    return [row for rows in run_jobs(_sweep_job, [*jobs, *checks], workers) for row in rows]
 
 
 def sweep_main(

@@ -28,7 +28,20 @@ FAILED_MARKER = {"marker": "x", "color": "#c0392b", "linestyle": "none", "marker
 """How a failed (unstable, error) point is drawn: a red cross pinned to the top of the axis."""
 
 
-def _chart(scene: pd.DataFrame, orders: dict[str, float]) -> str:
+UNITS = {"position_error": "m", "orientation_error": "rad"}
+"""Unit of each sweep metric, for the axis labels."""
+
+DEFINITIONS = {
+    "position_error": "max over t and bodies of the centre-of-mass distance to the reference (m)",
+    "orientation_error": "max over t and bodies of the rotation angle |log(R_refᵀ R)| between "
+    "the body's orientation and the reference's (rad)",
+}
+"""The one-line definition of each sweep metric, printed on the page."""
+
+IDENTICALLY_ZERO_PREFIX = "identically zero"
+
+
+def _chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
     figure, (by_time, by_dt) = plt.subplots(1, 2, figsize=FIGURE_SIZE)
     for engine, points in scene.groupby("engine", sort=False):
         good = points[(points["status"].isin(["ok", "failed"])) & (points["error"] > 0)]
@@ -42,53 +55,91 @@ def _chart(scene: pd.DataFrame, orders: dict[str, float]) -> str:
             axis.plot(bad[column].fillna(1.0), [top] * len(bad), **FAILED_MARKER)
     by_time.set(
         xlabel="wall time of stepping (s)",
-        ylabel="error",
+        ylabel=f"error ({unit})",
         title="error vs run time (down-left is better)",
     )
-    by_dt.set(xlabel="dt (s)", ylabel="error", title="error vs dt (failed points: red x)")
+    by_dt.set(xlabel="dt (s)", ylabel=f"error ({unit})", title="error vs dt (failed points: red x)")
     by_dt.legend(fontsize=7)
     figure.tight_layout()
     buffer = io.StringIO()
-    figure.savefig(buffer, format="svg")
+    with matplotlib.rc_context({"svg.hashsalt": "physval-sweep"}):
+        figure.savefig(buffer, format="svg", metadata={"Date": None})
     plt.close(figure)
     return svg_for_html(buffer.getvalue())
+
+
+def _orders(table: pd.DataFrame, scene: str, metric: str) -> dict[str, float]:
+    mine = table[
+        (table["metric"] == "convergence_order")
+        & (table["scenario"] == scene)
+        & (table.get("of", metric) == metric)
+    ]
+    return dict(zip(mine["engine"], mine["value"], strict=True))
 
 
 def render_sweep(rows: list[dict], path: Path) -> Path:
     """Write sweep.html for the sweep ``rows`` (sweep.csv's rows) to ``path``."""
     table = pd.DataFrame(rows)
-    points = table[table["metric"] == "sweep_error"].copy()
-    orders = table[table["metric"] == "convergence_order"]
+    if "of" not in table:
+        table["of"] = ""
+    if "message" not in table:
+        table["message"] = ""
     parts = [
         "<!doctype html><meta charset='utf-8'><title>physval sweep</title>",
-        "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}</style>",
+        "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
+        ".note{color:#a05a00}</style>",
         "<h1>physval sweep: error against run time</h1>",
-    ]
-    for scene, group in points.groupby("scenario", sort=False):
-        scene_orders = dict(
-            zip(
-                orders[orders["scenario"] == scene]["engine"],
-                orders[orders["scenario"] == scene]["value"],
-                strict=True,
-            )
+        "<dl>"
+        + "".join(
+            f"<dt>{html.escape(m)}</dt><dd>{html.escape(d)}</dd>" for m, d in DEFINITIONS.items()
         )
+        + "</dl>",
+    ]
+    points = table[table["metric"].isin(list(DEFINITIONS))]
+    for scene, group in points.groupby("scenario", sort=False):
         reference = html.escape(str(group["expected_kind"].iloc[0]))
         parts.append(f"<h2>{html.escape(str(scene))}</h2><p>reference: {reference}</p>")
-        parts.append(_chart(group, scene_orders))
-        shown = group[
-            [
-                "engine",
-                "dt",
-                "steps",
-                "error",
-                "status",
-                "wall_time_s",
-                "real_time_factor",
-                "message",
+        check = table[(table["metric"] == "reference_cross_check") & (table["scenario"] == scene)]
+        if not check.empty:
+            found = ", ".join(
+                f"{html.escape(str(r['of']))} {r['value']:.3g}" for _, r in check.iterrows()
+            )
+            parts.append(f"<p>cross-check, MuJoCo RK4 against the reference: {found}</p>")
+        for metric, unit in UNITS.items():
+            curve = group[group["metric"] == metric]
+            if curve.empty:
+                continue
+            parts.append(f"<h3>{html.escape(metric)}</h3>")
+            zero = curve["message"].fillna("").astype(str).str.startswith(IDENTICALLY_ZERO_PREFIX)
+            measured = curve[curve["error"].notna()] if "error" in curve else curve.iloc[0:0]
+            if measured.empty:
+                parts.append(
+                    f"<p class='note'>{html.escape(metric)}: the reference does not constrain it (no values).</p>"
+                )
+                continue
+            if zero.all():
+                note = html.escape(str(curve["message"].iloc[0]))
+                parts.append(f"<p class='note'>{note}; not drawn.</p>")
+            else:
+                parts.append(_chart(curve, _orders(table, scene, metric), unit))
+            columns = [
+                c
+                for c in (
+                    "engine",
+                    "dt",
+                    "steps",
+                    "error",
+                    "status",
+                    "wall_time_s",
+                    "real_time_factor",
+                    "message",
+                )
+                if c in curve
             ]
-        ]
-        parts.append(
-            shown.to_html(index=False, na_rep="", float_format=lambda v: f"{v:.4g}", escape=True)
-        )
+            parts.append(
+                curve[columns].to_html(
+                    index=False, na_rep="", float_format=lambda v: f"{v:.4g}", escape=True
+                )
+            )
     write_atomically(path, "\n".join(parts))
     return path
