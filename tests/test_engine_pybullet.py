@@ -15,6 +15,7 @@ from validation.engines.parity import compare
 from validation.engines.pybullet import adapter as pybullet_engine
 from validation.engines.pybullet.adapter import PybulletAdapter
 from validation.engines.reference import reference_report
+from validation.measure.runner import run_engine
 from validation.scenario import Scenario, load_scenario, scenario_files
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
@@ -370,3 +371,42 @@ def test_provenance_records_version_parameters_and_springs():
     assert settings["engine_parameters"]["numSolverIterations"] == 20, settings
     assert settings["set_world_parameters"]["contactERP"] == pybullet_engine.MULTIBODY_CONTACT_ERP
     assert any("explicit in time" in note for note in record.notes), record.notes
+
+
+TOUCHING_IMPACT_SPEEDS = (0.03, 1.0)
+"""m/s: a slow and a fast impact that start their step exactly touching the ground."""
+
+SLOP_STEPS = (2e-3, 1e-3, 5e-4)
+"""s: Bullet's default contactSlop (1e-5 m) cost slop/dt of rebound at each: 5, 10, 20 mm/s."""
+
+REBOUND_TOLERANCE = 1e-9
+"""m/s: with no slop, no gravity and e = 0.5 the matched rebound is e·v to round-off."""
+
+
+@pytest.mark.parametrize("dt", SLOP_STEPS)
+def test_a_touching_impact_keeps_its_whole_rebound(dt):
+    """Issue-10 finding 8: the matched profile lost (1e-5 m)/dt of rebound when an impact
+    step started exactly touching."""
+    for speed in TOUCHING_IMPACT_SPEEDS:
+        scenario = Scenario.model_validate(
+            {
+                "name": "touching",
+                "dt": dt,
+                "duration": 0.05,
+                "gravity": [0, 0, 0],
+                "ground": {"restitution": 0.5},
+                "bodies": [
+                    {
+                        "name": "b",
+                        "shape": {"type": "sphere", "radius": 0.1},
+                        "mass": 1.0,
+                        "position": [0, 0, 0.1],
+                        "velocity": [0, 0, -speed],
+                        "restitution": 0.5,
+                    }
+                ],
+            }
+        )
+        run = run_engine(compile_scene(scenario), parse_engine_spec("pybullet"), 1)
+        rebound = float(run.recording.trajectory.vel[:, 0, 2].max())
+        assert abs(rebound - 0.5 * speed) <= REBOUND_TOLERANCE, (dt, speed, rebound)
