@@ -472,3 +472,19 @@ def test_a_mujoco_warning_is_collected_and_leaves_no_log_in_the_working_folder(
     assert any("QACC" in w and "unstable" in w for w in warnings), warnings
     after = mujoco_library.get_mju_user_warning()
     assert after == before, (after, before)
+
+
+def test_the_damper_names_its_friction_limit_wherever_a_pair_has_friction():
+    """Issue-10 finding 7: no MuJoCo setting honours both e and friction in a one-step impact;
+    the provenance of a frictional scene under the damper says so, with the measurements."""
+    from validation.engines.mujoco.adapter import FRICTION_IN_IMPACTS
+
+    scene = sphere_drop(0.5, 0.5, friction=0.3)
+    scene["ground"]["friction"] = 0.3
+    frictional = mujoco(scene)
+    notes = frictional.provenance().notes
+    frictional.close()
+    assert FRICTION_IN_IMPACTS in notes, notes
+    frictionless = mujoco(sphere_drop(0.5, 0.5))
+    assert FRICTION_IN_IMPACTS not in frictionless.provenance().notes
+    frictionless.close()
