@@ -29,9 +29,20 @@ METRIC_DEFINITIONS: dict[str, str] = {
 """Metric name -> the one-line definition shown in the report legend."""
 
 EXPECTATION_DEFINITIONS: dict[str, str] = {
-    "velocity_after_impact": "|v(after the body's first impact) - expected| (m/s)",
-    "position_at": "|x(time) - expected| (m), the sample nearest the stated time",
-    "velocity_at": "|v(time) - expected| (m/s), the sample nearest the stated time",
+    "velocity_after_impact": "|v(after the body's first impact) - expected| (m/s), read once the "
+    "contact has ended and carried back to the impulse with gravity",
+    "position_at": "|x(time) - expected| (m), x observed at the time (interpolated between the "
+    "two observed steps around it)",
+    "velocity_at": "|v(time) - expected| (m/s), as position_at",
+    "angular_velocity_at": "|ω(time) - expected| (rad/s, world frame), as position_at",
+    "angular_velocity_after_impact": "|ω after the body's first impact - expected| (rad/s), read "
+    "once the contact has ended",
+    "orientation_at": "rotation angle (rad) between the body's orientation at the time (the "
+    "nearer observed step) and the expected one",
+    "flip_times": "max over flips of |time of a sign change of the body-axis angular velocity - "
+    "expected| (s), crossings interpolated between steps",
+    "impact_times": "max over the body's impacts of |impulse time - expected| (s)",
+    "energy_at": "|the body's kinetic + gravitational energy at the time - expected| (J)",
     "bounce_heights": "max over bounces of |apex height of the COM - expected| (m)",
     "precession_rate": "|fitted body-frame precession rate - expected| (rad/s)",
     "flips": "|number of sign changes of the body-axis angular velocity - expected|",

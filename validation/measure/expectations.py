@@ -22,7 +22,13 @@ import numpy as np
 from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Trajectory
 from validation.measure.measurement import Measurement
-from validation.scenario.compiled import CompiledScene
+from validation.measure.newton_euler import rotation_angle
+from validation.scenario.compiled import (
+    CompiledScene,
+    gravitational_energy,
+    kinetic_energy,
+    rotations,
+)
 from validation.scenario.physics import symmetry_frame
 
 TIME_MATCH = 1e-9
@@ -80,30 +86,40 @@ class StateAt(_Tracker):
     def update(self, states: Trajectory, events) -> None:
         if self.after is not None or len(states) == 0:
             return
-        values = getattr(states, self.quantity)[:, self.body]
-        reached = np.flatnonzero(states.t >= self.expectation.time - self._slack())
+        self._bracket(states.t, getattr(states, self.quantity)[:, self.body])
+
+    def _bracket(self, t: np.ndarray, values: np.ndarray) -> None:
+        """Keep the observed values just before and at (or after) the expected time."""
+        reached = np.flatnonzero(t >= self.expectation.time - self._slack())
         if reached.size:
             k = int(reached[0])
-            self.after = (float(states.t[k]), values[k].copy())
+            self.after = (float(t[k]), values[k].copy())
             if k > 0:
-                self.before = (float(states.t[k - 1]), values[k - 1].copy())
+                self.before = (float(t[k - 1]), values[k - 1].copy())
         else:
-            self.before = (float(states.t[-1]), values[-1].copy())
+            self.before = (float(t[-1]), values[-1].copy())
 
     def _slack(self) -> float:
         return TIME_MATCH * max(self.expectation.time, self.scene.scenario.dt)
 
-    def result(self) -> Measurement:
+    def value_at(self) -> tuple[np.ndarray, str] | None:
+        """The value at the expected time (interpolated between the two observed states
+        around it) and where it was read; None when the run ended before."""
         if self.after is None:
-            return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
+            return None
         t1, v1 = self.after
         if self.before is None or abs(t1 - self.expectation.time) <= self._slack():
-            return _vector(self.expectation, v1, f"{self.quantity} at t = {t1:.6g} s")
+            return v1, f"{self.quantity} at t = {t1:.6g} s"
         t0, v0 = self.before
         weight = (self.expectation.time - t0) / (t1 - t0)
-        got = v0 + weight * (v1 - v0)
         where = f"{self.quantity} at t = {self.expectation.time:.6g} s (between observations)"
-        return _vector(self.expectation, got, where)
+        return v0 + weight * (v1 - v0), where
+
+    def result(self) -> Measurement:
+        found = self.value_at()
+        if found is None:
+            return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
+        return _vector(self.expectation, *found)
 
 
 @dataclass
@@ -260,6 +276,145 @@ class Flips(_Tracker):
         )
 
 
+@dataclass
+class AngularVelocityAfterImpact(_Tracker):
+    """Angular velocity of the body at the first state apart after its first impact (no
+    carrying back: gravity exerts no torque about the centre of mass)."""
+
+    found: Measurement | None = None
+
+    def update(self, states: Trajectory, events) -> None:
+        if self.found is not None:
+            return
+        first = self.mine(events)
+        if first:
+            at = int(np.flatnonzero(states.t == first[0].time_end)[0])
+            where = f"angular velocity after the impact at t = {first[0].time_impulse:.6g} s"
+            self.found = _vector(self.expectation, states.ang_vel[at, self.body], where)
+
+    def result(self) -> Measurement:
+        return self.found or _missing(self.expectation, "no impact")
+
+
+@dataclass
+class OrientationAt(StateAt):
+    """Orientation of the body at ``time`` (the observed state there, or the nearer of the two
+    around it): ``value`` and ``expected`` the rotation angles from the identity, ``error`` the
+    angle between the two orientations."""
+
+    quantity: str = "quat"
+
+    def result(self) -> Measurement:
+        if self.after is None:
+            return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
+        time = self.expectation.time
+        t1, q1 = self.after
+        if self.before is not None and abs(self.before[0] - time) < abs(t1 - time):
+            t1, q1 = self.before
+        target = np.asarray(self.expectation.value, dtype=float)
+        identity = np.array([1.0, 0.0, 0.0, 0.0])
+        return Measurement(
+            self.expectation.metric,
+            float(rotation_angle(q1, identity)),
+            float(rotation_angle(target, identity)),
+            "analytic",
+            float(rotation_angle(q1, target)),
+            f"orientation at t = {t1:.6g} s: {np.round(q1, 6).tolist()} (expected {np.round(target, 6).tolist()})",
+        )
+
+
+@dataclass
+class EnergyAt(StateAt):
+    """The body's own energy at ``time``: ½ m v² + ½ ωᵀ I_world ω - m g·x (J), from the
+    observed state there or interpolated between the two around it."""
+
+    quantity: str = "energy"
+
+    def update(self, states: Trajectory, events) -> None:
+        if self.after is not None or len(states) == 0:
+            return
+        b = slice(self.body, self.body + 1)
+        one = Trajectory(
+            states.t, states.pos[:, b], states.quat[:, b], states.vel[:, b], states.ang_vel[:, b]
+        )
+        mass = self.scene.mass[b]
+        rot = rotations(one.quat)
+        inertia = rot @ self.scene.inertia[b][None] @ rot.swapaxes(-1, -2)
+        energy = kinetic_energy(mass, inertia, one.vel, one.ang_vel)
+        energy += gravitational_energy(mass, one.pos, self.scene.gravity)
+        self._bracket(states.t, energy[:, None])
+
+    def result(self) -> Measurement:
+        found = self.value_at()
+        if found is None:
+            return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
+        energy, where = float(found[0][0]), found[1]
+        target = float(self.expectation.value)
+        return Measurement(
+            self.expectation.metric,
+            energy,
+            target,
+            "analytic",
+            abs(energy - target),
+            f"{where}: {energy:.6g} J",
+        )
+
+
+@dataclass
+class _TimesOf(_Tracker):
+    """Compares a list of event times with the expected list: ``value`` the worst event's
+    measured time, ``expected`` its target, ``error`` the largest |Δt| (s)."""
+
+    times: list[float] = field(default_factory=list)
+
+    def result(self) -> Measurement:
+        wanted = np.asarray(self.expectation.value, dtype=float)
+        if len(self.times) < wanted.size:
+            message = f"{len(self.times)} seen, {wanted.size} expected: {np.round(self.times, 5).tolist()} s"
+            return _missing(self.expectation, message)
+        got = np.array(self.times[: wanted.size])
+        misses = np.abs(got - wanted)
+        worst = int(np.argmax(misses))
+        return Measurement(
+            self.expectation.metric,
+            float(got[worst]),
+            float(wanted[worst]),
+            "analytic",
+            float(misses[worst]),
+            f"times {np.round(got, 5).tolist()} s",
+        )
+
+
+@dataclass
+class FlipTimes(_TimesOf):
+    """Times at which a body-frame component of ω changes sign, each found by linear
+    interpolation between the two observed states around the crossing."""
+
+    last: tuple[float, float] | None = None
+
+    def update(self, states: Trajectory, events) -> None:
+        if len(states) == 0:
+            return
+        component = _body_frame(states, self.body)[:, "xyz".index(self.expectation.axis)]
+        t = states.t
+        if self.last is not None:
+            t = np.concatenate([[self.last[0]], t])
+            component = np.concatenate([[self.last[1]], component])
+        crossing = np.flatnonzero(np.sign(component[1:]) * np.sign(component[:-1]) < 0)
+        for k in crossing:
+            fraction = component[k] / (component[k] - component[k + 1])
+            self.times.append(float(t[k] + fraction * (t[k + 1] - t[k])))
+        self.last = (float(t[-1]), float(component[-1]))
+
+
+@dataclass
+class ImpactTimes(_TimesOf):
+    """Times of the body's impacts: each event's impulse centroid."""
+
+    def update(self, states: Trajectory, events) -> None:
+        self.times += [e.time_impulse for e in self.mine(events)]
+
+
 TRACKERS: dict[str, Callable[[CompiledScene, object], _Tracker]] = {
     "position_at": lambda scene, e: StateAt(scene, e, "pos"),
     "velocity_at": lambda scene, e: StateAt(scene, e, "vel"),
@@ -267,6 +422,12 @@ TRACKERS: dict[str, Callable[[CompiledScene, object], _Tracker]] = {
     "bounce_heights": BounceHeights,
     "precession_rate": PrecessionRate,
     "flips": Flips,
+    "angular_velocity_at": lambda scene, e: StateAt(scene, e, "ang_vel"),
+    "angular_velocity_after_impact": AngularVelocityAfterImpact,
+    "orientation_at": OrientationAt,
+    "flip_times": FlipTimes,
+    "impact_times": ImpactTimes,
+    "energy_at": EnergyAt,
 }
 """Expectation kind -> its tracker (metric ``<kind>.<body>``, or the expectation's ``name``)."""
 

@@ -8,20 +8,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from validation.scenario.schema import (
+    EXPECTATION_MODELS,
     BodySpec,
-    BounceHeights,
     BoxShape,
     CapsuleShape,
-    Flips,
     GroundSpec,
     PairSpec,
-    PositionAt,
-    PrecessionRate,
     Scenario,
     SphereShape,
     SpringSpec,
-    VelocityAfterImpact,
-    VelocityAt,
 )
 from validation.scenario.yaml_source import SourceMap
 
@@ -98,8 +93,7 @@ def _node_at(data: Any, loc: tuple) -> Any:
 
 _SHAPES = {"sphere": SphereShape, "box": BoxShape, "capsule": CapsuleShape}
 _EXPECTATIONS = {
-    model.model_fields["kind"].annotation.__args__[0]: model
-    for model in (VelocityAfterImpact, PositionAt, VelocityAt, BounceHeights, PrecessionRate, Flips)
+    model.model_fields["kind"].annotation.__args__[0]: model for model in EXPECTATION_MODELS
 }
 _MODEL_AT = {
     (): lambda node: Scenario,

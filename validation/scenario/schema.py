@@ -262,8 +262,88 @@ class Flips(_Expectation):
     value: Annotated[int, Strict(), Field(ge=0)]
 
 
+class AngularVelocityAt(_Expectation):
+    """Angular velocity of ``body`` at ``time``."""
+
+    kind: Literal["angular_velocity_at"]
+    time: NonNegative = Field(description="s")
+    value: Vec3 = Field(description="rad/s, world frame")
+
+
+class AngularVelocityAfterImpact(_Expectation):
+    """Angular velocity of ``body`` just after its first impact, once the contact has ended."""
+
+    kind: Literal["angular_velocity_after_impact"]
+    value: Vec3 = Field(description="rad/s, world frame")
+
+
+class OrientationAt(_Expectation):
+    """Orientation of ``body`` at ``time``; the error is the rotation angle between the two."""
+
+    kind: Literal["orientation_at"]
+    time: NonNegative = Field(description="s")
+    value: tuple[Finite, Finite, Finite, Finite] = Field(
+        description="unit quaternion w x y z, body to world"
+    )
+
+    @field_validator("value")
+    @classmethod
+    def _unit_quaternion(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        return BodySpec._unit_quaternion(value)
+
+
+class FlipTimes(_Expectation):
+    """Times at which a body-axis component of ω changes sign (Dzhanibekov flips)."""
+
+    kind: Literal["flip_times"]
+    axis: Literal["x", "y", "z"] = Field(default="y", description="body axis whose sign flips")
+    value: list[NonNegative] = Field(min_length=1, description="s")
+
+
+class ImpactTimes(_Expectation):
+    """Times of the body's first impacts (the impulse, as the impact events place it)."""
+
+    kind: Literal["impact_times"]
+    value: list[NonNegative] = Field(min_length=1, description="s")
+
+
+class EnergyAt(_Expectation):
+    """The body's own energy at ``time``: kinetic (translation and rotation) plus gravitational."""
+
+    kind: Literal["energy_at"]
+    time: NonNegative = Field(description="s")
+    value: Finite = Field(description="J")
+
+
+EXPECTATION_MODELS = (
+    VelocityAfterImpact,
+    PositionAt,
+    VelocityAt,
+    BounceHeights,
+    PrecessionRate,
+    Flips,
+    AngularVelocityAt,
+    AngularVelocityAfterImpact,
+    OrientationAt,
+    FlipTimes,
+    ImpactTimes,
+    EnergyAt,
+)
+"""Every expectation kind of format v1, one model each."""
+
 Expectation = Annotated[
-    VelocityAfterImpact | PositionAt | VelocityAt | BounceHeights | PrecessionRate | Flips,
+    VelocityAfterImpact
+    | PositionAt
+    | VelocityAt
+    | BounceHeights
+    | PrecessionRate
+    | Flips
+    | AngularVelocityAt
+    | AngularVelocityAfterImpact
+    | OrientationAt
+    | FlipTimes
+    | ImpactTimes
+    | EnergyAt,
     Field(discriminator="kind"),
 ]
 
