@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from mini_engine.rotation import quat_to_matrix
 from validation.jobs.run import run_job
 from validation.measure.comparator import compare_scene
 from validation.measure.newton_euler import reference_motion
@@ -84,8 +85,6 @@ def test_flip_times_and_orientation_against_the_dop853_reference():
 
 
 def _matrix(quat):
-    from mini_engine.rotation import quat_to_matrix
-
     return quat_to_matrix(np.asarray(quat)[None])[0]
 
 

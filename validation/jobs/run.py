@@ -44,8 +44,8 @@ from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
 MAX_SAMPLES = 5000
-"""Trajectory samples kept per run: every step for the library's impact scenes (at most a few
-thousand steps), every k-th step for long ones, so metrics see impacts and apexes."""
+"""Trajectory samples kept per run (series and plots): every step of the library's short
+scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""

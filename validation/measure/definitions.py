@@ -22,7 +22,7 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "e_measured = -(v_rel'·n)/(v_rel·n) from the impact events (velocities carried to the "
     "impulse centroid); passes when |Δe| <= tolerance + band, band = (1 + e)·|a·n|·dt/|v_before| "
     "(engines take e before or after the step's forces: the two differ by exactly this)",
-    "penetration_max": "the deepest overlap (m) of any two shapes over the sampled states",
+    "penetration_max": "the deepest overlap (m) of any two shapes over every observed step",
     "divergence": "max over t of the centre-of-mass distance (m) between this engine and the "
     "reference engine of the scene (the first engine listed) on the same scene",
 }
