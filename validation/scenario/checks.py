@@ -137,6 +137,17 @@ def check_names(scenario: Scenario) -> Found:
                 )
 
 
+def loads_on_moving_bodies(scenario: Scenario) -> Found:
+    """An applied force or torque acts on a body that can move (a fixed body would ignore it)."""
+    for i, body in enumerate(scenario.bodies):
+        for field in ("force", "torque"):
+            if body.fixed and any(getattr(body, field)):
+                yield (
+                    ("bodies", i, field),
+                    f"expected no {field} on a fixed body (it never moves); got {list(getattr(body, field))}",
+                )
+
+
 def step_count(scenario: Scenario) -> Found:
     """At least one step, at most ``MAX_STEPS``."""
     if scenario.duration < scenario.dt:
@@ -154,6 +165,7 @@ RULES: tuple[Callable[[Scenario], Found], ...] = (
     pair_bodies,
     expectations,
     precession_needs_a_symmetry_axis,
+    loads_on_moving_bodies,
     engine_specs,
     check_names,
     step_count,
