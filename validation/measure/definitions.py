@@ -53,5 +53,5 @@ EXPECTATION_DEFINITIONS: dict[str, str] = {
 """Expectation kind -> the definition of its metric (named ``<kind>.<body>``)."""
 
 EXPECTED_KINDS = ("analytic", "conserved", "engine")
-"""What a row was compared against: a closed form, a conserved quantity's initial value,
-or another engine (written ``engine:<spec>``)."""
+"""What a row was compared against: a closed form, a conserved quantity (value its drift,
+expected 0), or another engine (written ``engine:<spec>``)."""

@@ -48,9 +48,14 @@ def _drift(values: np.ndarray, name: str, scale: float | None = None) -> Measure
     reference = float(np.linalg.norm(start)) if scale is None else scale
     relative = reference > ZERO_SCALE
     value = float(change.max() / reference) if relative else float(change.max())
-    magnitude = float(np.linalg.norm(start))
-    note = "" if relative else "initial value is zero: absolute drift"
-    return Measurement(name, value, magnitude, "conserved", value, note)
+    return _conserved(name, value, float(np.linalg.norm(start)), relative)
+
+
+def _conserved(name: str, drift: float, initial: float, relative: bool) -> Measurement:
+    """A conserved quantity's row: ``value`` the measured drift, ``expected`` its target 0,
+    ``error`` the drift; the initial magnitude goes in the message (the scale of the drift)."""
+    note = f"|initial value| {initial:.6g}" if relative else "initial value is zero: absolute drift"
+    return Measurement(name, drift, 0.0, "conserved", drift, note)
 
 
 def energy_drift(ctx: Context) -> Measurement | None:
@@ -69,8 +74,7 @@ def _impulse_balance(ctx: Context, values: np.ndarray, rate: np.ndarray, name: s
     scale = max(magnitude, float(np.linalg.norm(rate)) * float(t[-1]))
     relative = scale > ZERO_SCALE
     value = float(change.max() / scale) if relative else float(change.max())
-    note = "" if relative else "initial value is zero: absolute drift"
-    return Measurement(name, value, magnitude, "conserved", value, note)
+    return _conserved(name, value, magnitude, relative)
 
 
 def angular_momentum_drift(ctx: Context) -> Measurement | None:
