@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.physics import body_inertia, symmetry_frame
 from validation.scenario.problems import Problem, path_text
-from validation.scenario.schema import MAX_STEPS, METRIC_NAMES, Scenario
+from validation.scenario.schema import ANY_METRIC, MAX_STEPS, METRIC_NAMES, Scenario
 from validation.scenario.yaml_source import SourceMap
 
 Location = tuple[str | int, ...]
@@ -137,6 +137,27 @@ def check_names(scenario: Scenario) -> Found:
                 )
 
 
+STATUS_METRIC = "status"
+"""The metric of the row a run failure (unstable, error, model_mismatch) writes."""
+
+
+def known_findings(scenario: Scenario) -> Found:
+    """A known finding names a valid engine spec and a metric of this scene, ``status`` or ``*``."""
+    metrics = sorted({*METRIC_NAMES, *(e.metric for e in scenario.expect), STATUS_METRIC})
+    for i, finding in enumerate(scenario.known):
+        try:
+            parse_engine_spec(finding.engine)
+        except EngineSpecError as error:
+            yield ("known", i, "engine"), str(error)
+        if finding.metric != ANY_METRIC and finding.metric not in metrics:
+            hint = _hint(finding.metric, metrics).removeprefix("; ")
+            yield (
+                ("known", i, "metric"),
+                f"unknown metric {finding.metric!r}; {hint or 'expected a metric of this scene'}"
+                f" or {ANY_METRIC!r}",
+            )
+
+
 def loads_on_moving_bodies(scenario: Scenario) -> Found:
     """An applied force or torque acts on a body that can move (a fixed body would ignore it)."""
     for i, body in enumerate(scenario.bodies):
@@ -166,6 +187,7 @@ RULES: tuple[Callable[[Scenario], Found], ...] = (
     expectations,
     precession_needs_a_symmetry_axis,
     loads_on_moving_bodies,
+    known_findings,
     engine_specs,
     check_names,
     step_count,

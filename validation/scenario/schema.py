@@ -374,6 +374,32 @@ Expectation = Annotated[
 
 Tolerance = NonNegative | dict[str, NonNegative]
 
+ANY_METRIC = "*"
+"""The ``metric`` of a known finding that covers every row of its (scene, engine spec)."""
+
+
+class KnownFinding(_Strict):
+    """A difference the scene's authors know of: a failing row of ``engine`` and ``metric``
+    reads ``known`` (not a failure of the run); the same row passing reads ``fixed``."""
+
+    engine: Annotated[str, Strict()] = Field(
+        description="an engine spec, matched as written in engines (e.g. mujoco(integrator=RK4))"
+    )
+    metric: Annotated[str, Strict(), Field(min_length=1)] = Field(
+        description="a metric of this scene (energy_drift, velocity_at.ball, ...), 'status' for "
+        "the run's own row (unstable, error), or '*' for every row of the engine"
+    )
+    reason: Annotated[str, Strict(), Field(min_length=1)] = Field(
+        description="what was measured and where it is documented"
+    )
+
+    @field_validator("reason")
+    @classmethod
+    def _says_something(cls, value: str) -> str:
+        if not value.strip():
+            raise ValueError("expected what was measured and where it is documented; got blanks")
+        return value
+
 
 class Scenario(_Strict):
     """A scene, version 1. Defaults are the documented ones below each field."""
@@ -400,6 +426,10 @@ class Scenario(_Strict):
         default={},
         description="tolerance per metric: one number, or {default: x, <engine spec>: y} "
         "(an engine entry applies to exactly that spec as written in engines)",
+    )
+    known: list[KnownFinding] = Field(
+        default=[],
+        description="known findings: failing rows they match read 'known' and do not fail the run",
     )
     source: str = Field(default="", exclude=True, description="the file it was loaded from")
 
