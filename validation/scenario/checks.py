@@ -158,6 +158,30 @@ def known_findings(scenario: Scenario) -> Found:
             )
 
 
+def sweep_steps(scenario: Scenario) -> Found:
+    """A scene's sweep names valid, distinct engine specs and steps within ``MAX_STEPS``."""
+    if scenario.sweep is None:
+        return
+    for i, text in enumerate(scenario.sweep.engines or ()):
+        try:
+            parse_engine_spec(text)
+        except EngineSpecError as error:
+            yield ("sweep", "engines", i), str(error)
+    for i, dt in enumerate(scenario.sweep.dt):
+        if dt > scenario.duration:
+            yield (
+                ("sweep", "dt", i),
+                f"expected a step <= duration ({scenario.duration} s); got {dt}",
+            )
+        elif scenario.duration / dt > MAX_STEPS:
+            yield (
+                ("sweep", "dt", i),
+                f"{scenario.duration / dt:.3g} steps; at most {MAX_STEPS} are allowed",
+            )
+    if len(set(scenario.sweep.dt)) < len(scenario.sweep.dt):
+        yield ("sweep", "dt"), "expected distinct steps (an order is fitted through them)"
+
+
 def loads_on_moving_bodies(scenario: Scenario) -> Found:
     """An applied force or torque acts on a body that can move (a fixed body would ignore it)."""
     for i, body in enumerate(scenario.bodies):
@@ -188,6 +212,7 @@ RULES: tuple[Callable[[Scenario], Found], ...] = (
     precession_needs_a_symmetry_axis,
     loads_on_moving_bodies,
     known_findings,
+    sweep_steps,
     engine_specs,
     check_names,
     step_count,

@@ -374,6 +374,18 @@ Expectation = Annotated[
 
 Tolerance = NonNegative | dict[str, NonNegative]
 
+
+class SweepSpec(_Strict):
+    """Error against run time as part of the nightly run: ``physval run`` also sweeps the scene
+    over these steps (``physval sweep``'s metrics and references) and reports the fitted
+    orders in the scene's card and the history."""
+
+    dt: list[Positive] = Field(min_length=2, description="s, the steps of the sweep (2 or more)")
+    engines: list[Annotated[str, Strict()]] | None = Field(
+        default=None, min_length=1, description="engine specs; default: the scene's engines"
+    )
+
+
 ANY_METRIC = "*"
 """The ``metric`` of a known finding that covers every row of its (scene, engine spec)."""
 
@@ -430,6 +442,9 @@ class Scenario(_Strict):
     known: list[KnownFinding] = Field(
         default=[],
         description="known findings: failing rows they match read 'known' and do not fail the run",
+    )
+    sweep: SweepSpec | None = Field(
+        default=None, description="a dt sweep that physval run runs with the scene (optional)"
     )
     source: str = Field(default="", exclude=True, description="the file it was loaded from")
 
