@@ -410,3 +410,99 @@ def test_a_touching_impact_keeps_its_whole_rebound(dt):
         run = run_engine(compile_scene(scenario), parse_engine_spec("pybullet"), 1)
         rebound = float(run.recording.trajectory.vel[:, 0, 2].max())
         assert abs(rebound - 0.5 * speed) <= REBOUND_TOLERANCE, (dt, speed, rebound)
+
+
+# --- boxes resting and sliding on the ground ------------------------------------------------
+
+SLIDE_FRICTION = 0.2
+SLIDE_SPEED = 1.0
+"""m/s. box_slide_stop's launch: the box decelerates at μg = 1.962 m/s² and stops at 0.51 s."""
+
+SLIDE_DURATION = 0.45
+"""s: the whole slide before the stop (the stop itself is a static-friction transient)."""
+
+SLIDING_BOX_TOLERANCE = 1e-9
+"""m/s, the largest velocity error of any point of the box. With 4 contact points a step and a
+solver that runs all its iterations (adapter ``GROUND_BOX_HALF_EXTENTS``,
+``MATCHED_SOLVER_RESIDUAL_THRESHOLD``) PyBullet's slide is semi-implicit Euler's
+v_n = v0 − μg·n·dt: measured 7e-15 m/s (both body modes) from the second step on. On the
+GEOM_PLANE ground (main before this test) it measured 0.084 m/s (maximal) and 0.105 m/s
+(multibody): the box rocks on 1–2 points. 1e-9 is round-off headroom over 450 steps."""
+
+STACK_REST_SPEED_TOLERANCE = 5e-3
+"""m/s, the largest speed of any box of box_stack.yaml in its second second. Five cubes solved
+by 50 sequential-impulse iterations do not converge exactly: measured 1.9 mm/s (maximal) and
+2.4 mm/s (multibody) on the box ground, 57 and 31 mm/s on GEOM_PLANE. Half the scene's own
+0.01 m/s allowance for soft contacts, so a regression shows here before it fails the scene."""
+
+
+def trajectory_of(scenario: Scenario, text: str):
+    """Every observed state of ``scenario`` run in the engine spec ``text``."""
+    return run_engine(compile_scene(scenario), parse_engine_spec(text), 1).recording.trajectory
+
+
+def sliding_box_velocity_error(text: str) -> float:
+    """box_slide_stop's box (1 kg, 0.4 x 0.4 x 0.1 m, exactly touching, 1 m/s, μ = 0.2) for
+    ``SLIDE_DURATION``: the largest |v − (v0 − μg·t, 0, 0)| + |ω|·r over the steps from the
+    second on (r the box's half-diagonal: every point's velocity error is at most this). The
+    first step is left out: box–box contacts only report overlap, so a box that starts exactly
+    touching falls g·dt² before its first contact (adapter ``GROUND_BOX_HALF_EXTENTS``)."""
+    half = np.array([0.2, 0.2, 0.05])
+    scenario = scene(
+        duration=SLIDE_DURATION,
+        ground={},
+        bodies=[
+            {
+                "name": "box",
+                "shape": {"type": "box", "half_extents": half.tolist()},
+                "mass": 1.0,
+                "position": [0.0, 0.0, half[2]],
+                "velocity": [SLIDE_SPEED, 0.0, 0.0],
+            }
+        ],
+        pairs=[{"a": "box", "b": "ground", "friction": SLIDE_FRICTION}],
+    )
+    trajectory = trajectory_of(scenario, text)
+    later = trajectory.t >= 2 * scenario.dt - ROUND_OFF
+    wanted = np.zeros((int(later.sum()), 3))
+    wanted[:, 0] = SLIDE_SPEED - SLIDE_FRICTION * GRAVITY * trajectory.t[later]
+    velocity = np.linalg.norm(trajectory.vel[later, 0] - wanted, axis=-1)
+    spin = np.linalg.norm(trajectory.ang_vel[later, 0], axis=-1) * np.linalg.norm(half)
+    return float((velocity + spin).max())
+
+
+@pytest.mark.parametrize("text", BODY_MODES)
+def test_a_sliding_box_decelerates_at_mu_g_without_rocking(text):
+    error = sliding_box_velocity_error(text)
+    assert error <= SLIDING_BOX_TOLERANCE, (
+        f"{text}: sliding box velocity error {error:.3g} m/s (tolerance {SLIDING_BOX_TOLERANCE})"
+    )
+
+
+def stack_rest_speed(text: str) -> float:
+    """The largest speed (m/s) of any cube of box_stack.yaml between t = 1 s and 2 s."""
+    stack = next(path for path in BUNDLED if path.name == "box_stack.yaml")
+    trajectory = trajectory_of(load_scenario(stack), text)
+    late = trajectory.t >= 1.0
+    return float(np.linalg.norm(trajectory.vel[late], axis=-1).max())
+
+
+@pytest.mark.parametrize("text", BODY_MODES)
+def test_a_box_stack_rests(text):
+    speed = stack_rest_speed(text)
+    assert speed <= STACK_REST_SPEED_TOLERANCE, (
+        f"{text}: a stacked box moves at {speed:.3g} m/s (tolerance {STACK_REST_SPEED_TOLERANCE})"
+    )
+
+
+def test_only_the_matched_profile_replaces_the_plane():
+    scenario = scene(ground={}, bodies=[sphere(position=[0, 0, 1])])
+    shapes = {}
+    for text in ALL_PROFILES:
+        with adapter_for(text, scenario) as adapter:
+            shapes[text] = adapter.provenance().settings["ground"]["shape"]
+    assert shapes == {
+        "pybullet": "GEOM_BOX",
+        "pybullet(bodies=multibody)": "GEOM_BOX",
+        "pybullet(profile=defaults)": "GEOM_PLANE",
+    }, shapes

@@ -18,10 +18,13 @@ and positions and velocities need no conversion (both frames have their origin a
 Profiles (``ENGINE_OPTIONS["pybullet"]``):
 
 - ``matched`` (default): PyBullet set up to integrate the scene's model: zero damping, no
-  velocity clamp, no restitution threshold, and the contact recipe of engines.md 2.4
-  that keeps the requested restitution (maximal coordinates by default).
+  velocity clamp, no restitution threshold, the contact recipe of engines.md 2.4
+  that keeps the requested restitution (maximal coordinates by default), the ground as a
+  large static box (``GROUND_BOX_HALF_EXTENTS``) and a solver that runs all its iterations
+  (``MATCHED_SOLVER_RESIDUAL_THRESHOLD``), so that boxes rest and slide on four points.
 - ``defaults``: what a new user gets (a btMultiBody with Bullet's damping, clamps and
-  contact settings), with the scene's masses, inertias, gravity, dt and contact values.
+  contact settings), with the scene's masses, inertias, gravity, dt and contact values,
+  on a ``GEOM_PLANE`` ground.
 """
 
 from __future__ import annotations
@@ -90,6 +93,65 @@ MATCHED_RESTITUTION_THRESHOLD = 0.0
 slower than 0.2 m/s (engines.md 2.4)."""
 
 
+GROUND_BOX_HALF_EXTENTS = (1000.0, 1000.0, 1.0)
+"""m. The matched profile's ground: a static ``GEOM_BOX`` whose top face is the scene's ground
+plane (its centre 1 m below the ground point, along the normal), not a ``GEOM_PLANE``.
+
+Why [SRC bullet3 btConvexPlaneCollisionAlgorithm.cpp, btPersistentManifold.cpp,
+btBoxBoxCollisionAlgorithm.cpp]: a box against a plane gets ONE new point per step (the
+deepest vertex); its perturbation pass is off in PyBullet's collision configuration (minimum
+points 0), so a 4-point manifold exists only by persistence. A point is dropped when it
+separates or slides sideways by more than the manifold's breaking threshold, the smaller of
+the two shapes' ``MATCHED_CONTACT_BREAKING_THRESHOLD`` x bounding radius (0.29 µm for the
+0.4 x 0.4 x 0.1 m box): a sliding box (1 mm per step) keeps only this step's point, and a
+resting one loses every point that rises 0.3 µm. The box rocks on 1-2 points and its velocity
+solve sinks it while split impulse pushes it back. btBoxBoxDetector instead clips the two
+boxes every step and reports up to 4 points, whatever persists.
+
+Measured (PyBullet 3.2.7, dt = 1e-3, matched profile), GEOM_PLANE -> this box ground:
+box_slide_stop (1 kg, 0.4 x 0.4 x 0.1 m, 1 m/s, μ = 0.2) penetration 2.26 mm -> 14 µm,
+velocity error mid-slide 0.0275 -> 0.0005 m/s, ω_x 0.129 -> 0.0004 rad/s, stop position error
+2.77 -> 0.69 mm (discrete stop 0.50 mm; the rest is ``MATCHED_SOLVER_RESIDUAL_THRESHOLD``'s);
+box_stack velocity_at.box5 0.0227 -> 0.0021 m/s; box_drop_flat e 0.292 -> 0.499, box_drop_edge
+post-impact speed error 0.797 -> 0.0003 m/s (the flat-box spin of engines.md 2.4 is the same
+one-point manifold); deep_initial_penetration velocity 0.023 -> 0.0072 m/s. Spheres use
+btSphereBoxCollisionAlgorithm, with the same speculative band (breaking threshold x the
+sphere's radius): bounce_ladder, millimetre_spheres, slow_bounce_below_threshold,
+newtons_cradle, oblique_impact_friction, bounce_impact_times and capsule_drop keep every row's
+value to 1e-9 relative (single impacts' e moved by <= 1.6e-9, slow_bounce_below_threshold); the
+sphere rolling on the tilted ground (incline_roll_and_slide) moved its velocity error 3.6e-4 ->
+2.7e-4 m/s (it fails its 1e-6 before and after).
+
+Size: bodies in the bundled scenes travel at most 26 m along the ground from its point
+(simbenchmark_666_pile, measured), 40x inside the half-width; 1 m of thickness is 25x the
+deepest initial overlap (deep_initial_penetration, 4 cm). The breaking threshold takes the
+smaller bounding radius, the body's, so the ground's size does not change it.
+
+Cost, measured: btBoxBoxDetector reports only overlapping points (depth >= 0; no speculative
+band), and a box that starts exactly touching gets no point in its first step (round-off):
+it falls g·dt² = 9.8 µm and is caught by 2·m·g·dt in the second (box_slide_stop's
+penetration_max, 9.81 µm)."""
+
+MATCHED_SOLVER_RESIDUAL_THRESHOLD = 0.0
+"""(N·s)², PyBullet's ``solverResidualThreshold`` (default 1e-7): the sequential-impulse
+solver stops once the largest squared impulse change of an iteration is below it, i.e. once
+no row changes by 3.2e-4 N·s, 3 % of a 1 kg body's weight impulse per step at dt = 1e-3. A
+resting box then keeps ~1e-5 m/s at its corners: it rocks, a corner lifts out of the
+overlap-only box-box manifold for a step (86 of 500 sliding steps had fewer than 4), and a
+friction row whose normal impulse fell to 0 in a later iteration is not clamped again
+(btSequentialImpulseConstraintSolver::solveSingleIteration updates friction only while the
+normal impulse is > 0): measured friction/normal = 0.2010 on 3-point steps, 0.20015 overall,
+box_slide_stop stopping 0.19 mm short of the discrete stop (error 0.694 mm > 0.67 mm). With 0
+the solver runs all ``numSolverIterations`` (50): box_slide_stop's velocity equals
+v0 - μg·n·dt to 5e-15 m/s, ω to 4e-18 rad/s, the stop error is the discrete 0.498 mm;
+box_stack velocity_at.box5 0.0021 -> 0.0019 m/s; deep_initial_penetration 0.0072 m/s -> 5e-15;
+incline_roll_and_slide's roller 2.7e-4 -> 8.9e-5 m/s (still failing 1e-6), its energy_drift
+5.219e-3 -> 5.2305e-3 (the scene's derivation: 5.23e-3); millimetre_spheres position error
+3.5e-7 -> 1.4e-9 m; mass_ratio_1e6's impact e by 1.8e-9. On the plane ground alone it changed no row's pass/fail (box_slide_stop
+errors unchanged to 3 digits). The library's PyBullet run took no longer (pile of 666: 21 s
+before, 19-23 s after, on a shared machine)."""
+
+
 FRICTION_CAP = 10.0
 """Bullet caps the combined lateral friction μ_A·μ_B at 10 (engines.md 2.3 [SRC])."""
 
@@ -121,6 +183,8 @@ class Profile:
     """Extra ``setPhysicsEngineParameter`` keywords for every body mode."""
     multibody_world: dict[str, float | int] = field(default_factory=dict)
     """Extra ``setPhysicsEngineParameter`` keywords when the bodies are btMultiBody."""
+    ground: str = "plane"
+    """``plane`` (GEOM_PLANE) or ``box`` (a static GEOM_BOX of ``GROUND_BOX_HALF_EXTENTS``)."""
 
 
 PROFILES = {
@@ -134,8 +198,10 @@ PROFILES = {
             "contactSlop": MATCHED_CONTACT_SLOP,
             "useSplitImpulse": 1,
             "splitImpulsePenetrationThreshold": SPLIT_IMPULSE_PENETRATION_THRESHOLD,
+            "solverResidualThreshold": MATCHED_SOLVER_RESIDUAL_THRESHOLD,
         },
         multibody_world={"contactERP": MULTIBODY_CONTACT_ERP},
+        ground="box",
     ),
     "defaults": Profile(
         bodies="multibody",
@@ -318,9 +384,19 @@ class PybulletAdapter:
         )
 
     def _create_ground(self) -> int:
-        """A static plane (normal = its +z) at the one ground pose of ``physics.ground_pose``."""
+        """The static ground at the one ground pose of ``physics.ground_pose`` (normal = its
+        +z): a plane, or the profile's box with its top face on that plane."""
         point, quat = ground_pose(self.scenario.ground)
-        shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=self.client)
+        if self.profile.ground == "box":
+            shape = pybullet.createCollisionShape(
+                pybullet.GEOM_BOX,
+                halfExtents=list(GROUND_BOX_HALF_EXTENTS),
+                physicsClientId=self.client,
+            )
+            normal = quat_to_matrix(quat[None])[0][:, 2]
+            point = point - GROUND_BOX_HALF_EXTENTS[2] * normal
+        else:
+            shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=self.client)
         return pybullet.createMultiBody(
             baseMass=0.0,
             baseCollisionShapeIndex=shape,
@@ -601,6 +677,11 @@ class PybulletAdapter:
             "engine_parameters": self._engine_parameters(),
             "profile": self.profile_name,
             "bodies": self.bodies_mode,
+            "ground": (
+                {"shape": "GEOM_BOX", "halfExtents": list(GROUND_BOX_HALF_EXTENTS)}
+                if self.profile.ground == "box"
+                else {"shape": "GEOM_PLANE"}
+            ),
             "gyroscopic": GYROSCOPIC_TERM[self.bodies_mode],
             "set_world_parameters": dict(self.world_settings),
             "damping": (
