@@ -52,11 +52,17 @@ CASES = sorted(set(zip(FIXTURE.scenario, FIXTURE.engine, strict=True)))
 @pytest.fixture
 def recorded_engine_settings(monkeypatch):
     """The engines as the fixture was recorded: PyBullet's matched profile has since set
-    ``contactSlop`` to 0 (a physics change, not a measuring one), so the fixture's runs use
-    Bullet's own default again."""
+    ``contactSlop`` to 0 and ``solverResidualThreshold`` to 0, and put a box under the scene
+    instead of a plane (physics changes, not measuring ones), so the fixture's runs use
+    Bullet's own defaults and a GEOM_PLANE again."""
+    from dataclasses import replace
+
     from validation.engines.pybullet.adapter import PROFILES
 
-    monkeypatch.delitem(PROFILES["matched"].world, "contactSlop")
+    matched = PROFILES["matched"]
+    world = dict(matched.world)
+    del world["contactSlop"], world["solverResidualThreshold"]
+    monkeypatch.setitem(PROFILES, "matched", replace(matched, world=world, ground="plane"))
 
 
 @pytest.mark.parametrize(("scene_name", "engine"), CASES, ids=[f"{s}-{e}" for s, e in CASES])
