@@ -82,6 +82,11 @@ class Case:
         return [row for row in self.rows if OUTCOME_KINDS.get(outcome(row)) == kind]
 
     @property
+    def bad_rows(self) -> list[dict]:
+        """The rows that fail the case: errors, then failed checks (known findings excluded)."""
+        return self.rows_of(ERROR) + self.rows_of(FAILURE)
+
+    @property
     def verdict(self) -> str:
         return next((kind for kind in VERDICT_ORDER if self.rows_of(kind)), PASSED)
 
