@@ -21,19 +21,14 @@ from validation.jobs.run import run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
 from validation.report.render import report_command
-from validation.scenario import json_schema
+from validation.scenario import (  # BUNDLED_SCENARIOS: tests and scripts import it from here
+    BUNDLED_SCENARIOS,  # noqa: F401
+    default_scenario_paths,
+    json_schema,
+)
 
 INTERRUPTED_MESSAGE = "interrupted: every worker stopped; nothing was written or replaced"
 """The one line a Ctrl-C prints (results are published only after every job has finished)."""
-
-BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
-"""The library shipped with the project (the repository's scenarios/ folder)."""
-
-
-def default_scenario_paths() -> list[Path]:
-    """``./scenarios`` when run from a checkout, else the bundled library."""
-    local = Path("scenarios")
-    return [local if local.is_dir() else BUNDLED_SCENARIOS]
 
 
 def command_check(args: argparse.Namespace) -> int:

@@ -8,17 +8,26 @@ is what a scenario implies for every engine (inertias, pair values, rest lengths
 model); ``compiled`` is the scene compiled once for every consumer.
 """
 
-from validation.scenario.load import check_scenario, json_schema, load_scenario, scenario_files
+from validation.scenario.load import (
+    BUNDLED_SCENARIOS,
+    check_scenario,
+    default_scenario_paths,
+    json_schema,
+    load_scenario,
+    scenario_files,
+)
 from validation.scenario.problems import Problem, ScenarioError
 from validation.scenario.schema import MAX_STEPS, BodySpec, Scenario
 
 __all__ = [
+    "BUNDLED_SCENARIOS",
     "MAX_STEPS",
     "BodySpec",
     "Problem",
     "Scenario",
     "ScenarioError",
     "check_scenario",
+    "default_scenario_paths",
     "json_schema",
     "load_scenario",
     "scenario_files",

@@ -17,6 +17,16 @@ from validation.scenario.schema import (
 )
 from validation.scenario.yaml_source import YamlSourceError, read_yaml
 
+BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent.parent / "scenarios"
+"""The library shipped with the project (the repository's scenarios/ folder)."""
+
+
+def default_scenario_paths() -> list[Path]:
+    """``./scenarios`` when run from a checkout, else the bundled library (what ``physval``
+    commands and ``pytest --physval`` run when given no paths)."""
+    local = Path("scenarios")
+    return [local if local.is_dir() else BUNDLED_SCENARIOS]
+
 
 def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     file = str(path)

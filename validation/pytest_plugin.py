@@ -1,0 +1,183 @@
+"""pytest plugin (entry point ``pytest11``): ``pytest --physval [PATHS]`` runs scenes as tests.
+
+One item per (scene, engine spec), node id ``<scene file>::<spec label>`` (e.g.
+``scenarios/formulas/projectile.yaml::mujoco(integrator=RK4)``). An item runs its job in the
+pytest process as ``physval run`` does (``run_job``, ``compare_scene``, ``apply_known``); it
+fails when a row of its case is bad (failed, unstable, model_mismatch, error), showing each
+such row against its tolerance; a case whose every bad row is a known finding is xfail
+(strict=False: a known finding that passes again reads XPASS, not a failure). ``-k``, ``-x``,
+``--junitxml`` and pytest-xdist's ``-n`` work as for any test.
+
+Without ``--physval`` the plugin only adds its option: nothing of physval beyond this module
+is imported, and nothing is collected. With it, the scene paths (default: ``./scenarios``
+or the bundled library) replace pytest's default test paths; paths given as pytest
+arguments are collected too.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+OPTION = "--physval"
+DEST = "physval"
+SCENE_SUFFIXES = (".yaml", ".yml")
+"""What ``physval run`` reads as scenes in a folder (``scenario_files``)."""
+
+PLUGIN_NAME = "physval-scenes"
+"""The name of the collecting plugin, registered only when ``--physval`` is given."""
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("physval", "physval scenes as tests")
+    group.addoption(
+        OPTION,
+        nargs="*",
+        default=None,
+        dest=DEST,
+        metavar="PATH",
+        help="run physval scenes (files or folders; default ./scenarios or the bundled "
+        "library), one test per (scene, engine spec)",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With ``--physval``: collect the scene paths and register the collector."""
+    given = config.getoption(DEST)
+    if given is None:
+        return
+    from validation.scenario import default_scenario_paths
+
+    roots = [Path(p) for p in given] or default_scenario_paths()
+    explicit = config.args if config.args_source == pytest.Config.ArgsSource.ARGS else []
+    config.args = [str(root) for root in roots] + [a for a in explicit if a not in given]
+    config.pluginmanager.register(SceneCollector(roots), PLUGIN_NAME)
+
+
+class SceneCollector:
+    """The hook that turns scene files under the ``--physval`` paths into ``SceneFile``s."""
+
+    def __init__(self, roots: list[Path]):
+        self.roots = [root.resolve() for root in roots]
+
+    def _under_roots(self, path: Path) -> bool:
+        path = path.resolve()
+        return any(path == root or root in path.parents for root in self.roots)
+
+    def pytest_collect_file(self, file_path: Path, parent: pytest.Collector):
+        if file_path.suffix in SCENE_SUFFIXES and self._under_roots(file_path):
+            return SceneFile.from_parent(parent, path=file_path)
+        return None
+
+
+class SceneFailedError(Exception):
+    """A case with bad rows that are not all known findings (the text lists them)."""
+
+
+class KnownFailureError(Exception):
+    """A case whose every bad row is a known finding (expected to fail: xfail)."""
+
+
+def _known_marker(scenario, spec_label: str) -> pytest.MarkDecorator | None:
+    """xfail for the findings the scene declares on this spec; only ``KnownFailureError`` counts
+    as the expected failure, so a new failure of the same spec still fails."""
+    from validation.scenario.engine_spec import parse_engine_spec
+
+    reasons = [
+        finding.reason
+        for finding in scenario.known
+        if parse_engine_spec(finding.engine).label == spec_label
+    ]
+    if not reasons:
+        return None
+    return pytest.mark.xfail(reason="; ".join(reasons), raises=KnownFailureError, strict=False)
+
+
+class SceneFile(pytest.File):
+    """One scene file: planned as ``physval run`` plans it, one item per engine spec. Runs are
+    kept per file, so that a spec's ``divergence`` can use the scene's reference run (the
+    first engine that ran) without running it twice in one process."""
+
+    def collect(self):
+        from validation.jobs.plan import BadInputError, plan_run
+
+        try:
+            plan = plan_run([self.path], None, None, None)
+        except BadInputError as error:
+            raise self.CollectError(str(error)) from None
+        self.scene, self.specs = plan.scenes[0]
+        self._done: dict[int, tuple] = {}
+        for index, spec in enumerate(self.specs):
+            item = SceneItem.from_parent(self, name=spec.label, index=index)
+            marker = _known_marker(self.scene.scenario, spec.label)
+            if marker is not None:
+                item.add_marker(marker)
+            yield item
+
+    def job(self, index: int) -> tuple:
+        """(run, measurements) of the spec at ``index``, run once per process."""
+        from validation.jobs.run import run_job
+
+        if index not in self._done:
+            self._done[index] = run_job((self.scene, self.specs[index]))
+        return self._done[index]
+
+    def rows(self, index: int) -> list[dict]:
+        """The judged rows of the spec at ``index``, as ``physval run`` writes them."""
+        return spec_rows(self.scene, self.specs, index, self.job)
+
+
+def spec_rows(scene, specs: list, index: int, job) -> list[dict]:
+    """The rows ``physval run`` writes for ``specs[index]`` of ``scene``, known findings applied;
+    ``job(i)`` gives spec i's (run, measurements). Its ``divergence`` is taken from the scene's
+    reference, the first spec whose run has a recording, as ``compare_scene`` does."""
+    from validation.measure.comparator import compare_scene
+    from validation.nightly.known import apply_known
+
+    own = job(index)
+    chosen = [own]
+    if own[0].recording is not None:
+        earlier = (job(i) for i in range(index))
+        reference = next((done for done in earlier if done[0].recording is not None), None)
+        chosen = chosen if reference is None else [reference, own]
+    compared = compare_scene(scene, [run for run, _ in chosen], [found for _, found in chosen])
+    label = specs[index].label
+    return apply_known([row for row in compared if row["engine"] == label], scene.scenario)
+
+
+class SceneItem(pytest.Item):
+    """One (scene, engine spec)."""
+
+    def __init__(self, *, index: int, **kwargs):
+        super().__init__(**kwargs)
+        self.index = index
+
+    def runtest(self) -> None:
+        from validation.nightly.cases import SKIPPED, group_cases
+
+        (case,) = group_cases(self.parent.rows(self.index))
+        if case.bad_rows:
+            raise SceneFailedError(failure_text(case))
+        if case.rows_of(SKIPPED):
+            raise KnownFailureError("; ".join(case.known_reasons))
+
+    def repr_failure(self, excinfo, style=None):
+        if isinstance(excinfo.value, SceneFailedError | KnownFailureError):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style)
+
+    def reportinfo(self):
+        return self.path, None, f"{self.parent.scene.name} · {self.name}"
+
+
+def failure_text(case) -> str:
+    """Each bad row against its tolerance, then the known rows of the case."""
+    from validation.nightly.cases import SKIPPED, describe, reason
+
+    lines = [f"{case.scenario} · {case.engine}: {len(case.bad_rows)} bad row(s)"]
+    lines += [f"  {describe(row)}" for row in case.bad_rows]
+    known = case.rows_of(SKIPPED)
+    lines += ["known findings of this case (not counted):"] if known else []
+    lines += [f"  {describe(row)} ({reason(row)})" for row in known]
+    return "\n".join(lines)
