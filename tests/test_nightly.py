@@ -148,3 +148,16 @@ def test_a_file_that_is_not_a_baseline_is_refused(tmp_path):
     path.write_text("scenario,engine\nx,y\n")
     with pytest.raises(ValueError, match="not a baseline"):
         read_baseline(path)
+
+
+def test_a_finding_may_name_its_metrics_by_pattern():
+    findings = [{"engine": "mujoco", "metric": "*velocity_after_impact.*", "reason": REASON}]
+    rows = apply_known(
+        [
+            row("mujoco", "velocity_after_impact.a", 1.0, False),
+            row("mujoco", "angular_velocity_after_impact.b", 1.0, False),
+            row("mujoco", "restitution_error", 1.0, False),
+        ],
+        scene(findings),
+    )
+    assert [r["outcome"] for r in rows] == ["known", "known", "failed"], rows

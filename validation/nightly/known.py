@@ -9,6 +9,7 @@ outcome and the finding's reason are written next to the row (``outcome``, ``kno
 from __future__ import annotations
 
 from collections.abc import Iterable
+from fnmatch import fnmatchcase
 
 from validation.contract import BAD_STATUSES
 from validation.scenario.engine_spec import parse_engine_spec
@@ -36,12 +37,18 @@ def _label(spec: str) -> str:
     return parse_engine_spec(spec).label
 
 
+def covers(pattern: str, metric: str) -> bool:
+    """Whether a finding's ``metric`` covers a row's: the name itself, ``*`` (every row), or a
+    shell-style pattern (``velocity_after_impact.*``: every body's)."""
+    return pattern == ANY_METRIC or fnmatchcase(metric, pattern)
+
+
 def matching_finding(
     findings: Iterable[KnownFinding], engine: str, metric: str
 ) -> KnownFinding | None:
     """The first finding of ``findings`` that covers the row (``engine`` a spec label)."""
     for finding in findings:
-        if _label(finding.engine) == engine and finding.metric in (ANY_METRIC, metric):
+        if _label(finding.engine) == engine and covers(finding.metric, metric):
             return finding
     return None
 

@@ -9,6 +9,7 @@ at its line and column.
 from __future__ import annotations
 
 import difflib
+import fnmatch
 from collections.abc import Callable, Iterator
 
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
@@ -142,14 +143,15 @@ STATUS_METRIC = "status"
 
 
 def known_findings(scenario: Scenario) -> Found:
-    """A known finding names a valid engine spec and a metric of this scene, ``status`` or ``*``."""
+    """A known finding names a valid engine spec and a metric of this scene, ``status``, ``*``, or
+    a pattern that matches one of them."""
     metrics = sorted({*METRIC_NAMES, *(e.metric for e in scenario.expect), STATUS_METRIC})
     for i, finding in enumerate(scenario.known):
         try:
             parse_engine_spec(finding.engine)
         except EngineSpecError as error:
             yield ("known", i, "engine"), str(error)
-        if finding.metric != ANY_METRIC and finding.metric not in metrics:
+        if finding.metric != ANY_METRIC and not fnmatch.filter(metrics, finding.metric):
             hint = _hint(finding.metric, metrics).removeprefix("; ")
             yield (
                 ("known", i, "metric"),

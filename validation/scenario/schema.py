@@ -399,7 +399,8 @@ class KnownFinding(_Strict):
     )
     metric: Annotated[str, Strict(), Field(min_length=1)] = Field(
         description="a metric of this scene (energy_drift, velocity_at.ball, ...), 'status' for "
-        "the run's own row (unstable, error), or '*' for every row of the engine"
+        "the run's own row (unstable, error), '*' for every row of the engine, or a shell-style "
+        "pattern (velocity_after_impact.*)"
     )
     reason: Annotated[str, Strict(), Field(min_length=1)] = Field(
         description="what was measured and where it is documented"
