@@ -19,8 +19,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation.contract import PROVENANCE_FILE, RESULTS_COLUMNS
+from validation.cli import main
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK, PROVENANCE_FILE, RESULTS_COLUMNS
 from validation.nightly import history
+from validation.nightly.compare import COMPARE_COLUMNS
 from validation.nightly.noise import RELATIVE_NOISE
 from validation.nightly.steps import detect_steps
 
@@ -211,3 +213,124 @@ def test_step_detection_finds_none_on_constant_or_noisy_series():
     values = np.vstack([noisy, within_floor, constant, with_gaps])
     steps = detect_steps(values, np.full(values.shape[0], 0.01))
     assert [i for i, found in enumerate(steps) if found] == []
+
+
+# --- the pages ----------------------------------------------------------------------------
+
+
+def recorded_history(tmp_path: Path) -> str:
+    """Five nights: mujoco's energy drift doubles at night 4 with its version change; the last
+    night carries baseline classes."""
+    url = f"sqlite:///{tmp_path / 'reports' / 'history.sqlite'}"
+    for day in range(1, 6):
+        mujoco = 2e-3 if day < 4 else 4e-3
+        rows = [
+            row("bounce", "mini", "energy_drift", 1e-4),
+            row("bounce", "mujoco", "energy_drift", mujoco),
+            row("spin", "mini", "precession_rate", np.nan, tolerance=None, value=3.5),
+        ]
+        if day == 5:
+            for r, baseline in zip(rows, ("unchanged", "regressed", "new"), strict=True):
+                r["baseline"] = baseline
+        versions = {"mini": "0.1.0", "mujoco": "3.3.7" if day < 4 else "4.0.0"}
+        history.record_run(write_run(tmp_path / f"run{day}", rows, night(day), versions), url)
+    return url
+
+
+def test_history_page_shows_the_step_the_version_change_and_the_regression(tmp_path, capsys):
+    url = recorded_history(tmp_path)
+    assert main(["history", "--db", url]) == EXIT_OK
+    page = tmp_path / "reports" / "history.html"  # next to the database
+    assert capsys.readouterr().out.strip() == str(page)
+    html = page.read_text()
+    moved = html[html.index('id="moved"') : html.index('id="scenes"')]
+    assert moved.count("<tr><td><a href=") == 1 and "mujoco" in moved
+    assert "3.3.7 → 4.0.0" in moved  # the version change at the run that moved
+    assert "error 0.002 → 0.004 (grew)" in moved
+    regressions = html[html.index('id="baseline"') : html.index('id="moved"')]
+    assert "regressed <b>1</b>" in regressions and "mujoco" in regressions
+    assert html.count("<svg") == 3 + 1 + 1 + 1  # 3 sparklines + in moved + in regressions + 1 plot
+    assert "<script" not in html and "http" not in html.replace("http://www.w3.org", "")
+    main(["history", "--db", url])
+    assert page.read_text() == html  # deterministic
+
+
+def test_compare_lists_exactly_the_moved_rows(tmp_path, capsys):
+    tolerance = 0.01
+    before = [
+        row("s", "mini", "grew", 1e-3),
+        row("s", "mini", "shrank", 1e-3),
+        row("s", "mini", "within_noise", 1e-3),
+        row("s", "mini", "now_fails", 0.0099995),
+        row("s", "mini", "gone", 1e-3),
+        row("s", "mini", "unjudged", np.nan, tolerance=None, value=2.0),
+        row("s", "mujoco", "same", 5e-3),
+    ]
+    after = [
+        row("s", "mini", "grew", 1.1e-3),
+        row("s", "mini", "shrank", 0.9e-3),
+        row("s", "mini", "within_noise", 1e-3 * (1 + 0.5 * RELATIVE_NOISE)),
+        row("s", "mini", "now_fails", 0.0100005),  # Δ below the floor, but the verdict changed
+        row("s", "mini", "arrived", 1e-3),
+        row("s", "mini", "unjudged", np.nan, tolerance=None, value=2.5),
+        row("s", "mujoco", "same", 5e-3),
+    ]
+    assert tolerance == before[0]["tolerance"]
+    a = write_run(tmp_path / "a", before, night(1))
+    b = write_run(tmp_path / "b", after, night(2), {"mini": "0.2.0", "mujoco": "3.3.7"})
+    out = tmp_path / "cmp"
+    assert main(["compare", str(a), str(b), "--out", str(out)]) == EXIT_OK
+    assert "6 rows moved" in capsys.readouterr().out
+    table = pd.read_csv(out / "compare.csv")
+    assert tuple(table.columns) == COMPARE_COLUMNS
+    assert dict(zip(table["metric"], table["change"], strict=True)) == {
+        "grew": "regressed",
+        "now_fails": "regressed",
+        "shrank": "improved",
+        "unjudged": "changed",
+        "arrived": "new",
+        "gone": "missing",
+    }
+    grew = table[table["metric"] == "grew"].iloc[0]
+    assert (grew["error_a"], grew["error_b"]) == pytest.approx((1e-3, 1.1e-3))
+    assert (grew["verdict_a"], grew["verdict_b"]) == ("passed", "passed")
+    assert grew["engine_version_a"] == "0.1.0" and grew["engine_version_b"] == "0.2.0"
+    html = (out / "compare.html").read_text()
+    assert html.count('<td class="regressed">') == 2 and "0.1.0 → 0.2.0" in html
+
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    ids = [history.record_run(folder, url) for folder in (a, b)]
+    by_id = tmp_path / "by_id"
+    assert main(["compare", str(ids[0]), str(ids[1]), "--db", url, "--out", str(by_id)]) == EXIT_OK
+    pd.testing.assert_frame_equal(pd.read_csv(by_id / "compare.csv"), table)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "says"),
+    [
+        (
+            ["compare", "{tmp}/nowhere", "{tmp}/run"],
+            "nowhere: no such run folder, and not a run id",
+        ),
+        (["compare", "{tmp}/run", "7", "--db", "{url}"], "run 7: no such run"),
+        (
+            ["compare", "1", "2", "--db", "{tmp}/missing.sqlite"],
+            "missing.sqlite: no history database",
+        ),
+        (["compare", "{tmp}/empty", "{tmp}/run"], "no results.csv"),
+        (["history", "--db", "{tmp}/missing.sqlite"], "missing.sqlite: no history database"),
+        (["history", "--db", "nosuchdialect://x"], "not a usable database URL"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, arguments, says):
+    folder = write_run(tmp_path / "run", [row("s", "mini", "m", 1e-3)], night(1))
+    (tmp_path / "empty").mkdir()
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    history.record_run(folder, url)
+    argv = [a.format(tmp=tmp_path, url=url) for a in arguments]
+    assert main(argv) == EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert len(captured.err.strip().splitlines()) == 1, captured.err
+    assert says in captured.err and "Traceback" not in captured.err
+    assert not (tmp_path / "missing.sqlite").exists()  # reading never creates a database
