@@ -45,7 +45,9 @@ HISTORY_PAGE = "history.html"
 TEMPLATE = "history.html.j2"
 
 SPARK_WIDTH, SPARK_HEIGHT, SPARK_PAD = 160, 26, 3
-"""Sparkline size in px (one short table row) and the margin that keeps end dots whole."""
+"""Sparkline size in px (one short table row) and the margin that keeps end dots whole. A
+sparkline is a polyline the template draws, not a matplotlib figure: the smallest figure costs
+6 ms to save as SVG (measured), 6 s for 1,000 series; matplotlib draws the full trend plots."""
 
 SPARK_POINTS = SPARK_WIDTH
 """At most this many points per sparkline (each bucket of runs keeps its min and max, as
