@@ -20,6 +20,8 @@ from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.run import run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
+from validation.nightly.compare import compare_main
+from validation.nightly.history_page import history_main
 from validation.report.render import report_command
 from validation.scenario import (  # BUNDLED_SCENARIOS: tests and scripts import it from here
     BUNDLED_SCENARIOS,  # noqa: F401
@@ -73,6 +75,16 @@ def command_sweep(args: argparse.Namespace) -> int:
     )
 
 
+def command_history(args: argparse.Namespace) -> int:
+    """Trend, steps and regressions of every recorded series; writes history.html."""
+    return history_main(args.db, args.last, args.only, args.out)
+
+
+def command_compare(args: argparse.Namespace) -> int:
+    """The rows that moved beyond noise between two runs; writes compare.csv and compare.html."""
+    return compare_main(args.run_a, args.run_b, args.db, args.out)
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -86,6 +98,8 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "sweep": (command_sweep, "error against run time over a timestep sweep"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
+    "history": (command_history, "history.html: every metric's trend over the recorded runs"),
+    "compare": (command_compare, "the rows that moved beyond noise between two runs"),
 }
 
 
@@ -172,12 +186,36 @@ def _sweep_arguments(command: argparse.ArgumentParser) -> None:
     _jobs_argument(command)
 
 
+def _db_argument(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--db", metavar="URL", help="history database URL or SQLite file (reports/history.sqlite)"
+    )
+
+
+def _history_arguments(command: argparse.ArgumentParser) -> None:
+    _db_argument(command)
+    command.add_argument("--last", type=_positive_count, metavar="N", help="only the last N runs")
+    command.add_argument("--only", metavar="GLOB", help="only scenes whose name matches")
+    command.add_argument(
+        "--out", type=Path, metavar="FILE", help="page (default history.html next to the database)"
+    )
+
+
+def _compare_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument("run_a", metavar="RUN_A", help="run folder or history run id (before)")
+    command.add_argument("run_b", metavar="RUN_B", help="run folder or history run id (after)")
+    _db_argument(command)
+    command.add_argument("--out", type=Path, metavar="DIR", help="folder (default reports/compare)")
+
+
 ARGUMENTS = {
     "run": _run_arguments,
     "sweep": _sweep_arguments,
     "stability": _stability_arguments,
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+    "history": _history_arguments,
+    "compare": _compare_arguments,
 }
 """Sub-command -> a function adding its arguments."""
 

@@ -29,16 +29,20 @@ TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 TEMPLATE_NAME = "report.html.j2"
 
 
-def render_html(context: dict[str, Any]) -> str:
-    """The page: ``templates/report.html.j2`` with autoescaping on."""
-    environment = Environment(
-        loader=FileSystemLoader(TEMPLATE_DIR),
+def template_environment(directory: Path) -> Environment:
+    """Jinja2 on a template folder: autoescaping on, undefined names an error (every page)."""
+    return Environment(
+        loader=FileSystemLoader(directory),
         autoescape=True,
         undefined=StrictUndefined,
         trim_blocks=True,
         lstrip_blocks=True,
     )
-    return environment.get_template(TEMPLATE_NAME).render(**context)
+
+
+def render_html(context: dict[str, Any]) -> str:
+    """The page: ``templates/report.html.j2`` with autoescaping on."""
+    return template_environment(TEMPLATE_DIR).get_template(TEMPLATE_NAME).render(**context)
 
 
 def render_report(run_dir: Path) -> Path:

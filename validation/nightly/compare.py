@@ -1,0 +1,234 @@
+"""``physval compare RUN_A RUN_B``: the rows that moved beyond noise between two runs.
+
+Each run is a run folder (results.csv, provenance.json) or the id of a run in the history
+(``--db``); an existing folder wins over a number. Rows are matched on (scenario, engine spec,
+metric) and classified by the noise rule (``validation.nightly.noise``, defined there once):
+
+- ``regressed`` / ``improved``: the verdict got worse / better (a change of verdict is always a
+  move), or else the error grew / shrank beyond the noise floor;
+- ``changed``: a row without an error (no expected value) whose value moved beyond the floor,
+  or a verdict that changed within one rank (failed -> unstable) while the error did not move;
+- ``new`` / ``missing``: the row is only in run B / only in run A.
+
+Unchanged rows are left out. Writes ``compare.csv`` and ``compare.html`` (self-contained, like
+report.html) into ``--out`` (default ``reports/compare/``, beside the other generated pages and
+git-ignored); exit 0 whatever moved (it is a report), 2 on bad input with one line.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, EXIT_OK
+from validation.files import write_atomically
+from validation.nightly.history import (
+    KEY_COLUMNS,
+    HistoryInputError,
+    database_url,
+    load_run,
+    read_run_folder,
+)
+from validation.nightly.known import FIXED, KNOWN, row_verdict
+from validation.nightly.noise import NOISE_RULE, moved, noise_floor
+from validation.nightly.pages import render_page
+from validation.report.build import format_number
+
+COMPARE_CSV, COMPARE_HTML = "compare.csv", "compare.html"
+DEFAULT_OUT = Path("reports") / "compare"
+TEMPLATE = "compare.html.j2"
+
+COMPARE_COLUMNS = (
+    "scenario",
+    "engine",
+    "metric",
+    "change",
+    "value_a",
+    "value_b",
+    "error_a",
+    "error_b",
+    "tolerance",
+    "noise_floor",
+    "verdict_a",
+    "verdict_b",
+    "engine_version_a",
+    "engine_version_b",
+)
+"""compare.csv, in order: one row per moved row (``tolerance`` is run B's, else run A's)."""
+
+CHANGES = ("regressed", "improved", "changed", "new", "missing")
+"""The classes of a moved row, news first (the page's and the CSV's order)."""
+
+VERDICT_RANK = {
+    **dict.fromkeys(BAD_STATUSES, 2),
+    KNOWN: 1,
+    "unsupported": 1,
+    "passed": 0,
+    "no_tolerance": 0,
+    FIXED: 0,
+}
+"""How bad a verdict is: a bad status 2; a known failure or an unsupported row 1 (not news,
+not good); passed, measured without tolerance, or a fixed known finding 0."""
+
+ROW_FIELDS = ("value", "error", "tolerance", "verdict", "engine_version")
+"""The columns of each run that the comparison keeps, suffixed ``_a`` / ``_b``."""
+
+
+@dataclass(frozen=True)
+class RunSide:
+    """One of the two runs: where it came from and its rows."""
+
+    label: str
+    created: str
+    commit: str
+    engine_versions: dict[str, str]
+    rows: pd.DataFrame
+    """scenario, engine, metric, value, error, tolerance, verdict, engine_version."""
+
+
+def _verdicts(rows: pd.DataFrame) -> list[str]:
+    """Each row's verdict: its ``outcome`` when the run wrote one (known findings), else
+    ``known.row_verdict`` of its status and check."""
+    outcomes = rows["outcome"] if "outcome" in rows else [None] * len(rows)
+    return [
+        outcome if isinstance(outcome, str) and outcome else row_verdict(str(status), passed)
+        for outcome, status, passed in zip(outcomes, rows["status"], rows["passed"], strict=True)
+    ]
+
+
+def _side(label: str, created: Any, commit: Any, versions: dict, rows: pd.DataFrame) -> RunSide:
+    rows = rows.assign(verdict=_verdicts(rows))
+    return RunSide(
+        label=label,
+        created="" if created is None or pd.isna(created) else str(created)[:19],
+        commit=str(commit or ""),
+        engine_versions={str(k): str(v) for k, v in (versions or {}).items()},
+        rows=rows[[*KEY_COLUMNS, *ROW_FIELDS]].reset_index(drop=True),
+    )
+
+
+def resolve_run(text: str, url: str) -> RunSide:
+    """``RUN``: an existing run folder, else a run id in the history at ``url``."""
+    folder = Path(text)
+    if folder.is_dir():
+        results, provenance = read_run_folder(folder)
+        versions = {
+            label: info.get("version", "") for label, info in provenance.get("engines", {}).items()
+        }
+        return _side(
+            str(folder), provenance.get("created"), provenance.get("git_commit"), versions, results
+        )
+    if not text.isdigit():
+        raise HistoryInputError(f"{text}: no such run folder, and not a run id")
+    history = load_run(url, int(text))
+    run = history.runs.iloc[0]
+    return _side(
+        f"run {text}", run["created"], run["commit"], run["engine_versions"], history.latest
+    )
+
+
+def judged(row: dict[str, Any]) -> tuple[float, float]:
+    """The two numbers the noise rule compares: the errors, or the values of a row that has
+    no error in either run (no expected value), as history.html's trends do."""
+    if math.isnan(row["error_a"]) and math.isnan(row["error_b"]):
+        return row["value_a"], row["value_b"]
+    return row["error_a"], row["error_b"]
+
+
+def classify(row: dict[str, Any]) -> str:
+    """The change of one matched row (``unchanged`` when it did not move)."""
+    if not isinstance(row["verdict_a"], str):
+        return "new"
+    if not isinstance(row["verdict_b"], str):
+        return "missing"
+    rank_a, rank_b = (VERDICT_RANK.get(row[f"verdict_{s}"], 2) for s in "ab")
+    if rank_a != rank_b:
+        return "regressed" if rank_b > rank_a else "improved"
+    direction = moved(*judged(row), row["tolerance"])
+    if direction and math.isnan(row["error_a"]) and math.isnan(row["error_b"]):
+        return "changed"  # a value without an expected value: neither better nor worse
+    if direction:
+        return "regressed" if direction > 0 else "improved"
+    return "changed" if row["verdict_a"] != row["verdict_b"] else "unchanged"
+
+
+def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
+    """The moved rows of B against A (``COMPARE_COLUMNS``), news first, then by name."""
+    matched = a.rows.merge(b.rows, on=list(KEY_COLUMNS), how="outer", suffixes=("_a", "_b"))
+    for column in ("value", "error", "tolerance"):
+        for side in "ab":
+            matched[f"{column}_{side}"] = matched[f"{column}_{side}"].astype(float)
+    matched["tolerance"] = matched["tolerance_b"].fillna(matched["tolerance_a"])
+    records = matched.to_dict("records")
+    matched["change"] = [classify(row) for row in records]
+    matched["noise_floor"] = [noise_floor(*judged(r), r["tolerance"]) for r in records]
+    found = matched[matched["change"] != "unchanged"].copy()
+    found["order"] = [CHANGES.index(change) for change in found["change"]]
+    found = found.sort_values(["order", *KEY_COLUMNS], kind="stable")
+    return found[list(COMPARE_COLUMNS)].reset_index(drop=True)
+
+
+def _side_context(side: RunSide) -> dict[str, Any]:
+    return {
+        "label": side.label,
+        "created": side.created,
+        "commit": side.commit,
+        "versions": side.engine_versions,
+        "rows": len(side.rows),
+    }
+
+
+def _versions(row: dict[str, Any]) -> str:
+    """``old → new`` when the row's engine version changed, else the one version."""
+    a, b = (
+        v if isinstance(v, str) else "" for v in (row["engine_version_a"], row["engine_version_b"])
+    )
+    return f"{a} → {b}" if a and b and a != b else b or a
+
+
+def build_context(a: RunSide, b: RunSide, moved_rows: pd.DataFrame) -> dict[str, Any]:
+    """Everything compare.html shows."""
+    shown = [
+        {
+            **{k: row[k] for k in (*KEY_COLUMNS, "change")},
+            **{k: row[k] if isinstance(row[k], str) else "" for k in ("verdict_a", "verdict_b")},
+            **{
+                k: format_number(row[k])
+                for k in ("value_a", "value_b", "error_a", "error_b", "tolerance", "noise_floor")
+            },
+            "versions": _versions(row),
+        }
+        for row in moved_rows.to_dict("records")
+    ]
+    counts = moved_rows["change"].value_counts()
+    return {
+        "a": _side_context(a),
+        "b": _side_context(b),
+        "counts": [(change, int(counts.get(change, 0))) for change in CHANGES],
+        "rows": shown,
+        "noise_rule": NOISE_RULE,
+    }
+
+
+def compare_main(run_a: str, run_b: str, db: str | None, out: Path | None) -> int:
+    """``physval compare``: writes compare.csv and compare.html; 0, or 2 and one line."""
+    try:
+        url = database_url(db)
+        a, b = resolve_run(run_a, url), resolve_run(run_b, url)
+    except HistoryInputError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    moved_rows = compare_runs(a, b)
+    folder = out or DEFAULT_OUT
+    folder.mkdir(parents=True, exist_ok=True)
+    write_atomically(folder / COMPARE_CSV, moved_rows.to_csv(index=False))
+    context = build_context(a, b, moved_rows)
+    write_atomically(folder / COMPARE_HTML, render_page(TEMPLATE, context))
+    counts = ", ".join(f"{n} {change}" for change, n in context["counts"] if n)
+    print(f"{len(moved_rows)} rows moved ({counts or 'none'}) -> {folder / COMPARE_HTML}")
+    return EXIT_OK
