@@ -66,5 +66,11 @@ def report_command(run_dir: Path | str) -> int:
     except ReportInputError as error:
         print(f"{run_dir}: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except OSError as error:  # the folder cannot take report.html
+        print(
+            f"{run_dir / REPORT_FILE}: cannot be written ({error.strerror or error})",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
     print(path)
     return EXIT_OK
