@@ -239,3 +239,38 @@ def test_default_history_folders_are_unique_within_a_second():
     names = {history_name() for _ in range(100)}
     assert len(names) == 100
     assert all(len(name.split("-")) == 3 and "." in name for name in names), names
+
+
+def test_a_full_disk_is_refused_before_any_engine_runs(tmp_path):
+    first, _ = _two_scenes(tmp_path)
+    code, _, err = run(
+        "run",
+        str(first),
+        "--out",
+        "out",
+        cwd=tmp_path,
+        code="import validation.jobs.output as output; output.MIN_FREE_BYTES = 2**62",
+    )
+    assert code == 2 and "MIN_FREE_BYTES" in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+
+
+DISK_FULL_WHILE_WRITING = """
+import errno
+import validation.jobs.run as run
+def disk_full(*_):
+    raise OSError(errno.ENOSPC, "No space left on device")
+run.write_run = disk_full
+"""
+
+
+def test_a_write_failing_after_the_engines_ran_keeps_their_jobs_for_resume(tmp_path):
+    first, _ = _two_scenes(tmp_path)
+    arguments = ("run", str(first), "--out", "out")
+    code, _, err = run(*arguments, cwd=tmp_path, code=DISK_FULL_WHILE_WRITING)
+    assert code == 2 and "No space left" in err and "--resume" in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert len(list(tmp_path.glob(".out-staging-*/journal/job-*.pickle"))) == 1
+    code, out, err = run("run", "--resume", "out", cwd=tmp_path)
+    assert code == 0 and "1 of 1 jobs from the journal" in out, err
+    assert set(pd.read_csv(tmp_path / "out" / "results.csv")["scenario"]) == {"first"}
