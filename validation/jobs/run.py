@@ -173,14 +173,14 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
 
 
 def execute(
-    plan: Plan, jobs: int = 1, journal: Journal | None = None
+    plan: Plan, jobs: int = 1, journal: Journal | None = None, done: dict | None = None
 ) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
     """Run every (scene, engine) on ``jobs`` workers; returns rows, series frames, impact rows
-    and the runs, all in plan order whatever order the jobs finished in. With a ``journal``,
-    the jobs it already holds are not run again and each new one is committed to it as it
-    finishes."""
+    and the runs, all in plan order whatever order the jobs finished in. ``done``: the
+    results already finished (``journal.finished()``), not run again; with a ``journal``,
+    each new result is committed to it as it finishes."""
     work = plan.jobs
-    done = journal.finished() if journal is not None else {}
+    done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
 
     def finished(position: int, result) -> None:
@@ -307,8 +307,9 @@ def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
 
 def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, jobs: int) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code."""
-    resumed = len(journal.finished())
-    rows, series, impacts, runs = execute(plan, jobs, journal)  # Ctrl-C: Interrupted
+    done = journal.finished()
+    resumed = len(done)
+    rows, series, impacts, runs = execute(plan, jobs, journal, done)  # Ctrl-C: Interrupted
     provenance = _provenance(runs, request.argv)
     if resumed:
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": len(plan.jobs) - resumed}
