@@ -1,9 +1,10 @@
-"""Applied forces: gravity and linear spring-dampers.
+"""Applied forces: gravity, linear spring-dampers, and constant applied loads.
 
 Gravity is returned as an acceleration (it does not pass through ``F / m``, so
-free fall is exact to the last bit); springs as forces and torques about each
-body's centre of mass. Both are evaluated at the state at the start of the
-step, which makes them explicit in time whatever the integrator.
+free fall is exact to the last bit); springs and each body's constant applied force
+and torque (world frame, the force at the centre of mass) as forces and torques about
+each body's centre of mass. All are evaluated at the state at the start of the step,
+which makes them explicit in time whatever the integrator.
 """
 
 from __future__ import annotations
@@ -68,6 +69,14 @@ def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarr
     force[model.body_fixed] = 0.0
     torque[model.body_fixed] = 0.0
     return force, torque
+
+
+def applied_loads(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forces (n, 3) N and torques (n, 3) N·m about each centre of mass, world frame: the
+    springs' (``spring_forces``) plus each body's constant ``body_force`` and ``body_torque``
+    (zero for fixed bodies). Gravity is not among them (``gravity_acceleration``)."""
+    force, torque = spring_forces(model, state, rot)
+    return force + model.body_force, torque + model.body_torque
 
 
 def spring_energies(model: Model, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:

@@ -53,9 +53,11 @@ class Body:
         orientation: (4,) unit quaternion w x y z, body to world.
         velocity: (3,) m/s, world frame, centre of mass.
         angular_velocity: (3,) rad/s, world frame.
+        force: (3,) N, world frame, a constant applied force at the centre of mass.
+        torque: (3,) N·m, world frame, a constant applied torque.
         restitution: coefficient of restitution e in [0, 1].
         friction: Coulomb coefficient μ >= 0; 0 is frictionless, as documented.
-        fixed: a static body (infinite mass, never moves).
+        fixed: a static body (infinite mass, never moves; its loads are ignored).
         world: world index (``SHARED_WORLD`` for a static body seen by every world).
         collides: False removes the body from collision detection entirely.
         name: label for reports.
@@ -68,6 +70,8 @@ class Body:
     orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0)
     velocity: Sequence[float] = (0.0, 0.0, 0.0)
     angular_velocity: Sequence[float] = (0.0, 0.0, 0.0)
+    force: Sequence[float] = (0.0, 0.0, 0.0)
+    torque: Sequence[float] = (0.0, 0.0, 0.0)
     restitution: float = 0.0
     friction: float = 0.0
     fixed: bool = False
@@ -129,6 +133,8 @@ class Model:
         body_bound_radius: (n,) m, radius of a sphere around the centre enclosing
             the shape (inf for planes).
         body_restitution: (n,) e in [0, 1]. body_friction: (n,) μ >= 0.
+        body_force: (n, 3) N, world frame, constant applied force at the centre of mass
+            (0 for fixed bodies). body_torque: (n, 3) N·m, world frame, constant applied torque.
         body_fixed: (n,) bool. body_collides: (n,) bool.
         body_world: (n,) int world index (``SHARED_WORLD`` = every world).
 
@@ -154,6 +160,8 @@ class Model:
     body_bound_radius: np.ndarray
     body_restitution: np.ndarray
     body_friction: np.ndarray
+    body_force: np.ndarray
+    body_torque: np.ndarray
     body_fixed: np.ndarray
     body_collides: np.ndarray
     body_world: np.ndarray
@@ -360,6 +368,8 @@ def build_model(
         body_bound_radius=np.array([b.shape.bounding_radius() for b in bodies], dtype=float),
         body_restitution=np.array([b.restitution for b in bodies], dtype=float),
         body_friction=np.array([b.friction for b in bodies], dtype=float),
+        body_force=np.where(fixed[:, None], 0.0, _rows_of(bodies, labels, "force", 3)),
+        body_torque=np.where(fixed[:, None], 0.0, _rows_of(bodies, labels, "torque", 3)),
         body_fixed=fixed,
         body_collides=np.array([b.collides for b in bodies], dtype=bool),
         body_world=world,
@@ -446,6 +456,8 @@ def replicate(model: Model, state: State, copies: int) -> tuple[Model, State]:
         body_bound_radius=tile(model.body_bound_radius),
         body_restitution=tile(model.body_restitution),
         body_friction=tile(model.body_friction),
+        body_force=tile(model.body_force),
+        body_torque=tile(model.body_torque),
         body_fixed=tile(model.body_fixed),
         body_collides=tile(model.body_collides),
         body_world=world,

@@ -13,7 +13,7 @@ import numpy as np
 
 from mini_engine.collision import detect_contacts
 from mini_engine.contacts import Contacts
-from mini_engine.forces import gravity_acceleration, spring_forces
+from mini_engine.forces import applied_loads, gravity_acceleration
 from mini_engine.integrate import (
     integrate_angular_velocity,
     integrate_linear_velocity,
@@ -59,8 +59,8 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         if model.can_touch
         else Contacts.empty()
     )
-    # 2. applied loads at the start-of-step state: gravity, spring-dampers
-    force, torque = spring_forces(model, state, rot)
+    # 2. applied loads at the start-of-step state: gravity, spring-dampers, constant loads
+    force, torque = applied_loads(model, state, rot)
     lin_acc = gravity_acceleration(model) + force * model.body_inv_mass[:, None]
     # 3. world inverse inertia R I⁻¹ Rᵀ, only where a torque or an impulse will use it
     needs_inertia = contacts.count > 0 or np.any(torque != 0.0)

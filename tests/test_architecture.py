@@ -30,8 +30,10 @@ WINGS: dict[str, int] = {
     "validation.engines": 3,
     "validation.measure": 4,
     "validation.report": 4,
-    "validation.jobs": 5,
-    "validation.cli": 6,
+    "validation.nightly": 5,
+    "validation.jobs": 6,
+    "validation.cli": 7,
+    "validation.pytest_plugin": 7,
 }
 """Wing (module prefix) -> rank. A wing may import its own modules and those of lower-ranked
 wings, never a higher or an equally ranked other wing (except ``ALSO_ALLOWED``)."""

@@ -139,8 +139,8 @@ class VelocityAfterImpact(_Tracker):
             return
         event = first[0]
         at = np.flatnonzero(states.t == event.time_end)
-        gravity = np.zeros(3) if not self.scene.moving[self.body] else self.scene.gravity
-        velocity = states.vel[int(at[0]), self.body] - gravity * (
+        acceleration = self.scene.acceleration[self.body]  # g + F/m: free flight
+        velocity = states.vel[int(at[0]), self.body] - acceleration * (
             event.time_end - event.time_impulse
         )
         where = f"velocity after the impact at t = {event.time_impulse:.6g} s"
@@ -278,8 +278,9 @@ class Flips(_Tracker):
 
 @dataclass
 class AngularVelocityAfterImpact(_Tracker):
-    """Angular velocity of the body at the first state apart after its first impact (no
-    carrying back: gravity exerts no torque about the centre of mass)."""
+    """Angular velocity of the body at the first state apart after its first impact, carried
+    back to the impulse by the applied torque's ``R I⁻¹ Rᵀ τ`` (gravity and forces at the centre
+    of mass exert none; without a torque nothing is carried)."""
 
     found: Measurement | None = None
 
@@ -288,9 +289,16 @@ class AngularVelocityAfterImpact(_Tracker):
             return
         first = self.mine(events)
         if first:
-            at = int(np.flatnonzero(states.t == first[0].time_end)[0])
-            where = f"angular velocity after the impact at t = {first[0].time_impulse:.6g} s"
-            self.found = _vector(self.expectation, states.ang_vel[at, self.body], where)
+            event = first[0]
+            at = int(np.flatnonzero(states.t == event.time_end)[0])
+            ang_vel = states.ang_vel[at, self.body]
+            torque = self.scene.torque[self.body]
+            if np.any(torque):
+                rot = rotations(states.quat[at, self.body])
+                inverse = rot @ np.linalg.inv(self.scene.inertia[self.body]) @ rot.T
+                ang_vel = ang_vel - inverse @ torque * (event.time_end - event.time_impulse)
+            where = f"angular velocity after the impact at t = {event.time_impulse:.6g} s"
+            self.found = _vector(self.expectation, ang_vel, where)
 
     def result(self) -> Measurement:
         return self.found or _missing(self.expectation, "no impact")

@@ -6,9 +6,9 @@ For scenes where nothing can touch, the motion of each body is
     dx/dt = v,   dv/dt = g + F/m,   dq/dt = ½ (0, ω) ⊗ q,   dL/dt = τ,   ω = R I⁻¹ Rᵀ L
 
 (world frame: ``L`` is the body's angular momentum about its centre of mass, so the
-gyroscopic term is exact, not an option), with ``F`` and ``τ`` from the scene's springs (the
-one spring law, ``mini_engine.forces.spring_forces``, evaluated on the continuous state; it is
-a force law, not a discretization). No step of any engine is involved; the error control
+gyroscopic term is exact, not an option), with ``F`` and ``τ`` the scene's springs and constant
+applied loads (the one load law, ``mini_engine.forces.applied_loads``, evaluated on the
+continuous state; it is a force law, not a discretization). No step of any engine is involved; the error control
 keeps the reference many orders of magnitude below the first-order errors it measures.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from mini_engine.forces import spring_forces
+from mini_engine.forces import applied_loads
 from mini_engine.model import State
 from mini_engine.rotation import quat_multiply, quat_to_matrix
 from validation.engines.base import Trajectory
@@ -68,7 +68,7 @@ def reference_motion(scene: CompiledScene, times: np.ndarray) -> Trajectory:
     def derivative(_t: float, y: np.ndarray) -> np.ndarray:
         pos, quat, vel, momentum = _unpack(y, n)
         omega = _omega(scene, quat, momentum)
-        accel, torque = gravity.copy(), np.zeros((n, 3))
+        accel, torque = gravity + scene.force / mass[:, None], scene.torque
         if scene.model.n_springs:
             state = State(
                 pos=np.concatenate([pos, rest.pos[n:]]),
@@ -78,8 +78,8 @@ def reference_motion(scene: CompiledScene, times: np.ndarray) -> Trajectory:
                 vel=np.concatenate([vel, rest.vel[n:]]),
                 ang_vel=np.concatenate([omega, rest.ang_vel[n:]]),
             )
-            force, moment = spring_forces(scene.model, state, quat_to_matrix(state.quat))
-            accel += np.where(scene.moving[:, None], force[:n] / mass[:, None], 0.0)
+            force, moment = applied_loads(scene.model, state, quat_to_matrix(state.quat))
+            accel = gravity + np.where(scene.moving[:, None], force[:n] / mass[:, None], 0.0)
             torque = np.where(scene.moving[:, None], moment[:n], 0.0)
         spin = np.concatenate([np.zeros((n, 1)), omega], axis=1)
         dquat = 0.5 * quat_multiply(spin, quat)

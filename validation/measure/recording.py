@@ -172,9 +172,9 @@ class ImpactDetector:
 
     def __post_init__(self) -> None:
         self.bodies = self.scene.model.n_bodies
-        self.body_gravity = np.where(
-            np.asarray(self.scene.model.body_fixed)[:, None], 0.0, self.scene.gravity
-        )
+        # each model body's free acceleration g + F/m (zero for fixed bodies and the ground)
+        self.body_acceleration = np.zeros((self.bodies, 3))
+        self.body_acceleration[: self.scene.count] = self.scene.acceleration
         self.open: dict[tuple[int, int], _OpenImpact] = {}
         self.opened = 0
         self.context: Trajectory | None = None
@@ -239,10 +239,10 @@ class ImpactDetector:
         gap = ext.t[obs - 1] - ext.t[earlier]
         measured = (obs >= 2) & (gap > 0)
         previous = self._relative_normal_velocity(ext, earlier, a, b, normal, arm_a, arm_b)
-        gravity = np.einsum("ci,ci->c", self.body_gravity[b] - self.body_gravity[a], normal)
+        free = np.einsum("ci,ci->c", self.body_acceleration[b] - self.body_acceleration[a], normal)
         with np.errstate(divide="ignore", invalid="ignore"):
-            # without two earlier observations: free fall of both bodies, (g_B - g_A)·n
-            accel = np.where(measured, (before - previous) / np.where(measured, gap, 1.0), gravity)
+            # without two earlier observations: free flight of both bodies, (a_B - a_A)·n
+            accel = np.where(measured, (before - previous) / np.where(measured, gap, 1.0), free)
         opens = []
         for k in approaching:
             self.opened += 1

@@ -239,7 +239,8 @@ def build_legend(table: pd.DataFrame) -> dict[str, Any]:
         "expectations": list(EXPECTATION_DEFINITIONS.items()),
         "expected_kinds": {
             "analytic": "a closed form (the expected value printed in the row)",
-            "conserved": "the conserved quantity's initial value",
+            "conserved": "a conserved quantity: value and error its drift, expected 0 (the "
+            "initial value is in the message)",
             "engine": "another engine's result on the same scene, written engine:<spec>",
         },
         "kinds_known": EXPECTED_KINDS,

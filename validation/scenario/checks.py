@@ -16,7 +16,7 @@ import numpy as np
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.physics import body_inertia, symmetry_frame
 from validation.scenario.problems import Problem, path_text
-from validation.scenario.schema import MAX_STEPS, METRIC_NAMES, BodySpec, Scenario
+from validation.scenario.schema import ANY_METRIC, MAX_STEPS, METRIC_NAMES, BodySpec, Scenario
 from validation.scenario.yaml_source import SourceMap
 
 Location = tuple[str | int, ...]
@@ -162,6 +162,38 @@ def check_names(scenario: Scenario) -> Found:
                 )
 
 
+STATUS_METRIC = "status"
+"""The metric of the row a run failure (unstable, error, model_mismatch) writes."""
+
+
+def known_findings(scenario: Scenario) -> Found:
+    """A known finding names a valid engine spec and a metric of this scene, ``status`` or ``*``."""
+    metrics = sorted({*METRIC_NAMES, *(e.metric for e in scenario.expect), STATUS_METRIC})
+    for i, finding in enumerate(scenario.known):
+        try:
+            parse_engine_spec(finding.engine)
+        except EngineSpecError as error:
+            yield ("known", i, "engine"), str(error)
+        if finding.metric != ANY_METRIC and finding.metric not in metrics:
+            hint = _hint(finding.metric, metrics).removeprefix("; ")
+            yield (
+                ("known", i, "metric"),
+                f"unknown metric {finding.metric!r}; {hint or 'expected a metric of this scene'}"
+                f" or {ANY_METRIC!r}",
+            )
+
+
+def loads_on_moving_bodies(scenario: Scenario) -> Found:
+    """An applied force or torque acts on a body that can move (a fixed body would ignore it)."""
+    for i, body in enumerate(scenario.bodies):
+        for field in ("force", "torque"):
+            if body.fixed and any(getattr(body, field)):
+                yield (
+                    ("bodies", i, field),
+                    f"expected no {field} on a fixed body (it never moves); got {list(getattr(body, field))}",
+                )
+
+
 def step_count(scenario: Scenario) -> Found:
     """At least one step, at most ``MAX_STEPS``."""
     if scenario.duration < scenario.dt:
@@ -180,6 +212,8 @@ RULES: tuple[Callable[[Scenario], Found], ...] = (
     pair_bodies,
     expectations,
     precession_needs_a_symmetry_axis,
+    loads_on_moving_bodies,
+    known_findings,
     engine_specs,
     check_names,
     step_count,

@@ -59,6 +59,13 @@ def gravitational_energy(mass: np.ndarray, pos: np.ndarray, gravity: np.ndarray)
     return -np.einsum("n,sni,i->s", mass, pos, gravity)
 
 
+def applied_force_energy(force: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """(s,) J, ``Σ -F·x`` (zero at the origin), the potential of constant applied forces
+    ``force (n, 3)`` N at the centres of mass ``pos (s, n, 3)``: like gravity, a constant force
+    is conservative."""
+    return -np.einsum("ni,sni->s", force, pos)
+
+
 def linear_momentum(mass: np.ndarray, vel: np.ndarray) -> np.ndarray:
     """(s, 3) kg·m/s, ``Σ m v``."""
     return np.einsum("n,sni->si", mass, vel)
@@ -124,6 +131,9 @@ class CompiledScene:
         count: n, the scene's bodies. moving: (n,) bool, not fixed.
         mass: (n,) kg, 0 for fixed bodies. inertia: (n, 3, 3) kg·m², body frame.
         gravity: (3,) m/s². can_touch: whether any two bodies can meet.
+        force: (n, 3) N, torque: (n, 3) N·m, world frame: each body's constant applied load
+            (0 for fixed bodies). acceleration: (n, 3) m/s², what acts on each centre of mass
+            besides contacts and springs: g + F/m (0 for fixed bodies).
         external_loads: a ground, fixed body or world spring can push the moving bodies (then
             momentum is not conserved).
         bound_radius: (n + ground,) m, each body's bounding radius (mini_engine's).
@@ -141,6 +151,9 @@ class CompiledScene:
     mass: np.ndarray
     inertia: np.ndarray
     gravity: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    acceleration: np.ndarray
     can_touch: bool
     external_loads: bool
     bound_radius: np.ndarray
@@ -168,6 +181,24 @@ class CompiledScene:
         """(s,) J."""
         return gravitational_energy(self.mass, pos, self.gravity)
 
+    def applied_force_energy(self, pos) -> np.ndarray:
+        """(s,) J, the potential of the constant applied forces, ``Σ -F·x``."""
+        return applied_force_energy(self.force, pos)
+
+    @property
+    def applies_torque(self) -> bool:
+        """Whether a constant torque acts: it does work with no potential (a world-fixed torque
+        on a rotating body is not conservative), so energy is not an invariant then."""
+        return bool(np.any(self.torque != 0.0))
+
+    @property
+    def uniform_acceleration(self) -> bool:
+        """Whether every moving body's free acceleration g + F/m is the same vector (always
+        without applied forces): then those forces exert no torque about the system's centre
+        of mass, and dL/dt is the sum of the applied torques."""
+        moving = self.acceleration[self.moving]
+        return bool(moving.size == 0 or np.allclose(moving, moving[0], rtol=1e-12, atol=0.0))
+
     def spring_energy(self, pos, quat) -> np.ndarray:
         """(s,) J stored in the springs (mini_engine's spring law on ``s`` copies of the model)."""
         samples = pos.shape[0]
@@ -177,12 +208,12 @@ class CompiledScene:
         return spring_energies(model, full_pos, full_rot).reshape(samples, -1).sum(axis=1)
 
     def energy(self, pos, quat, vel, ang_vel) -> np.ndarray:
-        """(s,) J, kinetic + gravitational + spring."""
-        return (
-            self.kinetic_energy(quat, vel, ang_vel)
-            + self.gravitational_energy(pos)
-            + self.spring_energy(pos, quat)
-        )
+        """(s,) J, kinetic + gravitational + spring + applied-force potential."""
+        energy = self.kinetic_energy(quat, vel, ang_vel) + self.gravitational_energy(pos)
+        energy += self.spring_energy(pos, quat)
+        if np.any(self.force):
+            energy += self.applied_force_energy(pos)
+        return energy
 
     def linear_momentum(self, vel) -> np.ndarray:
         """(s, 3) kg·m/s."""
@@ -250,20 +281,37 @@ class CompiledScene:
         return model, full_pos, full_rot
 
 
-def _speed_scale(scenario: Scenario, mass: np.ndarray, stored_energy: float) -> float:
-    """m/s: 1 + the fastest initial speed + the fastest spin times its body's size + free fall
-    over the run + the speed the springs' stored energy could give the lightest moving body."""
+def _spin_up(scene: CompiledScene) -> np.ndarray:
+    """(n,) rad/s, the spin each applied torque can add over the run: |τ|·T / I_min."""
+    smallest = np.linalg.eigvalsh(scene.inertia)[:, 0] if scene.count else np.zeros(0)
+    return np.linalg.norm(scene.torque, axis=1) * scene.scenario.duration / smallest
+
+
+def _speed_scale(scene: CompiledScene, stored_energy: float) -> float:
+    """m/s: 1 + the fastest initial speed + the fastest spin (initial plus what applied torques
+    add) times its body's size + the speed the free acceleration g + F/m gives over the run +
+    the speed the springs' stored energy could give the lightest moving body."""
+    scenario, mass = scene.scenario, scene.mass
     bodies = scenario.bodies
+    radius = np.array([SHAPE_BUILDERS[b.shape.type](b.shape).bounding_radius() for b in bodies])
     speed = max(float(np.linalg.norm(b.velocity)) for b in bodies)
-    spin = max(
-        float(np.linalg.norm(b.angular_velocity))
-        * SHAPE_BUILDERS[b.shape.type](b.shape).bounding_radius()
-        for b in bodies
-    )
-    fall = float(np.linalg.norm(scenario.gravity)) * scenario.duration
+    initial_spin = np.array([np.linalg.norm(b.angular_velocity) for b in bodies])
+    spin = float(np.max((initial_spin + _spin_up(scene)) * radius))
+    fall = float(np.linalg.norm(scene.acceleration, axis=1).max()) * scenario.duration
     lightest = float(mass[mass > 0].min(initial=math.inf))
     release = math.sqrt(2.0 * max(stored_energy, 0.0) / max(lightest, 1e-300))
     return 1.0 + speed + spin + fall + release
+
+
+def _energy_floor(scene: CompiledScene) -> float:
+    """J: total moving mass times (1 + |g|), plus the work the applied loads can do over the
+    run (|F| times the distance the speed scale allows, |τ| times the angle its spin allows)."""
+    duration = scene.scenario.duration
+    spin = np.array([np.linalg.norm(b.angular_velocity) for b in scene.scenario.bodies])
+    force_work = np.linalg.norm(scene.force, axis=1).sum() * scene.speed_scale * duration
+    torque_work = np.sum(np.linalg.norm(scene.torque, axis=1) * (spin + _spin_up(scene)))
+    weight = float(scene.mass.sum()) * (1.0 + float(np.linalg.norm(scene.gravity)))
+    return weight + float(force_work + torque_work * duration)
 
 
 def compile_scene(scenario: Scenario) -> CompiledScene:
@@ -272,6 +320,10 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
     moving = np.array([not b.fixed for b in scenario.bodies])
     mass = np.where(moving, [b.mass for b in scenario.bodies], 0.0)
     world_springs = any(s.b == "world" for s in scenario.springs)
+    force = np.where(moving[:, None], [b.force for b in scenario.bodies], 0.0).reshape(-1, 3)
+    torque = np.where(moving[:, None], [b.torque for b in scenario.bodies], 0.0).reshape(-1, 3)
+    gravity = np.asarray(scenario.gravity, dtype=float)
+    safe_mass = np.where(moving, mass, 1.0)
     scene = CompiledScene(
         scenario=scenario,
         model=model,
@@ -280,7 +332,10 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
         moving=moving,
         mass=mass,
         inertia=np.array([body_inertia(b) for b in scenario.bodies]).reshape(-1, 3, 3),
-        gravity=np.asarray(scenario.gravity, dtype=float),
+        gravity=gravity,
+        force=force,
+        torque=torque,
+        acceleration=np.where(moving[:, None], gravity + force / safe_mass[:, None], 0.0),
         can_touch=model.can_touch,
         external_loads=scenario.ground is not None or not moving.all() or world_springs,
         bound_radius=np.asarray(model.body_bound_radius),
@@ -289,6 +344,6 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
     initial = tuple(
         np.asarray(a)[None, :n] for a in (state.pos, state.quat, state.vel, state.ang_vel)
     )
-    scene.energy_floor = float(mass.sum()) * (1.0 + float(np.linalg.norm(scene.gravity)))
-    scene.speed_scale = _speed_scale(scenario, mass, float(scene.spring_energy(*initial[:2])[0]))
+    scene.speed_scale = _speed_scale(scene, float(scene.spring_energy(*initial[:2])[0]))
+    scene.energy_floor = _energy_floor(scene)
     return scene

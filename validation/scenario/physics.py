@@ -17,7 +17,7 @@ from mini_engine.collision import detect_contacts
 from mini_engine.model import SHARED_WORLD, Model, State
 from mini_engine.rotation import apply, quat_to_matrix
 from mini_engine.shapes import Box, Capsule, Sphere, solid_inertia
-from validation.scenario.schema import BodySpec, Scenario, SpringSpec
+from validation.scenario.schema import BodySpec, GroundSpec, Scenario, SpringSpec
 
 SHAPE_BUILDERS = {
     "sphere": lambda s: Sphere(s.radius),
@@ -134,6 +134,8 @@ def _body(spec: BodySpec) -> Body:
         orientation=spec.orientation,
         velocity=spec.velocity,
         angular_velocity=spec.angular_velocity,
+        force=spec.force,
+        torque=spec.torque,
         restitution=spec.restitution,
         friction=spec.friction,
         fixed=spec.fixed,
@@ -141,13 +143,30 @@ def _body(spec: BodySpec) -> Body:
     )
 
 
+def ground_pose(ground: GroundSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The ground plane's pose: ``point (3,)`` m and the unit quaternion ``(4,)`` w x y z of the
+    shortest rotation taking +z to ``ground.normal`` (a half turn about x for -z). Every engine
+    places its plane (normal = the body's +z) with this one pose."""
+    normal = np.asarray(ground.normal, dtype=float)
+    axis = np.cross([0.0, 0.0, 1.0], normal)
+    cosine = float(normal[2])
+    if cosine <= -1.0 + AXISYMMETRY_TOLERANCE and np.linalg.norm(axis) <= AXISYMMETRY_TOLERANCE:
+        return np.asarray(ground.point, dtype=float), np.array([0.0, 1.0, 0.0, 0.0])
+    # q = (1 + cos θ, sin θ · axis) normalised: the half-angle formula without trigonometry
+    quat = np.concatenate([[1.0 + cosine], axis])
+    return np.asarray(ground.point, dtype=float), quat / np.linalg.norm(quat)
+
+
 def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
     """Model and initial state: the scene's bodies in order, then the ground plane if any."""
     bodies = [_body(spec) for spec in scenario.bodies]
     if scenario.ground is not None:
+        point, quat = ground_pose(scenario.ground)
         bodies.append(
             Body(
                 Plane(),
+                position=point,
+                orientation=quat,
                 fixed=True,
                 restitution=scenario.ground.restitution,
                 friction=scenario.ground.friction,

@@ -144,6 +144,13 @@ class BodySpec(_Strict):
     )
     velocity: Vec3 = Field(default=(0.0, 0.0, 0.0), description="m/s, world frame, centre of mass")
     angular_velocity: Vec3 = Field(default=(0.0, 0.0, 0.0), description="rad/s, world frame")
+    force: Vec3 = Field(
+        default=(0.0, 0.0, 0.0),
+        description="N, world frame: a constant applied force at the centre of mass",
+    )
+    torque: Vec3 = Field(
+        default=(0.0, 0.0, 0.0), description="N·m, world frame: a constant applied torque"
+    )
     restitution: UnitInterval = 0.0
     friction: NonNegative = Field(default=0.0, description="Coulomb μ; 0 is frictionless")
     fixed: Annotated[bool, Strict()] = Field(default=False, description="a static body")
@@ -172,11 +179,29 @@ class BodySpec(_Strict):
         return None if self.inertia is None else _inertia_matrix(self.inertia)
 
 
-class GroundSpec(_Strict):
-    """A static infinite plane z = 0 with normal +z."""
+MIN_GROUND_NORMAL = 1e-9
+"""Shortest ``ground.normal`` accepted (it is normalised): below this the direction is round-off."""
 
+
+class GroundSpec(_Strict):
+    """A static infinite plane through ``point`` with unit normal ``normal`` (the solid side
+    below it); default the plane z = 0 with normal +z."""
+
+    normal: Vec3 = Field(
+        default=(0.0, 0.0, 1.0),
+        description="the plane's outward normal, world frame (normalised; any length > 0)",
+    )
+    point: Vec3 = Field(default=(0.0, 0.0, 0.0), description="m, world frame, a point on the plane")
     restitution: UnitInterval = 0.0
     friction: NonNegative = 0.0
+
+    @field_validator("normal")
+    @classmethod
+    def _unit_normal(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        norm = math.sqrt(sum(v * v for v in value))
+        if not norm > MIN_GROUND_NORMAL:
+            raise ValueError(f"expected a non-zero direction [nx, ny, nz]; got {list(value)}")
+        return tuple(v / norm for v in value)
 
 
 class SpringSpec(_Strict):
@@ -349,6 +374,32 @@ Expectation = Annotated[
 
 Tolerance = NonNegative | dict[str, NonNegative]
 
+ANY_METRIC = "*"
+"""The ``metric`` of a known finding that covers every row of its (scene, engine spec)."""
+
+
+class KnownFinding(_Strict):
+    """A difference the scene's authors know of: a failing row of ``engine`` and ``metric``
+    reads ``known`` (not a failure of the run); the same row passing reads ``fixed``."""
+
+    engine: Annotated[str, Strict()] = Field(
+        description="an engine spec, matched as written in engines (e.g. mujoco(integrator=RK4))"
+    )
+    metric: Annotated[str, Strict(), Field(min_length=1)] = Field(
+        description="a metric of this scene (energy_drift, velocity_at.ball, ...), 'status' for "
+        "the run's own row (unstable, error), or '*' for every row of the engine"
+    )
+    reason: Annotated[str, Strict(), Field(min_length=1)] = Field(
+        description="what was measured and where it is documented"
+    )
+
+    @field_validator("reason")
+    @classmethod
+    def _says_something(cls, value: str) -> str:
+        if not value.strip():
+            raise ValueError("expected what was measured and where it is documented; got blanks")
+        return value
+
 
 class Scenario(_Strict):
     """A scene, version 1. Defaults are the documented ones below each field."""
@@ -359,7 +410,9 @@ class Scenario(_Strict):
     dt: Positive = Field(description="s, the fixed step")
     duration: Positive = Field(description="s, >= dt")
     gravity: Vec3 = Field(default=(0.0, 0.0, -9.81), description="m/s², world frame")
-    ground: GroundSpec | None = Field(default=None, description="the static plane z = 0, normal +z")
+    ground: GroundSpec | None = Field(
+        default=None, description="a static plane (default z = 0, normal +z); none if absent"
+    )
     engines: list[Annotated[str, Strict()]] = Field(
         default=list(DEFAULT_ENGINES),
         min_length=1,
@@ -373,6 +426,10 @@ class Scenario(_Strict):
         default={},
         description="tolerance per metric: one number, or {default: x, <engine spec>: y} "
         "(an engine entry applies to exactly that spec as written in engines)",
+    )
+    known: list[KnownFinding] = Field(
+        default=[],
+        description="known findings: failing rows they match read 'known' and do not fail the run",
     )
     source: str = Field(default="", exclude=True, description="the file it was loaded from")
 

@@ -149,7 +149,12 @@ class MujocoAdapter:
         )
 
     def _set_initial_state(self, scenario: Scenario) -> None:
+        """Initial qpos/qvel, and the constant applied loads in ``xfrc_applied`` (world-frame
+        force at the body's centre of mass ``xipos``, then torque; MuJoCo keeps the field
+        between steps and applies it at every stage of every integrator)."""
         d = self.data
+        loads = np.concatenate([self.scene.force, self.scene.torque], axis=1)
+        d.xfrc_applied[self.body_ids] = loads
         for row, adr, dof in zip(self.moving, self.qpos_adr, self.dof_adr, strict=True):
             body = scenario.bodies[row]
             rot = quat_to_matrix(np.array([body.orientation]))[0]
@@ -161,8 +166,9 @@ class MujocoAdapter:
     def model_report(self) -> ModelReport:
         """Read back from MuJoCo after ``mj_forward`` on a scratch copy of the current state
         (so reading never perturbs the run): ``body_mass``, ``xipos``, ``ximat · diag(
-        body_inertia) · ximatᵀ``, ``mj_energyPos + mj_energyVel`` and the world subtree's
-        momenta (``mj_subtreeVel``; fixed bodies are massless, so these are the moving ones')."""
+        body_inertia) · ximatᵀ``, ``mj_energyPos + mj_energyVel`` (plus the applied forces'
+        potential -F·x, which MuJoCo does not define) and the world subtree's momenta
+        (``mj_subtreeVel``; fixed bodies are massless, so these are the moving ones')."""
         m = self.model
         d = mujoco.MjData(m)
         d.qpos[:] = self.data.qpos
@@ -175,11 +181,12 @@ class MujocoAdapter:
         ids = self.body_ids[self.moving]
         frames = d.ximat[ids].reshape(-1, 3, 3)
         inertia = frames @ (m.body_inertia[ids][:, :, None] * frames.transpose(0, 2, 1))
+        force_potential = self.scene.applied_force_energy(d.xipos[self.body_ids][None])[0]
         return ModelReport(
             mass=m.body_mass[ids].copy(),
             com=d.xipos[ids].copy(),
             inertia_world=inertia,
-            energy=float(d.energy[0] + d.energy[1]),
+            energy=float(d.energy[0] + d.energy[1] + force_potential),
             linear_momentum=m.body_subtreemass[0] * d.subtree_linvel[0].copy(),
             angular_momentum=d.subtree_angmom[0].copy(),
         )

@@ -7,7 +7,10 @@ Model (all SI units, world frame z up, quaternions w x y z as in the scene):
   is fixed. Mass and the full body-frame inertia are written explicitly, so MuJoCo never
   recomputes them from the geoms (engines.md 1.3);
 - one geom per body (sphere ``[r]``, box half extents, capsule ``[r, half_length]`` along
-  body z) and a plane at z = 0 for ``scenario.ground``;
+  body z) and a plane for ``scenario.ground``, placed with the one ground pose of
+  ``physics.ground_pose`` (the plane's normal is its geom z axis);
+- constant applied forces and torques are not part of the MJCF: the adapter writes them to
+  ``xfrc_applied`` (world frame, the force at the body's centre of mass);
 - springs as spatial tendons between two sites (stiffness, damping, springlength = the
   rest length), whose energy MuJoCo's ``mj_energyPos`` includes;
 - profile ``matched``: one explicit ``<pair>`` per pair of bodies that can touch, with the
@@ -29,7 +32,7 @@ from itertools import combinations
 import numpy as np
 
 from validation.scenario import BodySpec, Scenario
-from validation.scenario.physics import body_inertia, pair_rule, rest_length
+from validation.scenario.physics import body_inertia, ground_pose, pair_rule, rest_length
 
 # --- constants, each with where its number comes from ------------------------------------
 
@@ -351,7 +354,17 @@ def build_mjcf(scenario: Scenario, settings: dict[str, object]) -> tuple[str, Co
         ET.SubElement(option, "flag", **{name: "disable" for name, off in unused.items() if off})
     world = ET.SubElement(root, "worldbody")
     if scenario.ground is not None:
-        ET.SubElement(world, "geom", name=GROUND, type="plane", size=_fmt(PLANE_SIZE), **plan.geom)
+        point, quat = ground_pose(scenario.ground)
+        ET.SubElement(
+            world,
+            "geom",
+            name=GROUND,
+            type="plane",
+            size=_fmt(PLANE_SIZE),
+            pos=_fmt(point),
+            quat=_fmt(quat),
+            **plan.geom,
+        )
     bodies = {b.name: _add_body(world, b, plan.geom) for b in scenario.bodies}
     _add_springs(root, world, bodies, scenario)
     if plan.pairs:

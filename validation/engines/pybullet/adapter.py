@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet
 
-from mini_engine.forces import spring_forces
+from mini_engine.forces import applied_loads
 from mini_engine.model import State
 from mini_engine.rotation import quat_multiply, quat_to_matrix
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
@@ -48,7 +48,7 @@ from validation.scenario.compiled import (
     linear_momentum,
 )
 from validation.scenario.engine_spec import EngineSpec
-from validation.scenario.physics import PAIR_RULES, body_inertia
+from validation.scenario.physics import PAIR_RULES, body_inertia, ground_pose
 
 # --- numbers and where they come from ---------------------------------------------------------
 
@@ -253,7 +253,7 @@ class PybulletAdapter:
         self.ground = self._create_ground() if scenario.ground else None
         self._set_contact_values(scenario)
         self._filter_pairs(scenario)
-        self._set_up_springs(scenario)
+        self._set_up_loads(scenario)
 
     def _world_parameters(self, scenario: Scenario) -> dict[str, float | int]:
         parameters: dict[str, float | int] = {
@@ -318,11 +318,14 @@ class PybulletAdapter:
         )
 
     def _create_ground(self) -> int:
+        """A static plane (normal = its +z) at the one ground pose of ``physics.ground_pose``."""
+        point, quat = ground_pose(self.scenario.ground)
         shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=self.client)
         return pybullet.createMultiBody(
             baseMass=0.0,
             baseCollisionShapeIndex=shape,
-            basePosition=[0.0, 0.0, 0.0],
+            basePosition=point.tolist(),
+            baseOrientation=to_xyzw(quat),
             useMaximalCoordinates=self.bodies_mode == "maximal",
             physicsClientId=self.client,
         )
@@ -413,21 +416,27 @@ class PybulletAdapter:
                 objects[i], objects[j], -1, -1, 0, physicsClientId=self.client
             )
 
-    def _set_up_springs(self, scenario: Scenario) -> None:
-        """The springs are the compiled scene's mini model's (the same rest lengths: the anchors'
-        distance at t = 0 unless given); forces are applied explicitly before every step."""
+    def _set_up_loads(self, scenario: Scenario) -> None:
+        """Springs and constant applied loads are the compiled scene's mini model's (the same
+        rest lengths: the anchors' distance at t = 0 unless given); Bullet clears external
+        forces after every step, so they are applied explicitly before every step."""
         self.fixed = np.array([b.fixed for b in scenario.bodies])
         ends = np.concatenate([self.scene.model.spring_body_a, self.scene.model.spring_body_b])
-        self.spring_ends = np.isin(np.arange(len(scenario.bodies)), ends)
+        constant = np.any(self.scene.force != 0.0, axis=1) | np.any(
+            self.scene.torque != 0.0, axis=1
+        )
+        self.loaded = ~self.fixed & (np.isin(np.arange(len(scenario.bodies)), ends) | constant)
+        self.any_loads = bool(self.loaded.any())
         self.scene_quat = np.array([b.orientation for b in scenario.bodies])
         self.principal = np.array(
             [principal_axes(body_inertia(b))[1] for b in scenario.bodies]
         ).reshape(-1, 4)
-        if len(scenario.springs):
+        if self.loaded.any():
             self.notes.append(
-                "springs: forces applied with applyExternalForce and applyExternalTorque (world "
-                "frame) before every step, from the state at the start of the step (explicit in "
-                "time), by mini_engine's spring law (forces.spring_forces)"
+                "springs and applied loads: forces applied with applyExternalForce (at the centre "
+                "of mass) and applyExternalTorque (world frame) before every step, from the state "
+                "at the start of the step (explicit in time), by mini_engine's load law "
+                "(forces.applied_loads)"
             )
 
     # -- reading back ----------------------------------------------------------------------
@@ -440,9 +449,10 @@ class PybulletAdapter:
         ang_vel[self.fixed] = 0.0
         return raw[:, 0:3].copy(), from_xyzw(raw[:, 3:7]), vel, ang_vel
 
-    def _apply_spring_forces(self) -> None:
-        """mini_engine's law (``forces.spring_forces``) on the state PyBullet holds: each body
-        gets the springs' force at its centre of mass and their torque about it (world frame)."""
+    def _apply_loads(self) -> None:
+        """mini_engine's law (``forces.applied_loads``: springs and constant loads) on the state
+        PyBullet holds: each loaded body gets the force at its centre of mass and the torque
+        about it (world frame)."""
         pos, quat, vel, ang_vel = self._read_state()
         model, rest = self.scene.model, self.scene.initial
         n = len(self.ids)
@@ -452,8 +462,8 @@ class PybulletAdapter:
             vel=np.concatenate([vel, rest.vel[n:]]),
             ang_vel=np.concatenate([ang_vel, rest.ang_vel[n:]]),
         )
-        force, torque = spring_forces(model, state, quat_to_matrix(state.quat))
-        for body in np.flatnonzero(~self.fixed & self.spring_ends):
+        force, torque = applied_loads(model, state, quat_to_matrix(state.quat))
+        for body in np.flatnonzero(self.loaded):
             pybullet.applyExternalForce(
                 self.ids[body],
                 -1,
@@ -484,7 +494,8 @@ class PybulletAdapter:
         """The dynamic bodies as PyBullet holds them: ``getDynamicsInfo`` mass and principal
         moments, rotated to world with the base (inertial-frame) orientation, and the base
         pose and velocities; energy and momenta from those readbacks and PyBullet's gravity,
-        by the invariants of ``validation.scenario.compiled`` (springs: the scene's law)."""
+        by the invariants of ``validation.scenario.compiled`` (springs and applied forces: the
+        scene's laws)."""
         moving = dynamic_bodies(self.scene)
         pos, quat, vel, ang_vel = self._read_state()
         info = [
@@ -502,6 +513,7 @@ class PybulletAdapter:
         energy = kinetic_energy(mass, inertia[None], states[1], states[2])
         energy += gravitational_energy(mass, states[0], gravity)
         energy += self.scene.spring_energy(pos[None], body_quat)
+        energy += self.scene.applied_force_energy(pos[None])
         return ModelReport(
             mass=mass,
             com=pos[moving],
@@ -540,8 +552,8 @@ class PybulletAdapter:
         )
 
     def _step(self) -> None:
-        if self.scene.model.n_springs:
-            self._apply_spring_forces()
+        if self.any_loads:
+            self._apply_loads()
         pybullet.stepSimulation(physicsClientId=self.client)
         self.steps_taken += 1
 

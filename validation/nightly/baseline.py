@@ -1,0 +1,152 @@
+"""Baselines: a reviewed record of a run, and every later row classified against it.
+
+``physval baseline save RUN_DIR --to FILE`` writes, per row of the run, its key (scenario,
+engine spec, metric), value, error, tolerance, status and outcome, the engine's version and
+the scene file's content hash, as CSV (reviewed in a pull request like code).
+``physval run --baseline FILE`` classifies every row of the new run:
+
+- ``scene_changed``: the scene file's hash differs (the numbers may move; not a regression);
+- ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run;
+- ``regressed`` / ``improved``: the verdict got worse / better (passed -> failed, ok ->
+  unstable), or the error moved beyond noise (``validation.nightly.noise``) up / down;
+- ``unchanged``: none of these.
+
+The run fails (exit 1) on a regression or a *new failure*: a failing row (bad status, not a
+known finding) that the baseline does not have failing too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from validation.nightly.known import FIXED, KNOWN, row_verdict
+from validation.nightly.noise import moved
+
+KEY = ("scenario", "engine", "metric")
+"""What identifies a row across runs."""
+
+BASELINE_COLUMNS = (
+    *KEY,
+    "value",
+    "error",
+    "tolerance",
+    "status",
+    "outcome",
+    "engine_version",
+    "scene_sha256",
+)
+"""The columns of a baseline file, in order (CI jobs and reviewers read them)."""
+
+CLASSES = ("regressed", "new", "missing", "scene_changed", "improved", "unchanged")
+"""Every class a row can get against a baseline, the news first (names fixed by issue 12)."""
+
+VERDICT_RANK = {
+    "error": 0,
+    "model_mismatch": 0,
+    "unstable": 0,
+    "failed": 1,
+    KNOWN: 1,
+    "unsupported": 2,
+    "no_tolerance": 2,
+    "passed": 3,
+    FIXED: 3,
+}
+"""How good a row's verdict is (higher is better): a move between ranks is always news; a
+known failure is as bad as a failure (the baseline compares physics, not paperwork)."""
+
+FAILING = ("error", "model_mismatch", "unstable", "failed")
+"""Outcomes that fail a run when they are new (a ``known`` row never does)."""
+
+
+def scene_hash(path: str | Path) -> str:
+    """sha256 of a scene file's bytes ('' when it cannot be read: then it never matches)."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return ""
+
+
+def outcome_of(row: pd.Series | dict) -> str:
+    """A row's outcome: its ``outcome`` column when present, else its own verdict."""
+    outcome = row.get("outcome")
+    if isinstance(outcome, str) and outcome:
+        return outcome
+    return row_verdict(str(row.get("status", "")), row.get("passed"))
+
+
+def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.DataFrame:
+    """The baseline record of a run's ``results`` (results.csv) with each scene's hash."""
+    table = results.copy()
+    table["outcome"] = [outcome_of(row) for _, row in table.iterrows()]
+    table["scene_sha256"] = table["scenario"].map(scene_hashes).fillna("")
+    return table.reindex(columns=list(BASELINE_COLUMNS))
+
+
+def read_baseline(path: Path) -> pd.DataFrame:
+    """A baseline file; ValueError naming the file and what is missing when it is not one."""
+    try:
+        table = pd.read_csv(path, dtype={"scene_sha256": str}, keep_default_na=False)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
+        raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
+    absent = [c for c in BASELINE_COLUMNS if c not in table.columns]
+    if absent:
+        raise ValueError(f"{path}: not a baseline: columns {', '.join(absent)} are missing")
+    for column in ("value", "error", "tolerance"):
+        table[column] = pd.to_numeric(table[column], errors="coerce")
+    return table
+
+
+def _number(value: object) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
+    """The class of one row of the run against its baseline row (``before``, None if absent)."""
+    if before is None:
+        return "new"
+    if before["scene_sha256"] != scene_sha256:
+        return "scene_changed"
+    rank_now = VERDICT_RANK.get(outcome_of(now), 0)
+    rank_before = VERDICT_RANK.get(str(before["outcome"]), 0)
+    if rank_now != rank_before:
+        return "regressed" if rank_now < rank_before else "improved"
+    tolerance = _number(now.get("tolerance"))
+    direction = moved(_number(before["error"]), _number(now.get("error")), tolerance)
+    return {1: "regressed", -1: "improved", 0: "unchanged"}[direction]
+
+
+def classify(
+    rows: list[dict], baseline: pd.DataFrame, scene_hashes: dict[str, str]
+) -> tuple[list[dict], list[dict]]:
+    """The run's rows with a ``baseline`` class each, and the baseline's rows the run lacks
+    (class ``missing``) for the scenes the run ran."""
+    index = {tuple(r[k] for k in KEY): r for r in baseline.to_dict("records")}
+    classified = []
+    for row in rows:
+        before = index.pop(tuple(str(row[k]) for k in KEY), None)
+        sha = scene_hashes.get(str(row["scenario"]), "")
+        classified.append({**row, "baseline": classify_row(row, before, sha)})
+    ran = {str(r["scenario"]) for r in rows}
+    missing = [{**r, "baseline": "missing"} for r in index.values() if r["scenario"] in ran]
+    return classified, missing
+
+
+def is_new_failure(row: dict) -> bool:
+    """A failing row (not a known finding) that the baseline did not have failing: new to it,
+    or regressed into failure, or in a changed scene."""
+    if outcome_of(row) not in FAILING:
+        return False
+    return row.get("baseline", "new") != "unchanged"
+
+
+def exit_failed(rows: list[dict]) -> bool:
+    """Whether the run fails (exit 1): a regression, or a new failure (module docstring).
+    Without a baseline every failing row counts as new."""
+    return any(row.get("baseline") == "regressed" or is_new_failure(row) for row in rows)
