@@ -80,7 +80,8 @@ INTERRUPT_AFTER_S = 8.0
 
 def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     """Ctrl-C (SIGINT to the whole process group: the run, its fork server and its workers)
-    on a parallel run: exit 130, one line, no traceback, the previous report untouched."""
+    on a parallel run: exit 130, one line, no traceback, the previous report untouched, the
+    finished jobs kept in the run's journal."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "results.csv").write_text(PREVIOUS_REPORT)
@@ -106,5 +107,7 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     assert len(lines) == 1 and "interrupted" in lines[0], lines
     assert (out / "results.csv").read_text() == PREVIOUS_REPORT
     assert sorted(p.name for p in out.iterdir()) == ["results.csv"]
-    leftovers = [p.name for p in tmp_path.iterdir() if p.name != "out"]
-    assert leftovers == [], leftovers
+    leftovers = sorted(p.name for p in tmp_path.iterdir() if p.name != "out")
+    # the lock file, and the run's staging folder with its journal for ``--resume``
+    assert leftovers[1] == ".out.lock" and len(leftovers) == 2, leftovers
+    assert (tmp_path / leftovers[0] / "journal" / "header.json").is_file(), leftovers

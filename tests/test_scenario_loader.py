@@ -216,7 +216,7 @@ UNSAFE_YAML = {
             f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join(['*' + chr(97 + i)] * 10)}]\n"
             for i in range(8)
         ),
-        "alias bomb",
+        "1000000 values, the cap on a scenario's size (MAX_VALUES",
     ),
 }
 

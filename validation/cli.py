@@ -14,10 +14,10 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from validation.contract import EXIT_INTERRUPTED, EXIT_OK
+from validation.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 from validation.jobs.check import check_main
 from validation.jobs.executor import Interrupted, default_jobs
-from validation.jobs.run import run_main
+from validation.jobs.run import RESUME_ALONE, run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
 from validation.nightly.compare import compare_main
@@ -29,8 +29,12 @@ from validation.scenario import (  # BUNDLED_SCENARIOS: tests and scripts import
     json_schema,
 )
 
-INTERRUPTED_MESSAGE = "interrupted: every worker stopped; nothing was written or replaced"
-"""The one line a Ctrl-C prints (results are published only after every job has finished)."""
+INTERRUPTED_MESSAGE = (
+    "interrupted: every worker stopped; nothing was replaced (physval run --resume DIR "
+    "finishes a run)"
+)
+"""The one line a Ctrl-C prints (results are published only after every job has finished;
+a run's finished jobs stay in its journal)."""
 
 
 def command_check(args: argparse.Namespace) -> int:
@@ -40,6 +44,9 @@ def command_check(args: argparse.Namespace) -> int:
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
+    if args.resume is not None and (args.paths or args.engines or args.dt or args.only or args.out):
+        print(f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return run_main(
         args.paths or default_scenario_paths(),
         args.engines,
@@ -48,6 +55,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.only,
         args.argv,
         args.jobs,
+        args.resume,
     )
 
 
@@ -139,6 +147,12 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
     _scene_selection(command)
     command.add_argument(
         "--out", type=Path, metavar="DIR", help="run folder (default reports/latest)"
+    )
+    command.add_argument(
+        "--resume",
+        type=Path,
+        metavar="DIR",
+        help="finish the killed run whose --out was DIR, without redoing its finished jobs",
     )
     command.add_argument(
         "--dt", type=_positive_seconds, metavar="SECONDS", help="override every scene's dt"

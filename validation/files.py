@@ -1,4 +1,5 @@
-"""Writing files so that a reader never sees a half-written one."""
+"""Writing files so that a reader never sees a half-written one, and a kill never loses one
+that was reported written."""
 
 from __future__ import annotations
 
@@ -9,24 +10,37 @@ from pathlib import Path
 import pandas as pd
 
 
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to a new file next to ``path``, then rename it over ``path``.
+def sync_folder(folder: Path) -> None:
+    """fsync a folder, so that the names created or renamed in it survive a crash."""
+    descriptor = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
 
-    Readers see the old file or the new one, never a half-written one; on any error the
-    temporary file is removed and ``path`` is untouched.
+
+def write_atomically(path: Path, data: str | bytes) -> None:
+    """Write ``data`` (text as UTF-8) to a new file next to ``path``, fsync it, then rename it
+    over ``path`` and fsync the folder.
+
+    Readers see the old file or the new one, never a half-written one, and once this returns
+    the new file survives a kill or a crash; on any error the temporary file is removed and
+    ``path`` is untouched.
     """
     temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    payload = data.encode("utf-8") if isinstance(data, str) else data
     try:
         # O_EXCL: never reuse a stranger's file; 0o666 & ~umask like any new file.
         descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(descriptor, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        with os.fdopen(descriptor, "wb") as handle:
+            handle.write(payload)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(temporary, path)
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+    sync_folder(path.parent)
 
 
 def write_table(rows: list[dict], path: Path) -> None:

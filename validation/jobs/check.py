@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.jobs.plan import duplicate_name
 from validation.scenario import check_scenario, scenario_files
 
 
@@ -21,8 +22,13 @@ def check_main(paths: list[Path]) -> int:
         print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
         return EXIT_BAD_INPUT
     invalid = warnings = 0
+    names: dict[str, Path] = {}
     for file in files:
         scenario, problems = check_scenario(file)
+        duplicate = duplicate_name(scenario, file, names) if scenario is not None else None
+        if duplicate:  # two files of one name would merge into one scene's rows
+            print(duplicate, file=sys.stderr)
+            scenario = None
         invalid += scenario is None
         warnings += sum(p.warning for p in problems)
         for problem in problems:

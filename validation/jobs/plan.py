@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import fnmatch
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +36,42 @@ class BadInputError(ValueError):
     """User input that stops the run before anything is written (exit code 2)."""
 
 
+def step_ratio(duration: float, dt: float) -> float:
+    """``duration / dt`` as a float, infinite where it overflows (``dt = 5e-324``)."""
+    with np.errstate(over="ignore", divide="ignore"):
+        return float(np.float64(duration) / np.float64(dt))
+
+
+def steps_in_range(duration: float, dt: float) -> bool:
+    """``duration / dt`` is 1 to ``MAX_STEPS`` steps, judged in floats before any integer is
+    made of it (an infinite ratio is what ``round`` cannot convert)."""
+    steps = step_ratio(duration, dt)
+    return bool(math.isfinite(steps) and 0.5 <= steps <= MAX_STEPS)
+
+
+def _with_dt(scenario: Scenario, dt: float, file: Path) -> Scenario:
+    """The scenario at ``--dt``; ``BadInputError`` when its step count is out of range."""
+    if not steps_in_range(scenario.duration, dt):
+        raise BadInputError(
+            f"--dt {dt} for {file}: {step_ratio(scenario.duration, dt):.3g} steps (duration / dt) is out of range; "
+            f"expected 1 to {MAX_STEPS} (MAX_STEPS)"
+        )
+    try:
+        return Scenario.model_validate(
+            {**scenario.model_dump(), "dt": dt, "source": scenario.source}
+        )
+    except ValueError as error:
+        raise BadInputError(f"--dt {dt} for {file}: {error}") from None
+
+
+def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> str | None:
+    """A problem when another file already has this scene's name (their rows would merge)."""
+    other = names.setdefault(scenario.name, file)
+    if other == file:
+        return None
+    return f"{file}: name: {scenario.name!r} is also the name of {other}; expected a unique name"
+
+
 def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
     """Load and validate everything first; raises ``BadInputError`` listing every problem."""
     problems: list[str] = []
@@ -55,6 +92,7 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
     missing = [p for p in paths if not p.exists()]
     problems += [f"{p}: no such file or folder" for p in missing]
     scenes: list[tuple[CompiledScene, list[EngineSpec]]] = []
+    names: dict[str, Path] = {}
     for file in scenario_files([p for p in paths if p.exists()]):
         try:
             scenario = load_scenario(file)
@@ -63,18 +101,15 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
             continue
         if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
             continue
+        duplicate = duplicate_name(scenario, file, names)
+        if duplicate:
+            problems.append(duplicate)
+            continue
         if dt is not None and not problems:
             try:
-                scenario = Scenario.model_validate(
-                    {**scenario.model_dump(), "dt": dt, "source": scenario.source}
-                )
-            except ValueError as error:
-                problems.append(f"--dt {dt} for {file}: {error}")
-                continue
-            if scenario.steps < 1 or scenario.duration / dt > MAX_STEPS:
-                problems.append(
-                    f"--dt {dt} for {file}: {scenario.duration / dt:.3g} steps is out of range"
-                )
+                scenario = _with_dt(scenario, dt, file)
+            except BadInputError as error:
+                problems.append(str(error))
                 continue
         scenes.append((compile_scene(scenario), overrides or list(scenario.engine_specs)))
     if not scenes and not problems:

@@ -4,19 +4,21 @@ The run folder (``reports/latest/`` by default, plus a timestamped copy under
 ``reports/runs/``) holds ``results.csv`` (the record), ``series.csv``, ``impacts.csv``,
 ``provenance.json`` and ``report.html`` (rendered from the others). It is assembled in a
 staging folder next to its destination and moved into place at the end, so an
-interrupted run never leaves a half-written report.
+interrupted run never leaves a half-written report (``validation.jobs.output``). Every
+finished job is committed to the run's journal as it finishes (``validation.jobs.journal``),
+so that ``physval run --resume DIR`` finishes a killed run without redoing those jobs.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt_module
+import hashlib
 import json
 import os
 import platform
-import shutil
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +35,11 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_FILE,
 )
+from validation.engines.base import Trajectory
+from validation.files import write_atomically
 from validation.jobs.executor import run_jobs
+from validation.jobs.journal import Journal, JournalError
+from validation.jobs.output import Output, claim
 from validation.jobs.plan import BadInputError, Plan, plan_run
 from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
@@ -101,6 +107,30 @@ def run_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Meas
     return run, measure_run(scene, run)
 
 
+def _positions_only(trajectory: Trajectory) -> Trajectory:
+    """``trajectory`` with its times and positions, orientations and velocities dropped (zero
+    width): 3 of its 13 numbers per body and sample, all that the run's files still need."""
+    return dataclasses.replace(
+        trajectory,
+        quat=trajectory.quat[..., :0],
+        vel=trajectory.vel[..., :0],
+        ang_vel=trajectory.ang_vel[..., :0],
+    )
+
+
+def kept_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
+    """``run_job`` as the run keeps it (and journals it): the recording's trajectory reduced
+    to what divergence compares across engines, positions over time; the series, impacts and
+    every metric stay whole."""
+    run, measured = run_job(job)
+    if run.recording is not None:
+        slim = _positions_only(run.recording.trajectory)
+        run = dataclasses.replace(
+            run, recording=dataclasses.replace(run.recording, trajectory=slim)
+        )
+    return run, measured
+
+
 def _git_commit() -> str:
     try:
         found = subprocess.run(
@@ -143,22 +173,29 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
 
 
 def execute(
-    plan: Plan, jobs: int = 1
+    plan: Plan, jobs: int = 1, journal: Journal | None = None, done: dict | None = None
 ) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
     """Run every (scene, engine) on ``jobs`` workers; returns rows, series frames, impact rows
-    and the runs, all in plan order whatever order the jobs finished in."""
+    and the runs, all in plan order whatever order the jobs finished in. ``done``: the
+    results already finished (``journal.finished()``), not run again; with a ``journal``,
+    each new result is committed to it as it finishes."""
     work = plan.jobs
-    with Progress(len(work)) as progress:
-        done = run_jobs(
-            run_job,
-            work,
-            jobs,
-            lambda index, _: progress.advance(f"{work[index][0].name} · {work[index][1].label}"),
-        )
+    done = dict(done or {})
+    todo = [index for index in range(len(work)) if index not in done]
+
+    def finished(position: int, result) -> None:
+        index = todo[position]
+        if journal is not None:
+            journal.append(index, result)
+        done[index] = result
+        progress.advance(f"{work[index][0].name} · {work[index][1].label}")
+
+    with Progress(len(todo)) as progress:
+        run_jobs(kept_job, [work[index] for index in todo], jobs, finished)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
-        results = done[position : position + len(specs)]
+        results = [done[index] for index in range(position, position + len(specs))]
         position += len(specs)
         runs = [run for run, _ in results]
         rows += compare_scene(scene, runs, [measured for _, measured in results])
@@ -171,39 +208,124 @@ def execute(
 
 
 def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
-    """The record files of one run into ``folder`` (which must exist)."""
-    results = pd.DataFrame(rows, columns=list(COLUMNS))
-    results.to_csv(folder / RESULTS_FILE, index=False)
+    """The record files of one run into ``folder`` (which must exist), each fsync'd."""
+    write_atomically(
+        folder / RESULTS_FILE, pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(index=False)
+    )
     frames = [f for f in series if not f.empty]
     if frames:
-        pd.concat(frames, ignore_index=True).to_csv(folder / SERIES_FILE, index=False)
-    pd.DataFrame(
-        impacts,
-        columns=list(IMPACTS_COLUMNS),
-    ).to_csv(folder / IMPACTS_FILE, index=False)
-    (folder / PROVENANCE_FILE).write_text(json.dumps(provenance, indent=2, default=str))
+        write_atomically(
+            folder / SERIES_FILE, pd.concat(frames, ignore_index=True).to_csv(index=False)
+        )
+    write_atomically(
+        folder / IMPACTS_FILE,
+        pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS)).to_csv(index=False),
+    )
+    write_atomically(folder / PROVENANCE_FILE, json.dumps(provenance, indent=2, default=str))
 
 
-def publish(stage: Path, destination: Path) -> None:
-    """Move the finished ``stage`` folder to ``destination``, replacing an older run."""
-    destination.parent.mkdir(parents=True, exist_ok=True)
-    old = None
-    if destination.exists():
-        old = destination.with_name(f".{destination.name}.old-{os.getpid()}")
-        os.replace(destination, old)
-    os.replace(stage, destination)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
-def render_html(folder: Path) -> str:
-    """Render report.html; returns a note instead of failing the run when rendering fails
-    (results.csv is the record; ``physval report DIR`` can render it again later)."""
+def render_html(folder: Path, shown_as: Path) -> str:
+    """Render report.html (naming ``shown_as``, where it is published); returns a note instead
+    of failing the run when rendering fails (results.csv is the record; ``physval report
+    DIR`` can render it again later)."""
     try:
-        render_report(folder)
+        render_report(folder, shown_as=shown_as)
     except Exception as error:  # a rendering bug must not lose the run's record
         return f"report.html not rendered ({type(error).__name__}: {error}); try physval report"
     return ""
+
+
+DEFAULT_OUT = Path("reports") / "latest"
+"""Where a run without ``--out`` publishes (and keeps a copy under ``reports/runs/``)."""
+
+RESUME_ALONE = "--resume takes the run's scenes, engines, --dt, --only and --out from its journal"
+"""Why --resume refuses other selection flags (only --jobs may change)."""
+
+
+def job_fingerprints(plan: Plan) -> list[dict]:
+    """Per job, in plan order: its scene, engine and a hash of the validated scene (without
+    its file path) and engine spec, so a resumption can tell that it plans the same work."""
+    found = []
+    for scene, spec in plan.jobs:
+        text = scene.scenario.model_dump_json(exclude={"source"}) + "|" + spec.label
+        digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+        found.append({"scene": scene.name, "engine": spec.label, "fingerprint": digest})
+    return found
+
+
+@dataclasses.dataclass(frozen=True)
+class RunRequest:
+    """What a run was asked for: the journal's header holds it, so --resume can plan again."""
+
+    paths: list[str]
+    engines: str | None
+    dt: float | None
+    only: str | None
+    out: str | None
+    argv: list[str]
+    cwd: str
+
+    def plan(self) -> Plan:
+        """The plan, paths taken from the run's working directory (as given when it is this
+        one, so that ``--only`` matches paths as it did)."""
+        here = Path.cwd() == Path(self.cwd)
+        paths = [Path(p) if here else Path(self.cwd) / p for p in self.paths]
+        return plan_run(paths, self.engines, self.dt, self.only)
+
+    @property
+    def destination(self) -> Path:
+        return DEFAULT_OUT if self.out is None else Path(self.out)
+
+
+def _header(request: RunRequest, plan: Plan) -> dict:
+    return {
+        "request": dataclasses.asdict(request),
+        "git_commit": _git_commit(),
+        "jobs": job_fingerprints(plan),
+    }
+
+
+def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
+    """The request and plan of the journal's run, checked to be the same work and code."""
+    try:
+        request = RunRequest(**journal.header["request"])
+    except (KeyError, TypeError) as error:
+        raise BadInputError(f"{journal.folder}: not a run's journal ({error})") from None
+    plan = request.plan()
+    if job_fingerprints(plan) != journal.header.get("jobs"):
+        raise BadInputError(
+            f"--resume: the scenes or engines changed since the killed run "
+            f"({' '.join(request.argv) or 'physval run'}); run it again without --resume"
+        )
+    if journal.header.get("git_commit") != _git_commit():
+        raise BadInputError(
+            f"--resume: the code changed since the killed run (commit "
+            f"{journal.header.get('git_commit')}, now {_git_commit()}); run it again"
+        )
+    return request, plan
+
+
+def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, jobs: int) -> int:
+    """Run what the journal lacks, write and publish the run folder; the exit code."""
+    done = journal.finished()
+    resumed = len(done)
+    rows, series, impacts, runs = execute(plan, jobs, journal, done)  # Ctrl-C: Interrupted
+    provenance = _provenance(runs, request.argv)
+    if resumed:
+        provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": len(plan.jobs) - resumed}
+    write_run(output.run_folder, rows, series, impacts, provenance)
+    note = render_html(output.run_folder, shown_as=output.destination)
+    output.publish()
+    if request.out is None:  # the default run also keeps a copy with a unique stamp
+        output.keep_history()
+    print(summary(rows, color=sys.stdout.isatty()))
+    bad = sum(row["status"] in BAD_STATUSES for row in rows)
+    print(
+        (f"{resumed} of {len(plan.jobs)} jobs from the journal; " if resumed else "")
+        + f"{len(rows)} rows, {bad} failed or unstable -> {output.destination / RESULTS_FILE}"
+        + (f"; {note}" if note else "")
+    )
+    return EXIT_FAILED if bad else EXIT_OK
 
 
 def run_main(
@@ -214,31 +336,43 @@ def run_main(
     only: str | None,
     argv: list[str],
     jobs: int = 1,
+    resume: Path | None = None,
 ) -> int:
-    """The whole job; returns the exit code (0 all passed, 1 any failed or unstable, 2 bad input)."""
+    """The whole job; returns the exit code (0 all passed, 1 any failed or unstable, 2 bad
+    input, a refused output folder, or an output that failed while writing)."""
     try:
-        plan = plan_run(paths, engines, dt, only)
+        if resume is not None:
+            return _resume_main(resume, jobs)
+        request = RunRequest(
+            [str(p) for p in paths],
+            engines,
+            dt,
+            only,
+            None if out is None else str(out),
+            argv,
+            os.getcwd(),
+        )
+        plan = request.plan()
+        with claim(request.destination) as output:
+            journal = Journal.create(output.journal_folder, _header(request, plan))
+            return _finish(output, journal, plan, request, jobs)
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    rows, series, impacts, runs = execute(plan, jobs)  # Ctrl-C: Interrupted, nothing published
-    destination = out or Path("reports") / "latest"
-    destination.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{destination.name}-staging-", dir=destination.parent))
-    try:
-        write_run(stage, rows, series, impacts, _provenance(runs, argv))
-        note = render_html(stage)
-        publish(stage, destination)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
-    if out is None:  # the default run also keeps a timestamped copy
-        stamp = dt_module.datetime.now(dt_module.UTC).strftime("%Y%m%d-%H%M%S")
-        shutil.copytree(destination, destination.parent / "runs" / stamp, dirs_exist_ok=True)
-    print(summary(rows, color=sys.stdout.isatty()))
-    bad = sum(row["status"] in BAD_STATUSES for row in rows)
-    print(
-        f"{len(rows)} rows, {bad} failed or unstable -> {destination / RESULTS_FILE}"
-        + (f"; {note}" if note else "")
-    )
-    return EXIT_FAILED if bad else EXIT_OK
+    except OSError as error:  # a full disk, a folder made read-only mid-run
+        print(
+            f"cannot write the run: {error}; the finished jobs are kept in its journal "
+            "(physval run --resume DIR finishes it)",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
+
+
+def _resume_main(destination: Path, jobs: int) -> int:
+    with claim(destination, resume=True) as output:
+        try:
+            journal = Journal.open(output.journal_folder)
+        except JournalError as error:
+            raise BadInputError(f"--resume {destination}: {error}") from None
+        request, plan = _resumed(journal)
+        return _finish(output, journal, plan, request, jobs)

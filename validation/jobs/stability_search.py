@@ -34,6 +34,10 @@ class StabilityLimit:
     stable_dt: float | None
     unstable_dt: float | None
     reason: str
+    status: str = "ok"
+    """``ok`` when the engine ran (stable, unstable or both found); else the run status that
+    kept it from saying anything: ``error`` (it could not load or run the scene) or
+    ``model_mismatch``."""
 
     def sentence(self) -> str:
         """The finding in plain words, as the report prints it."""
@@ -106,8 +110,8 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
     def is_stable(dt: float) -> tuple[bool, str]:
         probe = scene_at(scenario, dt)
         run = run_engine(compile_scene(probe), spec, max(1, probe.steps // SAMPLES_PER_PROBE))
-        if run.status == "model_mismatch":
-            raise _NotRunError(run.message)
+        if run.status in NOT_RUN:
+            raise _NotRunError(run.status, run.message)
         return run.status == "ok", run.message
 
     lowest = max(scenario.dt / search_down, scenario.duration / MAX_STEPS)
@@ -115,12 +119,20 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
     try:
         stable, unstable, reason = largest_stable_dt(is_stable, scenario.dt, lowest, highest)
     except _NotRunError as why:
-        return StabilityLimit(scenario.name or "", spec.label, None, None, f"model_mismatch: {why}")
+        status, message = why.args
+        return StabilityLimit(
+            scenario.name or "", spec.label, None, None, f"{status}: {message}", status
+        )
     return StabilityLimit(scenario.name or "", spec.label, stable, unstable, reason)
 
 
+NOT_RUN = ("model_mismatch", "error")
+"""Run statuses that say nothing of stability: the model failed the parity gate, or the
+engine raised (a model it cannot compile); reported as such, never as unstable."""
+
+
 class _NotRunError(Exception):
-    """The engine's model failed the parity gate: its stability says nothing."""
+    """The engine did not run the scene (``NOT_RUN``): its stability says nothing."""
 
 
 def _limit_job(job: tuple[Scenario, EngineSpec]) -> StabilityLimit:

@@ -43,7 +43,7 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.registry import create_adapter
 from validation.files import write_table
 from validation.jobs.executor import run_jobs
-from validation.jobs.plan import BadInputError, plan_run
+from validation.jobs.plan import BadInputError, plan_run, step_ratio, steps_in_range
 from validation.measure.metrics import Context, measure
 from validation.measure.newton_euler import reference_motion, rotation_angle
 from validation.measure.runner import EngineRun, run_engine
@@ -97,27 +97,81 @@ their named options against MuJoCo's three integrators and PyBullet, so the plot
 the documented engine costs in accuracy against what the reference engines do."""
 
 
+MAX_GRID_POINTS = 200
+"""Steps a --dt grid may have: every point is a run of every scene in every engine (plus its
+timing pass), so 200 points of the library already take hours; the default grid has 5."""
+
+NO_REFERENCE = "none: every dt out of range"
+"""The reference of a (scene, engine) none of whose points can run: nothing is compared."""
+
+
 class GridError(ValueError):
     """A --dt grid that cannot be read."""
 
 
+def _grid_values(text: str) -> list[float]:
+    if ":" not in text:
+        values = [float(part) for part in text.split(",") if part.strip()]
+        if len(values) > MAX_GRID_POINTS:
+            raise GridError(
+                f"--dt: {len(values)} steps; at most {MAX_GRID_POINTS} (MAX_GRID_POINTS)"
+            )
+        return values
+    start, stop, count = text.split(":")
+    points = int(count)
+    if not 1 <= points <= MAX_GRID_POINTS:
+        raise GridError(
+            f"--dt: expected a COUNT of 1 to {MAX_GRID_POINTS} (MAX_GRID_POINTS); got {points}"
+        )
+    low, high = float(start), float(stop)
+    if not (math.isfinite(low) and math.isfinite(high) and low > 0 and high > 0):
+        raise GridError(f"--dt: expected positive finite steps; got {text!r}")
+    return np.logspace(math.log10(low), math.log10(high), points).tolist()
+
+
 def parse_dt_grid(text: str) -> list[float]:
-    """``"1e-1:1e-5:9"`` -> 9 log-spaced steps from 0.1 to 1e-5 s; ``"1e-3,5e-4"`` -> a list."""
+    """``"1e-1:1e-5:9"`` -> 9 log-spaced steps from 0.1 to 1e-5 s; ``"1e-3,5e-4"`` -> a list;
+    at most ``MAX_GRID_POINTS`` (checked before the grid is made)."""
     try:
-        if ":" in text:
-            start, stop, count = text.split(":")
-            values = np.logspace(
-                math.log10(float(start)), math.log10(float(stop)), int(count)
-            ).tolist()
-        else:
-            values = [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
+        values = _grid_values(text)
+    except ValueError as error:
+        if isinstance(error, GridError):
+            raise
         raise GridError(
             f"--dt: expected START:STOP:COUNT or a comma list of seconds; got {text!r}"
         ) from None
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise GridError(f"--dt: expected positive finite steps; got {text!r}")
     return values
+
+
+def runnable(scenario: Scenario, dts: list[float]) -> list[float]:
+    """The steps of ``dts`` at which ``scenario`` has 1 to ``MAX_STEPS`` steps."""
+    return [dt for dt in dts if steps_in_range(scenario.duration, dt)]
+
+
+def reference_problems(jobs: list[tuple[Scenario, EngineSpec, list[float]]]) -> list[str]:
+    """Each scene whose reference run (the same engine at a quarter of the smallest runnable
+    step, or MuJoCo RK4 at a tenth of it for the DOP853 cross-check) would exceed
+    ``MAX_STEPS``: refused before any work rather than run for hours."""
+    problems = []
+    for scenario, _, dts in jobs:
+        steps = runnable(scenario, dts)
+        if not steps:
+            continue
+        touch = _can_touch(scenario)
+        if touch and scenario.expect:
+            continue  # an analytic reference: nothing is run
+        refine = REFINE_SELF if touch else REFINE_REFERENCE
+        if not steps_in_range(scenario.duration, min(steps) / refine):
+            problem = (
+                f"--dt: {scenario.name}'s reference at {min(steps)!r} s / {refine:g} would take "
+                f"{step_ratio(scenario.duration * refine, min(steps)):.3g} steps; at most {MAX_STEPS} "
+                "(MAX_STEPS): give a larger smallest step"
+            )
+            if problem not in problems:
+                problems.append(problem)
+    return problems
 
 
 @dataclass(frozen=True)
@@ -163,7 +217,7 @@ def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -
         return Reference("dop853")
     if scenario.expect:
         return Reference(f"analytic:{scenario.expect[0].metric}")
-    dt = max(smallest_dt / REFINE_SELF, scenario.duration / MAX_STEPS)
+    dt = smallest_dt / REFINE_SELF  # within MAX_STEPS: ``reference_problems``
     fine = _run(scene_at(scenario, dt), spec, _every(scenario, dt))
     return Reference(f"self:{spec.label}@{dt!r}", fine, dt)
 
@@ -171,7 +225,7 @@ def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -
 def cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
     """The DOP853 reference against MuJoCo's RK4 at a tenth of the smallest step: the largest
     position and orientation differences over the run (a row for each, ``of`` names it)."""
-    dt = max(smallest_dt / REFINE_REFERENCE, scenario.duration / MAX_STEPS)
+    dt = smallest_dt / REFINE_REFERENCE  # within MAX_STEPS: ``reference_problems``
     row = {
         "scenario": scenario.name,
         "engine": HIGH_ACCURACY,
@@ -300,20 +354,21 @@ def sweep_point(
 ) -> list[dict]:
     """The rows of the scene at ``dt`` in ``spec``: one per sweep metric, each with the
     scene's own metrics at that dt as columns."""
-    probe = scene_at(scenario, dt)
     common = {
         "scenario": scenario.name,
         "engine": spec.label,
         "dt": dt,
-        "steps": probe.steps,
         "expected_kind": reference.kind,
     }
-    if probe.steps < 1 or probe.steps > MAX_STEPS:
-        message = f"{probe.steps} steps is out of range"
+    if not steps_in_range(scenario.duration, dt):
+        steps = step_ratio(scenario.duration, dt)
+        message = f"{steps:.3g} steps (duration / dt) is out of range: 1 to {MAX_STEPS}"
         return [
-            {**common, "metric": m, "status": "unsupported", "message": message}
+            {**common, "steps": steps, "metric": m, "status": "unsupported", "message": message}
             for m in SWEEP_METRICS
         ]
+    probe = scene_at(scenario, dt)
+    common["steps"] = probe.steps
     run = _run(probe, spec, _every(probe, dt))
     seconds = stepping_seconds(probe, spec) if run.status == "ok" else math.nan
     errors = (
@@ -357,7 +412,8 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
     """Every dt of one (scene, engine) pair, plus each sweep metric's fitted convergence
     order (or the note that the curve is identically zero)."""
     scenario, spec, dts = job
-    reference = choose_reference(scenario, spec, min(dts))
+    steps = runnable(scenario, dts)
+    reference = choose_reference(scenario, spec, min(steps)) if steps else Reference(NO_REFERENCE)
     rows = [row for dt in dts for row in sweep_point(scenario, spec, dt, reference)]
     for metric in SWEEP_METRICS:
         mine = [r for r in rows if r["metric"] == metric]
@@ -388,7 +444,7 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
 def _sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict]:
     """One (scene, engine) dt grid, or (engine None) the cross-check of a scene's reference."""
     scenario, spec, dts = job
-    return cross_check(scenario, min(dts)) if spec is None else sweep_scene(job)
+    return cross_check(scenario, min(runnable(scenario, dts))) if spec is None else sweep_scene(job)
 
 
 def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int) -> list[dict]:
@@ -396,7 +452,9 @@ def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int
     shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
     job order."""
     scenes = {id(scenario): (scenario, dts) for scenario, _, dts in jobs}
-    checks = [(s, None, dts) for s, dts in scenes.values() if not _can_touch(s)]
+    checks = [
+        (s, None, dts) for s, dts in scenes.values() if not _can_touch(s) and runnable(s, dts)
+    ]
     return [row for rows in run_jobs(_sweep_job, [*jobs, *checks], workers) for row in rows]
 
 
@@ -407,10 +465,14 @@ def sweep_main(
     try:
         grid = parse_dt_grid(dt)
         plan = plan_run(paths, engines or DEFAULT_ENGINES, None, only)
+        work = [(scene.scenario, spec, grid) for scene, spec in plan.jobs]
+        problems = reference_problems(work)
+        if problems:
+            raise BadInputError("\n".join(problems))
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    rows = run_sweep([(scene.scenario, spec, grid) for scene, spec in plan.jobs], jobs)
+    rows = run_sweep(work, jobs)
     out = out or Path("reports") / "sweep"
     out.mkdir(parents=True, exist_ok=True)
     write_table(rows, out / "sweep.csv")

@@ -33,7 +33,15 @@ from validation.report.outcomes import (
     outcome_label,
     worst_first,
 )
-from validation.report.plots import engine_styles, plot_restitution, plot_scene_series
+from validation.report.plots import (
+    PLOT_LIMIT,
+    PLOTTED_IMPACTS,
+    PLOTTED_SERIES,
+    drawable,
+    engine_styles,
+    plot_restitution,
+    plot_scene_series,
+)
 from validation.report.read import RunData
 
 # --- page size limits --------------------------------------------------------------------------
@@ -297,19 +305,28 @@ def build_scene(
     """One scene's section: runs, the plot, the impacts and the checks."""
     plot_note = ""
     svg = None
+    clipped = 0
     if run.series is None:
         plot_note = f"no {SERIES_FILE} in this run"
     else:
-        series = run.series[run.series["scenario"] == scene]
+        series, clipped = drawable(run.series[run.series["scenario"] == scene], PLOTTED_SERIES)
         if series.empty:
             plot_note = "no time series recorded for this scene"
         else:
             svg = Markup(plot_scene_series(scene, series, engines, colours))
     restitution_svg = None
     if run.impacts is not None:
-        mine = run.impacts[run.impacts["scenario"] == scene]
+        mine, clipped_impacts = drawable(
+            run.impacts[run.impacts["scenario"] == scene], PLOTTED_IMPACTS
+        )
+        clipped += clipped_impacts
         if not mine.empty:
             restitution_svg = Markup(plot_restitution(scene, mine, engines, colours))
+    if clipped:
+        plot_note = (
+            f"{plot_note + '; ' if plot_note else ''}{clipped} values non-finite or beyond "
+            f"±{PLOT_LIMIT:g} not drawn (gaps); the CSV files keep them"
+        )
     return {
         "name": scene,
         "anchor": anchor,

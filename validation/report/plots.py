@@ -65,6 +65,38 @@ PLOT_QUANTITIES = (
 """Series column -> axis title, one axis each."""
 
 
+PLOT_LIMIT = 1e100
+"""Largest magnitude a plotted value (time, energy, momentum, impact speed, e) may have;
+beyond it, or non-finite, a value is not drawn (a gap) and the page says how many: near
+1e308 matplotlib's transforms overflow (t = 1e308 crashed the report), and nothing a scene
+measures comes near 1e100."""
+
+PLOTTED_SERIES = ("t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
+PLOTTED_IMPACTS = ("normal_velocity_before", "e_requested", "e_measured", "band")
+"""The columns of series.csv and impacts.csv that a plot reads."""
+
+
+def plain_text(label: object) -> str:
+    """``label`` as matplotlib text that is printed as written: ``$`` would start mathtext
+    (a name with ``$x^$`` raised a parse error), so it is escaped."""
+    return str(label).replace("$", r"\$")
+
+
+def drawable(table: pd.DataFrame, columns: tuple[str, ...]) -> tuple[pd.DataFrame, int]:
+    """``table`` with every value of ``columns`` that is non-finite or beyond ``PLOT_LIMIT``
+    set to NaN (a gap in the plot; rows without a time are dropped), and how many there were."""
+    table = table.copy()
+    clipped = 0
+    for column in (c for c in columns if c in table):
+        values = pd.to_numeric(table[column], errors="coerce").to_numpy(float)
+        bad = ~(np.abs(values) <= PLOT_LIMIT)
+        clipped += int(bad.sum())
+        table[column] = np.where(bad, np.nan, values)
+    if "t" in table:
+        table = table[table["t"].notna()]
+    return table, clipped
+
+
 def engine_styles(engines: list[str]) -> dict[str, tuple[str, str]]:
     """Engine -> (colour, line style), by position in ``engines``; both cycle."""
     return {
@@ -115,9 +147,11 @@ def plot_scene_series(
     """Energy, |p| and |L| over time, one line per engine, as an inline ``<svg>`` element."""
     figure = Figure(figsize=FIGURE_SIZE_IN)
     axes = figure.subplots(1, len(PLOT_QUANTITIES), sharex=True)
-    series = series.assign(
-        p_norm=_norm(series, ("px", "py", "pz")), L_norm=_norm(series, ("Lx", "Ly", "Lz"))
-    )
+    with np.errstate(over="ignore", invalid="ignore"):  # a norm past PLOT_LIMIT is not drawn
+        series = series.assign(
+            p_norm=_norm(series, ("px", "py", "pz")), L_norm=_norm(series, ("Lx", "Ly", "Lz"))
+        )
+    series, _ = drawable(series, ("p_norm", "L_norm"))
     for engine in engines:
         mine = series[series["engine"] == engine].sort_values("t", kind="stable")
         if mine.empty:
@@ -130,7 +164,7 @@ def plot_scene_series(
                 color=colour,
                 linestyle=style,
                 linewidth=LINE_WIDTH,
-                label=engine,
+                label=plain_text(engine),
             )
     for axis, (_, title) in zip(axes, PLOT_QUANTITIES, strict=True):
         axis.xaxis.set_major_locator(MaxNLocator(TICKS_PER_AXIS))
@@ -199,7 +233,7 @@ def plot_restitution(
             marker="o",
             markersize=3.5,
             color=colour,
-            label=engine,
+            label=plain_text(engine),
         )
     axis.set_xscale("log")
     axis.set_xlabel("impact speed |v_n| (m/s)", fontsize=PLOT_FONT_SIZE)

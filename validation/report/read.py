@@ -69,6 +69,8 @@ def _read_csv(path: Path, **options) -> pd.DataFrame:
         return pd.read_csv(path, **options)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ReportInputError(f"{path.name}: cannot be read as CSV ({error})") from error
+    except OSError as error:  # permissions, a folder of that name, an I/O error
+        raise ReportInputError(f"{path.name}: cannot be read ({error.strerror or error})") from None
 
 
 def _parse_passed(text: str) -> bool | None:
@@ -126,6 +128,9 @@ def read_provenance(path: Path, warnings: list[str]) -> dict[str, Any] | None:
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         warnings.append(f"{path.name}: not valid JSON ({error})")
         return None
+    except OSError as error:
+        warnings.append(f"{path.name}: cannot be read ({error.strerror or error})")
+        return None
     if not isinstance(provenance, dict):
         warnings.append(f"{path.name}: expected a JSON object")
         return None
@@ -135,6 +140,8 @@ def read_provenance(path: Path, warnings: list[str]) -> dict[str, Any] | None:
 def load_run(run_dir: Path) -> RunData:
     """Read every record file of ``run_dir``; only a missing or broken results.csv raises."""
     results_path = run_dir / RESULTS_FILE
+    if results_path.exists() and not results_path.is_file():
+        raise ReportInputError(f"{RESULTS_FILE}: not a regular file")
     if not results_path.is_file():
         raise ReportInputError(f"no {RESULTS_FILE} (not a physval run folder)")
     run = RunData(run_dir, read_results(results_path))

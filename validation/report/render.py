@@ -45,14 +45,17 @@ def render_html(context: dict[str, Any]) -> str:
     return template_environment(TEMPLATE_DIR).get_template(TEMPLATE_NAME).render(**context)
 
 
-def render_report(run_dir: Path) -> Path:
-    """Render ``run_dir/report.html`` from the run's record files; returns its path.
+def render_report(run_dir: Path, shown_as: Path | None = None) -> Path:
+    """Render ``run_dir/report.html`` from the run's record files; returns its path. The page
+    names ``shown_as`` as its run folder (a run renders in staging, then publishes).
 
     Raises ``ReportInputError`` when results.csv is absent or unreadable. Any exception
     leaves an existing report.html as it was.
     """
     run_dir = Path(run_dir)
     run = load_run(run_dir)
+    if shown_as is not None:
+        run.run_dir = Path(shown_as)
     html = render_html(build_context(run))
     target = run_dir / REPORT_FILE
     write_atomically(target, html)
@@ -66,6 +69,12 @@ def report_command(run_dir: Path | str) -> int:
         path = render_report(run_dir)
     except ReportInputError as error:
         print(f"{run_dir}: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as error:  # the folder cannot take report.html
+        print(
+            f"{run_dir / REPORT_FILE}: cannot be written ({error.strerror or error})",
+            file=sys.stderr,
+        )
         return EXIT_BAD_INPUT
     print(path)
     return EXIT_OK

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from validation.files import write_atomically
-from validation.report.plots import svg_for_html
+from validation.report.plots import plain_text, svg_for_html
 
 FIGURE_SIZE = (11.0, 3.6)
 """inches: two charts side by side, readable at a laptop's width."""
@@ -48,8 +48,10 @@ def _chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
         bad = points[~points["status"].isin(["ok", "failed", "unsupported"])]
         order = orders.get(engine, math.nan)
         label = f"{engine} (order {order:.2f})" if math.isfinite(order) else engine
-        (line,) = by_time.loglog(good["wall_time_s"], good["error"], "o-", label=engine)
-        by_dt.loglog(good["dt"], good["error"], "o-", color=line.get_color(), label=label)
+        (line,) = by_time.loglog(good["wall_time_s"], good["error"], "o-", label=plain_text(engine))
+        by_dt.loglog(
+            good["dt"], good["error"], "o-", color=line.get_color(), label=plain_text(label)
+        )
         for axis, column in ((by_time, "wall_time_s"), (by_dt, "dt")):
             top = axis.get_ylim()[1] if len(good) else 1.0
             axis.plot(bad[column].fillna(1.0), [top] * len(bad), **FAILED_MARKER)
@@ -114,10 +116,10 @@ def render_sweep(rows: list[dict], path: Path) -> Path:
             measured = curve[curve["error"].notna()] if "error" in curve else curve.iloc[0:0]
             if measured.empty:
                 parts.append(
-                    f"<p class='note'>{html.escape(metric)}: the reference does not constrain it (no values).</p>"
+                    f"<p class='note'>{html.escape(metric)}: no values (out of range, not run, "
+                    "or not constrained by the reference); the points are listed.</p>"
                 )
-                continue
-            if zero.all():
+            elif zero.all():
                 note = html.escape(str(curve["message"].iloc[0]))
                 parts.append(f"<p class='note'>{note}; not drawn.</p>")
             else:

@@ -12,10 +12,12 @@ import difflib
 import fnmatch
 from collections.abc import Callable, Iterator
 
+import numpy as np
+
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.physics import body_inertia, symmetry_frame
 from validation.scenario.problems import Problem, path_text
-from validation.scenario.schema import ANY_METRIC, MAX_STEPS, METRIC_NAMES, Scenario
+from validation.scenario.schema import ANY_METRIC, MAX_STEPS, METRIC_NAMES, BodySpec, Scenario
 from validation.scenario.yaml_source import SourceMap
 
 Location = tuple[str | int, ...]
@@ -86,6 +88,28 @@ def expectations(scenario: Scenario) -> Found:
             )
 
 
+def finite_inertia(body: BodySpec) -> np.ndarray | None:
+    """The body's inertia (``physics.body_inertia``), or None when it overflows a float."""
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            inertia = body_inertia(body)
+    except (OverflowError, FloatingPointError):
+        return None
+    return inertia if np.isfinite(inertia).all() else None
+
+
+def finite_mass_properties(scenario: Scenario) -> Found:
+    """A body's derived mass properties are finite numbers (a radius of 1e200 m squares past
+    the largest float: every engine would get an infinite inertia)."""
+    for i, body in enumerate(scenario.bodies):
+        if finite_inertia(body) is None:
+            yield (
+                ("bodies", i),
+                f"the inertia of {body.name!r} (mass x size²) overflows a float; expected a "
+                "size and a mass whose inertia is finite",
+            )
+
+
 def precession_needs_a_symmetry_axis(scenario: Scenario) -> Found:
     """``precession_rate`` is defined about a symmetry axis: the body needs two equal moments."""
     names = {b.name: b for b in scenario.bodies}
@@ -93,7 +117,8 @@ def precession_needs_a_symmetry_axis(scenario: Scenario) -> Found:
         body = names.get(expectation.body)
         if expectation.kind != "precession_rate" or body is None:
             continue
-        if symmetry_frame(body_inertia(body)) is None:
+        inertia = finite_inertia(body)
+        if inertia is not None and symmetry_frame(inertia) is None:
             yield (
                 ("expect", i, "body"),
                 f"precession_rate needs a body with two equal principal moments (a symmetry "
@@ -208,6 +233,7 @@ def step_count(scenario: Scenario) -> Found:
 
 RULES: tuple[Callable[[Scenario], Found], ...] = (
     unique_body_names,
+    finite_mass_properties,
     spring_ends,
     pair_bodies,
     expectations,

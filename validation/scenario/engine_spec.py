@@ -17,8 +17,15 @@ from dataclasses import dataclass, fields
 from mini_engine.settings import CHOICES as MINI_CHOICES
 from mini_engine.settings import Settings
 
+
+class Count(int):
+    """A setting that counts something (solver iterations): a whole number >= 1. Engines take
+    a non-positive count silently (MuJoCo's -5 iterations make a scene unstable, PyBullet's -1
+    falls back to 50), so it is refused here, in every engine's spec."""
+
+
 Option = tuple[str, ...] | type
-"""Accepted values of one setting: a tuple of words, or ``int``/``float``/``bool``."""
+"""Accepted values of one setting: a tuple of words, ``Count``, or ``int``/``float``/``bool``."""
 
 
 def _mini_options() -> dict[str, Option]:
@@ -28,7 +35,10 @@ def _mini_options() -> dict[str, Option]:
         if item.name == "dt":
             continue
         default = getattr(Settings(), item.name)
-        options[item.name] = MINI_CHOICES.get(item.name, type(default))
+        kind = type(default)
+        if item.name.endswith("iterations"):
+            kind = Count
+        options[item.name] = MINI_CHOICES.get(item.name, kind)
     return options
 
 
@@ -40,12 +50,12 @@ ENGINE_OPTIONS: dict[str, dict[str, Option]] = {
         "solver": ("auto", "Newton", "CG", "PGS"),
         "cone": ("pyramidal", "elliptic"),
         "restitution": ("damper", "soft"),
-        "iterations": int,
+        "iterations": Count,
     },
     "pybullet": {
         "profile": ("matched", "defaults"),
         "bodies": ("maximal", "multibody"),
-        "solver_iterations": int,
+        "solver_iterations": Count,
     },
 }
 """Settings each engine accepts in a spec (the adapters read them)."""
@@ -94,6 +104,12 @@ def _convert(engine: str, key: str, raw: str, option: Option) -> str | int | flo
                 + _suggest(raw, option)
             )
         return raw
+    if option is Count:
+        if not re.fullmatch(r"[+-]?[0-9]+", raw) or int(raw) < 1:
+            raise EngineSpecError(
+                f"{engine} setting {key!r}: expected a whole number >= 1; got {raw!r}"
+            )
+        return int(raw)
     if option is bool:
         lowered = raw.lower()
         if lowered not in ("true", "false"):

@@ -3,6 +3,7 @@ rules; every problem collected."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pydantic import (
@@ -69,14 +70,35 @@ def check_scenario(path: str | Path) -> tuple[Scenario | None, list[Problem]]:
     return scenario, problems
 
 
+SCENARIO_SUFFIXES = (".yaml", ".yml")
+
+
+def _folder_files(folder: Path) -> list[Path]:
+    """The scenario files below ``folder``, sorted, following symlinked folders; each real
+    folder is read once, so a link back up (a loop) or a second link to a folder adds nothing."""
+    found: list[Path] = []
+    seen: set[tuple[int, int]] = set()
+    for top, folders, names in os.walk(folder, followlinks=True):
+        here = os.stat(top)
+        if (here.st_dev, here.st_ino) in seen:
+            folders[:] = []
+            continue
+        seen.add((here.st_dev, here.st_ino))
+        found += [Path(top) / n for n in names if Path(n).suffix in SCENARIO_SUFFIXES]
+    return sorted(found)
+
+
 def scenario_files(paths: list[str | Path]) -> list[Path]:
-    """Every ``*.yaml``/``*.yml`` file named or found (recursively) under the folders, sorted."""
+    """Every ``*.yaml``/``*.yml`` file named or found (recursively, symlinked folders followed
+    once) under the folders, sorted per folder; a file reached twice is listed once."""
     files: list[Path] = []
+    seen: set[str] = set()
     for item in map(Path, paths):
-        if item.is_dir():
-            files += sorted(p for p in item.rglob("*") if p.suffix in (".yaml", ".yml"))
-        else:
-            files.append(item)
+        for file in _folder_files(item) if item.is_dir() else [item]:
+            real = os.path.realpath(file)
+            if real not in seen:
+                seen.add(real)
+                files.append(file)
     return files
 
 
