@@ -317,7 +317,7 @@ def test_compare_lists_exactly_the_moved_rows(tmp_path, capsys):
             ["compare", "1", "2", "--db", "{tmp}/missing.sqlite"],
             "missing.sqlite: no history database",
         ),
-        (["compare", "{tmp}/empty", "{tmp}/run"], "no results.csv"),
+        (["compare", "{tmp}/empty", "{tmp}/run"], "results.csv: cannot be read"),
         (["history", "--db", "{tmp}/missing.sqlite"], "missing.sqlite: no history database"),
         (["history", "--db", "nosuchdialect://x"], "not a usable database URL"),
     ],
