@@ -20,6 +20,7 @@ from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.run import RESUME_ALONE, run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
+from validation.nightly.baseline import BASELINE_ACTIONS, baseline_main
 from validation.nightly.compare import compare_main
 from validation.nightly.history_page import history_main
 from validation.report.render import report_command
@@ -44,7 +45,8 @@ def command_check(args: argparse.Namespace) -> int:
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
-    if args.resume is not None and (args.paths or args.engines or args.dt or args.only or args.out):
+    selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline, args.junit)
+    if args.resume is not None and (any(selection) or args.history):
         print(f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs", file=sys.stderr)
         return EXIT_BAD_INPUT
     return run_main(
@@ -56,6 +58,9 @@ def command_run(args: argparse.Namespace) -> int:
         args.argv,
         args.jobs,
         args.resume,
+        args.baseline,
+        args.junit,
+        args.history,
     )
 
 
@@ -93,6 +98,11 @@ def command_compare(args: argparse.Namespace) -> int:
     return compare_main(args.run_a, args.run_b, args.db, args.out)
 
 
+def command_baseline(args: argparse.Namespace) -> int:
+    """Save a run's rows as the baseline later runs are classified against."""
+    return baseline_main(args.action, args.run_dir, args.to)
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -108,6 +118,10 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
     "history": (command_history, "history.html: every metric's trend over the recorded runs"),
     "compare": (command_compare, "the rows that moved beyond noise between two runs"),
+    "baseline": (
+        command_baseline,
+        "save a run's rows as a baseline: baseline save RUN_DIR --to FILE",
+    ),
 }
 
 
@@ -156,6 +170,19 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
     )
     command.add_argument(
         "--dt", type=_positive_seconds, metavar="SECONDS", help="override every scene's dt"
+    )
+    command.add_argument(
+        "--baseline",
+        metavar="FILE",
+        help="classify every row against this baseline (default baselines/default.csv when "
+        "the working folder has one; 'none': no comparison)",
+    )
+    command.add_argument("--junit", metavar="FILE", help="also write JUnit XML here")
+    command.add_argument(
+        "--history",
+        metavar="URL",
+        help="record the run in this history database (default sqlite:///<the --out "
+        "folder's parent>/history.sqlite; 'none': not recorded)",
     )
     _jobs_argument(command)
 
@@ -222,6 +249,12 @@ def _compare_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--out", type=Path, metavar="DIR", help="folder (default reports/compare)")
 
 
+def _baseline_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument("action", choices=sorted(BASELINE_ACTIONS), help="what to do")
+    command.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run folder")
+    command.add_argument("--to", type=Path, metavar="FILE", required=True, help="the baseline file")
+
+
 ARGUMENTS = {
     "run": _run_arguments,
     "sweep": _sweep_arguments,
@@ -230,6 +263,7 @@ ARGUMENTS = {
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
     "history": _history_arguments,
     "compare": _compare_arguments,
+    "baseline": _baseline_arguments,
 }
 """Sub-command -> a function adding its arguments."""
 

@@ -12,6 +12,11 @@ SERIES_FILE = "series.csv"
 IMPACTS_FILE = "impacts.csv"
 PROVENANCE_FILE = "provenance.json"
 REPORT_FILE = "report.html"
+BASELINE_FILE = "baseline.csv"
+"""In a run folder run against a baseline: every row's class, the baseline's rows the run
+lacks (``missing``) included, with the baseline's value and error next to the run's."""
+SWEEP_FILE = "sweep.csv"
+"""In a run folder whose scenes declare ``sweep:``: the sweep rows (as ``physval sweep``)."""
 
 RESULTS_COLUMNS = (
     "scenario",
@@ -31,9 +36,15 @@ RESULTS_COLUMNS = (
     "settings",
     "message",
     "band",
+    "outcome",
+    "known",
+    "baseline",
 )
 """results.csv, in order: ``validation.measure.comparator`` writes these columns, and CI jobs
-and ``validation.report`` read them by name."""
+and ``validation.report`` read them by name. ``outcome`` is the row's verdict with the scene's
+known findings applied (passed, failed, known, fixed, no_tolerance, or a bad status), ``known``
+the matching finding's reason, ``baseline`` its class against the run's baseline (empty
+without one)."""
 
 SERIES_COLUMNS = ("scenario", "engine", "t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
 """series.csv: energy (J), linear momentum (kg·m/s), angular momentum about the system COM."""

@@ -31,6 +31,21 @@ class Plan:
         """(scene, spec) in plan order: scenes in file order, specs in the scene's order."""
         return [(scene, spec) for scene, specs in self.scenes for spec in specs]
 
+    @property
+    def sweeps(self) -> list[tuple[Scenario, EngineSpec, list[float]]]:
+        """(scenario, spec, dts) of the scenes that declare ``sweep:``, in plan order: the
+        sweep's own engines, or the specs the scene runs in."""
+        return [
+            (scene.scenario, spec, list(scene.scenario.sweep.dt))
+            for scene, specs in self.scenes
+            if scene.scenario.sweep is not None
+            for spec in (
+                [parse_engine_spec(t) for t in scene.scenario.sweep.engines]
+                if scene.scenario.sweep.engines
+                else specs
+            )
+        ]
+
 
 class BadInputError(ValueError):
     """User input that stops the run before anything is written (exit code 2)."""

@@ -34,17 +34,31 @@ from validation.contract import (
     PROVENANCE_FILE,
     RESULTS_FILE,
     SERIES_FILE,
+    SWEEP_FILE,
 )
 from validation.engines.base import Trajectory
-from validation.files import write_atomically
+from validation.files import write_atomically, write_table
 from validation.jobs.executor import run_jobs
 from validation.jobs.journal import Journal, JournalError
+from validation.jobs.nightly_run import (
+    NightlyOptions,
+    against_baseline,
+    nightly_options,
+    outcome_summary,
+    record_history,
+    scene_hashes,
+    sweep_result_rows,
+    write_ci_files,
+)
 from validation.jobs.output import Output, claim
 from validation.jobs.plan import BadInputError, Plan, plan_run
+from validation.jobs.sweep import reference_problems, sweep_job, with_cross_checks
 from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
+from validation.nightly.baseline import exit_failed
+from validation.nightly.known import apply_known
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -172,14 +186,45 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
     }
 
 
+def _sweep_work(plan: Plan) -> list[tuple]:
+    """The scenes' own sweeps (``sweep:``) as sweep jobs, cross-checks included."""
+    return with_cross_checks(plan.sweeps)
+
+
+JOB_KINDS = {"run": kept_job, "sweep": sweep_job}
+"""Job kind -> the function a worker runs: a (scene, engine) run, or one scene's dt sweep."""
+
+
+def _do(job: tuple[str, tuple]) -> object:
+    """One tagged job (``kind, payload``) in a worker process."""
+    kind, payload = job
+    return JOB_KINDS[kind](payload)
+
+
+@dataclasses.dataclass
+class Executed:
+    """What the jobs of a run gave, in plan order.
+
+    Attributes:
+        rows: result rows with the scenes' known findings applied. series: series frames.
+        impacts: impact rows. runs: the engine runs. sweep_rows: the scenes' sweep rows.
+    """
+
+    rows: list[dict]
+    series: list[pd.DataFrame]
+    impacts: list[dict]
+    runs: list[EngineRun]
+    sweep_rows: list[dict]
+
+
 def execute(
     plan: Plan, jobs: int = 1, journal: Journal | None = None, done: dict | None = None
-) -> tuple[list[dict], list[pd.DataFrame], list[dict], list[EngineRun]]:
-    """Run every (scene, engine) on ``jobs`` workers; returns rows, series frames, impact rows
-    and the runs, all in plan order whatever order the jobs finished in. ``done``: the
-    results already finished (``journal.finished()``), not run again; with a ``journal``,
-    each new result is committed to it as it finishes."""
-    work = plan.jobs
+) -> Executed:
+    """Run every (scene, engine) and every scene's sweep on ``jobs`` workers, all in plan
+    order whatever order the jobs finished in. ``done``: the results already finished
+    (``journal.finished()``), not run again; with a ``journal``, each new result is committed
+    to it as it finishes (sweeps after the runs, indexed after them)."""
+    work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
 
@@ -188,23 +233,29 @@ def execute(
         if journal is not None:
             journal.append(index, result)
         done[index] = result
-        progress.advance(f"{work[index][0].name} · {work[index][1].label}")
+        progress.advance(f"{work[index][1][0].name} · {_label(work[index][1][1])}")
 
     with Progress(len(todo)) as progress:
-        run_jobs(kept_job, [work[index] for index in todo], jobs, finished)
+        run_jobs(_do, [work[index] for index in todo], jobs, finished)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
         results = [done[index] for index in range(position, position + len(specs))]
         position += len(specs)
         runs = [run for run, _ in results]
-        rows += compare_scene(scene, runs, [measured for _, measured in results])
+        measured = [measured for _, measured in results]
+        rows += apply_known(compare_scene(scene, runs, measured), scene.scenario)
         for run in runs:
             if run.recording is not None:
                 series.append(_series_rows(scene, run))
                 impacts += _impact_rows(scene, run)
         all_runs += runs
-    return rows, series, impacts, all_runs
+    sweep_rows = [row for index in range(position, len(work)) for row in done[index]]
+    return Executed(rows, series, impacts, all_runs, sweep_rows)
+
+
+def _label(spec: EngineSpec | None) -> str:
+    return "sweep cross-check" if spec is None else spec.label
 
 
 def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
@@ -243,13 +294,16 @@ RESUME_ALONE = "--resume takes the run's scenes, engines, --dt, --only and --out
 
 
 def job_fingerprints(plan: Plan) -> list[dict]:
-    """Per job, in plan order: its scene, engine and a hash of the validated scene (without
-    its file path) and engine spec, so a resumption can tell that it plans the same work."""
+    """Per job, in plan order (runs, then sweeps): its scene, engine and a hash of the
+    validated scene (without its file path) and engine spec, so a resumption can tell that it
+    plans the same work."""
     found = []
-    for scene, spec in plan.jobs:
-        text = scene.scenario.model_dump_json(exclude={"source"}) + "|" + spec.label
+    jobs = [(s.scenario, spec) for s, spec in plan.jobs]
+    jobs += [(scenario, spec) for scenario, spec, _ in _sweep_work(plan)]
+    for scenario, spec in jobs:
+        text = scenario.model_dump_json(exclude={"source"}) + "|" + _label(spec)
         digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-        found.append({"scene": scene.name, "engine": spec.label, "fingerprint": digest})
+        found.append({"scene": scenario.name, "engine": _label(spec), "fingerprint": digest})
     return found
 
 
@@ -264,13 +318,24 @@ class RunRequest:
     out: str | None
     argv: list[str]
     cwd: str
+    baseline: str | None = None
+    junit: str | None = None
+    history: str | None = None
 
     def plan(self) -> Plan:
         """The plan, paths taken from the run's working directory (as given when it is this
-        one, so that ``--only`` matches paths as it did)."""
+        one, so that ``--only`` matches paths as it did); the scenes' sweeps checked."""
         here = Path.cwd() == Path(self.cwd)
         paths = [Path(p) if here else Path(self.cwd) / p for p in self.paths]
-        return plan_run(paths, self.engines, self.dt, self.only)
+        plan = plan_run(paths, self.engines, self.dt, self.only)
+        problems = reference_problems(plan.sweeps)
+        if problems:
+            raise BadInputError("\n".join(problems).replace("--dt:", "sweep.dt:"))
+        return plan
+
+    def nightly(self) -> NightlyOptions:
+        """The nightly flags, checked (``nightly_run.nightly_options``)."""
+        return nightly_options(self.baseline, self.junit, self.history, self.destination)
 
     @property
     def destination(self) -> Path:
@@ -307,25 +372,47 @@ def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
 
 def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, jobs: int) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code."""
+    options = request.nightly()
     done = journal.finished()
     resumed = len(done)
-    rows, series, impacts, runs = execute(plan, jobs, journal, done)  # Ctrl-C: Interrupted
-    provenance = _provenance(runs, request.argv)
+    executed = execute(plan, jobs, journal, done)  # Ctrl-C: Interrupted
+    rows = executed.rows + _sweep_rows(plan, executed)
+    provenance = _provenance(executed.runs, request.argv)
+    provenance["scenes"] = hashes = scene_hashes(plan)
     if resumed:
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": len(plan.jobs) - resumed}
-    write_run(output.run_folder, rows, series, impacts, provenance)
+    rows, compared = against_baseline(rows, options, hashes, output.run_folder)
+    write_run(output.run_folder, rows, executed.series, executed.impacts, provenance)
+    if executed.sweep_rows:
+        write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
+    write_ci_files(rows, options)
     note = render_html(output.run_folder, shown_as=output.destination)
     output.publish()
     if request.out is None:  # the default run also keeps a copy with a unique stamp
         output.keep_history()
+    recorded = record_history(output.destination, options)
     print(summary(rows, color=sys.stdout.isatty()))
     bad = sum(row["status"] in BAD_STATUSES for row in rows)
+    notes = [n for n in (outcome_summary(rows), compared, recorded, note) if n]
     print(
         (f"{resumed} of {len(plan.jobs)} jobs from the journal; " if resumed else "")
         + f"{len(rows)} rows, {bad} failed or unstable -> {output.destination / RESULTS_FILE}"
-        + (f"; {note}" if note else "")
+        + "".join(f"; {n}" for n in notes)
     )
-    return EXIT_FAILED if bad else EXIT_OK
+    return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+
+
+def _sweep_rows(plan: Plan, executed: Executed) -> list[dict]:
+    """The scenes' sweeps as result rows, their known findings applied."""
+    common = {}
+    for row in executed.rows:
+        common.setdefault(row["scenario"], {"settings": ""})
+    found = sweep_result_rows(executed.sweep_rows, common)
+    by_name = {scene.name: scene.scenario for scene, _ in plan.scenes}
+    rows = []
+    for name in dict.fromkeys(r["scenario"] for r in found):
+        rows += apply_known([r for r in found if r["scenario"] == name], by_name[name])
+    return rows
 
 
 def run_main(
@@ -337,9 +424,14 @@ def run_main(
     argv: list[str],
     jobs: int = 1,
     resume: Path | None = None,
+    baseline: str | None = None,
+    junit: str | None = None,
+    history: str | None = None,
 ) -> int:
-    """The whole job; returns the exit code (0 all passed, 1 any failed or unstable, 2 bad
-    input, a refused output folder, or an output that failed while writing)."""
+    """The whole job; returns the exit code (0 nothing regressed and no new failure: every
+    failing row is a known finding or, against a baseline, failed there too; 1 a regression
+    or a new failure; 2 bad input, a refused output folder, or an output that failed while
+    writing)."""
     try:
         if resume is not None:
             return _resume_main(resume, jobs)
@@ -351,7 +443,11 @@ def run_main(
             None if out is None else str(out),
             argv,
             os.getcwd(),
+            baseline,
+            junit,
+            history,
         )
+        request.nightly()  # the flags checked before any work
         plan = request.plan()
         with claim(request.destination) as output:
             journal = Journal.create(output.journal_folder, _header(request, plan))

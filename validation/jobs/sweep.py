@@ -441,7 +441,7 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
     return rows
 
 
-def _sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict]:
+def sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict]:
     """One (scene, engine) dt grid, or (engine None) the cross-check of a scene's reference."""
     scenario, spec, dts = job
     return cross_check(scenario, min(runnable(scenario, dts))) if spec is None else sweep_scene(job)
@@ -451,11 +451,18 @@ def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int
     """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
     shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
     job order."""
+    return [row for rows in run_jobs(sweep_job, with_cross_checks(jobs), workers) for row in rows]
+
+
+def with_cross_checks(
+    jobs: list[tuple[Scenario, EngineSpec, list[float]]],
+) -> list[tuple[Scenario, EngineSpec | None, list[float]]]:
+    """The jobs, then one cross-check job (engine None) per scene with a DOP853 reference."""
     scenes = {id(scenario): (scenario, dts) for scenario, _, dts in jobs}
     checks = [
         (s, None, dts) for s, dts in scenes.values() if not _can_touch(s) and runnable(s, dts)
     ]
-    return [row for rows in run_jobs(_sweep_job, [*jobs, *checks], workers) for row in rows]
+    return [*jobs, *checks]
 
 
 def sweep_main(

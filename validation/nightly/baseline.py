@@ -18,13 +18,18 @@ known finding) that the baseline does not have failing too.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
+import sys
 from pathlib import Path
 
 import pandas as pd
 
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK, PROVENANCE_FILE, RESULTS_FILE
+from validation.files import write_atomically
 from validation.nightly.known import FIXED, KNOWN, row_verdict
 from validation.nightly.noise import moved
+from validation.report.read import ReportInputError, read_results
 
 KEY = ("scenario", "engine", "metric")
 """What identifies a row across runs."""
@@ -150,3 +155,37 @@ def exit_failed(rows: list[dict]) -> bool:
     """Whether the run fails (exit 1): a regression, or a new failure (module docstring).
     Without a baseline every failing row counts as new."""
     return any(row.get("baseline") == "regressed" or is_new_failure(row) for row in rows)
+
+
+def save_baseline(run_dir: Path, to: Path) -> int:
+    """``physval baseline save RUN_DIR --to FILE``: the run's baseline record, written
+    atomically; the number of rows. ValueError naming the file when the run cannot be read."""
+    try:
+        results = read_results(run_dir / RESULTS_FILE)
+        provenance = json.loads((run_dir / PROVENANCE_FILE).read_text())
+    except ReportInputError as error:
+        raise ValueError(f"{run_dir}: {error}") from None
+    except (OSError, json.JSONDecodeError) as error:
+        raise ValueError(f"{run_dir / PROVENANCE_FILE}: cannot be read ({error})") from None
+    scenes = provenance.get("scenes", {})
+    hashes = {name: str(entry.get("sha256", "")) for name, entry in scenes.items()}
+    table = baseline_table(results, hashes)
+    if not to.parent.is_dir() or to.is_dir():
+        raise ValueError(f"--to: expected a file in an existing folder; got {to}")
+    write_atomically(to, table.to_csv(index=False))
+    return len(table)
+
+
+def baseline_main(action: str, run_dir: Path, to: Path) -> int:
+    """The ``baseline`` command (one action, ``save``): exit 0, or 2 with one line."""
+    try:
+        count = BASELINE_ACTIONS[action](run_dir, to)
+    except ValueError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{count} rows -> {to} (review it in a pull request; physval run compares against it)")
+    return EXIT_OK
+
+
+BASELINE_ACTIONS = {"save": save_baseline}
+"""``physval baseline ACTION``: what each action does."""

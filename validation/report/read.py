@@ -40,7 +40,7 @@ NUMERIC_RESULTS_COLUMNS = (
     "wall_time_s",
 )
 
-OPTIONAL_RESULTS_COLUMNS = ("band",)
+OPTIONAL_RESULTS_COLUMNS = ("band", "outcome", "known", "baseline")
 
 OPTIONAL_IMPACTS_COLUMNS = ("delta_e", "band")
 """impacts.csv columns added after its first version (derived again when absent)."""

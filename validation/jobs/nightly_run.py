@@ -1,0 +1,207 @@
+"""What ``physval run`` adds for the nightly job (issue 12): known findings, the baseline, the
+scenes' own sweeps as rows, JUnit XML and the history store.
+
+Each function here is one phase of ``run._finish``; none runs an engine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from validation.contract import BASELINE_FILE
+from validation.files import write_atomically
+from validation.jobs.plan import BadInputError, Plan
+from validation.jobs.sweep import SWEEP_METRICS
+from validation.nightly.baseline import (
+    CLASSES,
+    KEY,
+    classify,
+    is_new_failure,
+    outcome_of,
+    read_baseline,
+    scene_hash,
+)
+from validation.nightly.history import record_run
+from validation.nightly.junit import write_junit
+
+DEFAULT_BASELINE = Path("baselines") / "default.csv"
+"""The baseline a run compares against when the repository (the working folder) has one."""
+
+HISTORY_FILE = "history.sqlite"
+"""The default history database, next to the run folder (``reports/history.sqlite`` for a
+default run)."""
+
+SWEEP_ORDER = "sweep_order"
+SWEEP_ERROR = "sweep_error"
+SWEEP_CROSS_CHECK = "sweep_cross_check"
+"""Prefixes of the result rows a scene's sweep adds: ``sweep_order.<metric>`` (the fitted
+convergence order), ``sweep_error.<metric>@dt=<dt>`` (the error at one step) and
+``sweep_cross_check.<metric>`` (DOP853 against MuJoCo RK4); the history tracks them like
+every other row."""
+
+
+@dataclass(frozen=True)
+class NightlyOptions:
+    """The run's nightly flags, checked before any work.
+
+    Attributes:
+        baseline: the baseline file, or None (no comparison).
+        junit: where to write JUnit XML, or None.
+        history: the history database URL, or None (not recorded).
+    """
+
+    baseline: Path | None = None
+    junit: Path | None = None
+    history: str | None = None
+    baseline_table: pd.DataFrame | None = field(default=None, compare=False, repr=False)
+
+
+def nightly_options(
+    baseline: str | None, junit: str | None, history: str | None, destination: Path
+) -> NightlyOptions:
+    """The flags resolved and checked: the baseline read (``none`` turns the default off), the
+    JUnit file's folder present, the history URL (``none``: not recorded; default: next to
+    the run folder). BadInputError naming the flag otherwise."""
+    path = _baseline_path(baseline)
+    table = None
+    if path is not None:
+        try:
+            table = read_baseline(path)
+        except ValueError as error:
+            raise BadInputError(f"--baseline: {error}") from None
+    junit_path = None if junit is None else Path(junit)
+    if junit_path is not None and (junit_path.is_dir() or not junit_path.parent.is_dir()):
+        raise BadInputError(f"--junit: expected a file in an existing folder; got {junit_path}")
+    if history is None:
+        url = f"sqlite:///{(destination.parent / HISTORY_FILE).resolve()}"
+    else:
+        url = None if history == "none" else history
+    return NightlyOptions(path, junit_path, url, table)
+
+
+def _baseline_path(baseline: str | None) -> Path | None:
+    if baseline == "none":
+        return None
+    if baseline is None:
+        return DEFAULT_BASELINE if DEFAULT_BASELINE.is_file() else None
+    path = Path(baseline)
+    if not path.is_file():
+        raise BadInputError(f"--baseline: {path}: no such file")
+    return path
+
+
+def scene_hashes(plan: Plan) -> dict[str, dict[str, str]]:
+    """Scene name -> its file and the sha256 of its bytes, read when the run is written."""
+    return {
+        scene.name: {"file": scene.scenario.source, "sha256": scene_hash(scene.scenario.source)}
+        for scene, _ in plan.scenes
+    }
+
+
+def against_baseline(
+    rows: list[dict], options: NightlyOptions, hashes: dict[str, dict[str, str]], folder: Path
+) -> tuple[list[dict], str]:
+    """The rows with their ``baseline`` class, ``baseline.csv`` written into the run folder
+    (every class, the missing rows too, each with the baseline's value and error), and a
+    summary line; the rows unchanged and '' without a baseline."""
+    if options.baseline_table is None:
+        return rows, ""
+    sha = {name: entry["sha256"] for name, entry in hashes.items()}
+    classified, missing = classify(rows, options.baseline_table, sha)
+    before = {tuple(str(r[k]) for k in KEY): r for r in options.baseline_table.to_dict("records")}
+    table = [
+        {
+            **{k: row[k] for k in KEY},
+            "baseline": row["baseline"],
+            "outcome": outcome_of(row) if row["baseline"] != "missing" else "",
+            "value": row.get("value") if row["baseline"] != "missing" else math.nan,
+            "error": row.get("error") if row["baseline"] != "missing" else math.nan,
+            "baseline_outcome": before.get(tuple(str(row[k]) for k in KEY), {}).get("outcome", ""),
+            "baseline_value": before.get(tuple(str(row[k]) for k in KEY), {}).get("value"),
+            "baseline_error": before.get(tuple(str(row[k]) for k in KEY), {}).get("error"),
+        }
+        for row in [*classified, *missing]
+    ]
+    write_atomically(folder / BASELINE_FILE, pd.DataFrame(table).to_csv(index=False))
+    counts = pd.Series([r["baseline"] for r in table]).value_counts()
+    words = ", ".join(f"{int(counts.get(c, 0))} {c}" for c in CLASSES if counts.get(c, 0))
+    return classified, f"against {options.baseline}: {words}"
+
+
+def outcome_summary(rows: list[dict]) -> str:
+    """``k known, f fixed, n new failures`` (the nightly words of the run's last line)."""
+    outcomes = pd.Series([outcome_of(r) for r in rows]).value_counts()
+    new = sum(is_new_failure(r) for r in rows)
+    return (
+        f"{int(outcomes.get('known', 0))} known, {int(outcomes.get('fixed', 0))} fixed, "
+        f"{new} new failures"
+    )
+
+
+def write_ci_files(rows: list[dict], options: NightlyOptions) -> None:
+    """JUnit XML, when asked for."""
+    if options.junit is not None:
+        write_junit(rows, options.junit)
+
+
+def record_history(folder: Path, options: NightlyOptions) -> str:
+    """The published run recorded in the history store; a note instead of a failure when the
+    store cannot be written (the run folder is the record; the history is a convenience)."""
+    if options.history is None:
+        return ""
+    try:
+        run_id = record_run(folder, options.history)
+    except Exception as error:  # a locked or unreachable database must not fail the run
+        return f"history not recorded ({type(error).__name__}: {error})"
+    return f"history run {run_id}"
+
+
+def sweep_result_rows(sweep_rows: list[dict], template: dict[str, dict]) -> list[dict]:
+    """results.csv rows of the scenes' sweeps: each fitted order, each point's error and each
+    cross-check, with the columns of a result row (``template``: scenario -> column values
+    common to its rows); no tolerance, so they are tracked, not judged."""
+    found = []
+    for row in sweep_rows:
+        metric = _sweep_metric(row)
+        if metric is None:
+            continue
+        value = row.get("value")
+        error = row.get("error", value)
+        found.append(
+            {
+                **template.get(row["scenario"], {}),
+                "scenario": row["scenario"],
+                "engine": row["engine"],
+                "metric": metric,
+                "value": value,
+                "expected": 0.0 if row["metric"] in SWEEP_METRICS else math.nan,
+                "expected_kind": row.get("expected_kind", ""),
+                "error": error if row["metric"] in SWEEP_METRICS else math.nan,
+                "tolerance": None,
+                "passed": None,
+                "status": row.get("status", "ok"),
+                "dt": row.get("dt", math.nan),
+                "steps": row.get("steps", math.nan),
+                "wall_time_s": row.get("wall_time_s", math.nan),
+                "engine_version": row.get("engine_version", ""),
+                "settings": "",
+                "message": row.get("message", ""),
+                "band": 0.0,
+            }
+        )
+    return found
+
+
+def _sweep_metric(row: dict) -> str | None:
+    """The result-row metric of one sweep row (None for rows that are not tracked)."""
+    if row["metric"] == "convergence_order":
+        return f"{SWEEP_ORDER}.{row['of']}"
+    if row["metric"] == "reference_cross_check":
+        return f"{SWEEP_CROSS_CHECK}.{row['of']}"
+    if row["metric"] in SWEEP_METRICS:
+        return f"{SWEEP_ERROR}.{row['metric']}@dt={float(row['dt']):.3g}"
+    return None
