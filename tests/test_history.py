@@ -21,9 +21,9 @@ import pytest
 
 from validation.cli import main
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK, PROVENANCE_FILE, RESULTS_COLUMNS
+from validation.measure.noise import RELATIVE_NOISE
 from validation.nightly import history
 from validation.nightly.compare import COMPARE_COLUMNS
-from validation.nightly.noise import RELATIVE_NOISE
 from validation.nightly.steps import detect_steps
 
 ENGINE_VERSIONS = {"mini": "0.1.0", "mujoco": "3.3.7"}
@@ -61,8 +61,8 @@ def write_run(folder: Path, rows: list[dict], created: str, versions=None) -> Pa
     versions = versions or ENGINE_VERSIONS
     table = pd.DataFrame(rows)
     table["engine_version"] = table["engine"].map(versions)
-    extra = [c for c in table.columns if c not in RESULTS_COLUMNS]
-    table[[*RESULTS_COLUMNS, *extra]].to_csv(folder / "results.csv", index=False)
+    table = table.reindex(columns=[*RESULTS_COLUMNS, *table.columns.difference(RESULTS_COLUMNS)])
+    table.to_csv(folder / "results.csv", index=False)
     engines = {label: {"engine": label, "version": v} for label, v in versions.items()}
     provenance = {
         "command": "physval run",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
+from validation.measure.noise import RELATIVE_NOISE
 from validation.nightly.baseline import (
     baseline_table,
     classify,
@@ -12,7 +13,6 @@ from validation.nightly.baseline import (
     read_baseline,
 )
 from validation.nightly.known import apply_known
-from validation.nightly.noise import RELATIVE_NOISE
 from validation.scenario import Scenario
 
 

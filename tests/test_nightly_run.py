@@ -140,6 +140,8 @@ def test_a_baseline_flags_an_injected_regression_on_exactly_its_rows(scenes, tmp
         ("spin", "mini", "angular_momentum_drift"),
     }, regressed
     assert (tmp_path / "broken" / BASELINE_FILE).is_file()
+    page = (tmp_path / "broken" / "report.html").read_text()
+    assert "Regressions since the baseline: 2" in page, "the report leads with the news"
 
 
 def test_a_changed_scene_reads_scene_changed_not_regressed(scenes, tmp_path):
@@ -184,3 +186,20 @@ def test_bad_nightly_flags_exit_2_before_any_work(scenes, tmp_path):
         assert done.returncode == 2, done.stderr
         assert says in done.stderr and "Traceback" not in done.stderr, done.stderr
         assert not (tmp_path / "out").exists(), "nothing is written before the flags are checked"
+
+
+def test_a_scene_sweep_runs_with_the_scene(tmp_path):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    sweep = "sweep: {dt: [0.004, 0.002, 0.001], engines: [mini, mujoco]}\n"
+    (folder / "spin.yaml").write_text(
+        SPIN.replace("angular_velocity: [0, 0, 5.0]", "angular_velocity: [0.1, 5.0, 0.1]") + sweep
+    )
+    done = run(folder, tmp_path / "r1", "--history", "none")
+    assert done.returncode == EXIT_OK, done.stdout + done.stderr
+    table = results(tmp_path / "r1").set_index(["engine", "metric"])
+    order = table.loc[("mini", "sweep_order.orientation_error"), "value"]
+    assert abs(float(order)) < 0.3, f"the documented law does not converge on a tumble: {order}"
+    assert (tmp_path / "r1" / "sweep.csv").is_file()
+    page = (tmp_path / "r1" / "report.html").read_text()
+    assert "Error against run time: orientation_error" in page

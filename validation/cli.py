@@ -1,8 +1,8 @@
 """The ``physval`` command: one sub-command per job, picked from a registry.
 
-Exit codes (``validation.contract``): 0 all good; 1 (``run`` only) a row has a bad
-status (a failed check, an unstable run, a model mismatch, an engine error); 2 bad input
-(a scenario, a flag, a value). Bad input prints one line per problem naming the
+Exit codes (``validation.contract``): 0 all good; 1 (``run`` only) a regression or a new
+failure (a failed check, an unstable run, a model mismatch, an engine error that is not a
+known finding of its scene); 2 bad input (a scenario, a flag, a value). Bad input prints one line per problem naming the
 file, line, field and what was expected, and never a traceback.
 """
 

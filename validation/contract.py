@@ -18,6 +18,9 @@ lacks (``missing``) included, with the baseline's value and error next to the ru
 SWEEP_FILE = "sweep.csv"
 """In a run folder whose scenes declare ``sweep:``: the sweep rows (as ``physval sweep``)."""
 
+NIGHTLY_COLUMNS = ("outcome", "known", "baseline")
+"""The columns the nightly bookkeeping adds to a measured row (``validation.nightly``)."""
+
 RESULTS_COLUMNS = (
     "scenario",
     "engine",
@@ -36,9 +39,7 @@ RESULTS_COLUMNS = (
     "settings",
     "message",
     "band",
-    "outcome",
-    "known",
-    "baseline",
+    *NIGHTLY_COLUMNS,
 )
 """results.csv, in order: ``validation.measure.comparator`` writes these columns, and CI jobs
 and ``validation.report`` read them by name. ``outcome`` is the row's verdict with the scene's
@@ -79,10 +80,16 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
 these names; ``BAD_STATUSES`` decides the exit code."""
 
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
-"""Row statuses that make ``physval run`` exit 1."""
+"""Row statuses that fail a row; ``physval run`` exits 1 on such a row unless it is a known
+finding of its scene or, against a baseline, failed there too (``nightly.baseline``)."""
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-"""physval's exit codes: all passed; a check failed or a run was unstable; bad input."""
+"""physval's exit codes: nothing regressed and no new failure; a regression or a new failure
+(a failed check or an unstable, errored or mismatched run that is not known); bad input."""
+
+BASELINE_CLASSES = ("regressed", "new", "missing", "scene_changed", "improved", "unchanged")
+"""Every ``baseline`` class a results.csv row can carry, the news first (names fixed by issue
+12; ``validation.nightly.baseline`` defines them)."""
 
 EXIT_INTERRUPTED = 130
 """Ctrl-C (128 + SIGINT, the shell's convention): every worker stopped, nothing published."""

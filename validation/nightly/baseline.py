@@ -8,7 +8,7 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
 - ``scene_changed``: the scene file's hash differs (the numbers may move; not a regression);
 - ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run;
 - ``regressed`` / ``improved``: the verdict got worse / better (passed -> failed, ok ->
-  unstable), or the error moved beyond noise (``validation.nightly.noise``) up / down;
+  unstable), or the error moved beyond noise (``validation.measure.noise``) up / down;
 - ``unchanged``: none of these.
 
 The run fails (exit 1) on a regression or a *new failure*: a failing row (bad status, not a
@@ -25,10 +25,16 @@ from pathlib import Path
 
 import pandas as pd
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_OK, PROVENANCE_FILE, RESULTS_FILE
+from validation.contract import (
+    BASELINE_CLASSES,
+    EXIT_BAD_INPUT,
+    EXIT_OK,
+    PROVENANCE_FILE,
+    RESULTS_FILE,
+)
 from validation.files import write_atomically
+from validation.measure.noise import moved
 from validation.nightly.known import FIXED, KNOWN, row_verdict
-from validation.nightly.noise import moved
 from validation.report.read import ReportInputError, read_results
 
 KEY = ("scenario", "engine", "metric")
@@ -46,8 +52,8 @@ BASELINE_COLUMNS = (
 )
 """The columns of a baseline file, in order (CI jobs and reviewers read them)."""
 
-CLASSES = ("regressed", "new", "missing", "scene_changed", "improved", "unchanged")
-"""Every class a row can get against a baseline, the news first (names fixed by issue 12)."""
+CLASSES = BASELINE_CLASSES
+"""Every class a row can get against a baseline, the news first (``validation.contract``)."""
 
 VERDICT_RANK = {
     "error": 0,

@@ -2,7 +2,7 @@
 
 Each run is a run folder (results.csv, provenance.json) or the id of a run in the history
 (``--db``); an existing folder wins over a number. Rows are matched on (scenario, engine spec,
-metric) and classified by the noise rule (``validation.nightly.noise``, defined there once):
+metric) and classified by the noise rule (``validation.measure.noise``, defined there once):
 
 - ``regressed`` / ``improved``: the verdict got worse / better (a change of verdict is always a
   move), or else the error grew / shrank beyond the noise floor;
@@ -27,6 +27,7 @@ import pandas as pd
 
 from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_atomically
+from validation.measure.noise import NOISE_RULE, moved, noise_floor
 from validation.nightly.history import (
     KEY_COLUMNS,
     HistoryInputError,
@@ -35,7 +36,6 @@ from validation.nightly.history import (
     read_run_folder,
 )
 from validation.nightly.known import FIXED, KNOWN, row_verdict
-from validation.nightly.noise import NOISE_RULE, moved, noise_floor
 from validation.nightly.pages import render_page
 from validation.report.build import format_number
 

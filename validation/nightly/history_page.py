@@ -26,6 +26,7 @@ from matplotlib.ticker import MaxNLocator
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_atomically
+from validation.measure.noise import NOISE_RULE
 from validation.nightly.history import (
     KEY_COLUMNS,
     TREND_COLUMNS,
@@ -36,7 +37,6 @@ from validation.nightly.history import (
     sqlite_file,
 )
 from validation.nightly.known import row_verdict
-from validation.nightly.noise import NOISE_RULE
 from validation.nightly.pages import figure_svg, render_page
 from validation.nightly.steps import PENALTY_PER_LOG_RUN, Step, detect_steps, segment_levels
 from validation.report.build import format_number, slug

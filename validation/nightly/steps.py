@@ -16,7 +16,7 @@ update per right edge: 1,000 series of 365 runs fit in about a second), with a d
 (twice the Schwarz/BIC penalty of a change point in Gaussian noise, 2 σ² ln n), where σ
 is the series' noise: the robust scatter of its run-to-run differences (MAD / 0.6745 / √2,
 unaffected by a few steps), but never below half the noise rule's floor
-(``validation.nightly.noise.noise_floor``), because physval's runs on one machine are bit-identical
+(``validation.measure.noise.noise_floor``), because physval's runs on one machine are bit-identical
 and their σ would otherwise be 0. The fit proposes steps; the noise rule disposes: neighbouring
 segments whose levels do not differ by more than the noise floor (``noise.moved`` == 0) are merged.
 """
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from validation.nightly.noise import moved, noise_floor
+from validation.measure.noise import moved, noise_floor
 
 PENALTY_PER_LOG_RUN = 4.0
 """γ / (σ² ln n): BIC gives 2 per change point; asv's criterion counts 4 degrees of freedom per

@@ -24,6 +24,8 @@ from validation.measure.definitions import (
     EXPECTED_KINDS,
     METRIC_DEFINITIONS,
 )
+from validation.measure.noise import NOISE_RULE
+from validation.report.news import build_news, build_sweep_cards
 from validation.report.outcomes import (
     OUTCOME_COLOURS,
     OUTCOME_ORDER,
@@ -244,6 +246,7 @@ def build_legend(table: pd.DataFrame) -> dict[str, Any]:
             "engine": "another engine's result on the same scene, written engine:<spec>",
         },
         "kinds_known": EXPECTED_KINDS,
+        "noise_rule": NOISE_RULE,
         "statuses": list(STATUS_DESCRIPTIONS.items()),
         "undefined": undefined,
     }
@@ -336,6 +339,7 @@ def build_scene(
         "plot_note": plot_note,
         "impacts": build_impacts(run.impacts, scene),
         "rows": build_rows(rows),
+        "sweeps": build_sweep_cards(run.sweep, scene),
     }
 
 
@@ -380,6 +384,7 @@ def build_context(run: RunData) -> dict[str, Any]:
         "run_chips": count_chips([o for o in cell_outcomes if o != "not_run"]),
         "row_chips": count_chips(list(table["outcome"])),
         "row_count": len(table),
+        "news": build_news(table, run.baseline, anchors),
         "matrix": matrix,
         "offenders": build_rows(offenders, anchors)[:MAX_OFFENDERS],
         "offenders_hidden": max(0, len(offenders) - MAX_OFFENDERS),

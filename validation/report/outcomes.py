@@ -14,6 +14,8 @@ OUTCOME_ORDER = (
     "model_mismatch",
     "unstable",
     "failed",
+    "known",
+    "fixed",
     "passed",
     "no_tolerance",
     "unsupported",
@@ -33,11 +35,15 @@ OUTCOME_LABELS = {"no_tolerance": "no tolerance", "not_run": "not run"}
 # Cell and chip backgrounds: red needs a look, green passed, grey nothing was judged,
 # near-white means the engine was not run on the scene. Pale so that black text stays legible.
 RED, GREEN, GREY, BLANK = "#f3b3b0", "#b7e3bf", "#dedede", "#f7f7f7"
+AMBER, BLUE = "#f6deb0", "#b9d5f2"
+"""A known finding (expected, not news) and a fixed one (its entry can go)."""
 OUTCOME_COLOURS = {
     "error": RED,
     "model_mismatch": RED,
     "unstable": RED,
     "failed": RED,
+    "known": AMBER,
+    "fixed": BLUE,
     "passed": GREEN,
     "no_tolerance": GREY,
     "unsupported": GREY,
@@ -72,13 +78,16 @@ def error_ratio(error: float, tolerance: float) -> float:
 
 
 def classify_rows(results: pd.DataFrame, warnings: list[str]) -> pd.DataFrame:
-    """Adds ``outcome``, ``ratio`` (error/tolerance) and ``severity`` (0 = worst) per row."""
+    """Adds ``outcome`` (the record's own when it has one: known findings applied), ``ratio``
+    (error/tolerance) and ``severity`` (0 = worst) per row."""
     table = results.copy()
     unknown = sorted(set(table["status"]) - set(STATUS_DESCRIPTIONS) - {""})
     if unknown:
         warnings.append(f"{RESULTS_FILE}: unknown status {', '.join(unknown)} (shown as error)")
+    stated = table["outcome"] if "outcome" in table else [""] * len(table)
     table["outcome"] = [
-        row_outcome(s, p) for s, p in zip(table["status"], table["passed"], strict=True)
+        o if isinstance(o, str) and o in OUTCOME_ORDER else row_outcome(s, p)
+        for o, s, p in zip(stated, table["status"], table["passed"], strict=True)
     ]
     table["ratio"] = [
         error_ratio(e, t + (0.0 if math.isnan(b) else b))

@@ -20,6 +20,7 @@ from typing import Any
 import pandas as pd
 
 from validation.contract import (
+    BASELINE_FILE,
     IMPACTS_COLUMNS,
     IMPACTS_FILE,
     PROVENANCE_FILE,
@@ -27,6 +28,7 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_COLUMNS,
     SERIES_FILE,
+    SWEEP_FILE,
 )
 
 NUMERIC_RESULTS_COLUMNS = (
@@ -61,6 +63,8 @@ class RunData:
     series: pd.DataFrame | None = None
     impacts: pd.DataFrame | None = None
     provenance: dict[str, Any] | None = None
+    sweep: pd.DataFrame | None = None
+    baseline: pd.DataFrame | None = None
     warnings: list[str] = field(default_factory=list)
 
 
@@ -155,4 +159,27 @@ def load_run(run_dir: Path) -> RunData:
         run.warnings,
     )
     run.provenance = read_provenance(run_dir / PROVENANCE_FILE, run.warnings)
+    run.sweep = _read_optional_table(
+        run_dir / SWEEP_FILE, SWEEP_READ_COLUMNS, SWEEP_TEXT_COLUMNS, run.warnings
+    )
+    run.baseline = _read_optional_table(
+        run_dir / BASELINE_FILE, BASELINE_READ_COLUMNS, BASELINE_READ_COLUMNS, run.warnings
+    )
     return run
+
+
+SWEEP_READ_COLUMNS = (
+    "scenario",
+    "engine",
+    "metric",
+    "dt",
+    "value",
+    "error",
+    "status",
+    "wall_time_s",
+)
+SWEEP_TEXT_COLUMNS = ("scenario", "engine", "metric", "status")
+"""sweep.csv (a run whose scenes declare ``sweep:``): the columns the scene cards draw."""
+
+BASELINE_READ_COLUMNS = ("scenario", "engine", "metric", "baseline")
+"""baseline.csv (a run against a baseline): the columns the news reads."""

@@ -41,7 +41,8 @@ DEFINITIONS = {
 IDENTICALLY_ZERO_PREFIX = "identically zero"
 
 
-def _chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
+def sweep_chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
+    """Error against stepping time and against dt, log-log, one line per engine (inline SVG)."""
     figure, (by_time, by_dt) = plt.subplots(1, 2, figsize=FIGURE_SIZE)
     for engine, points in scene.groupby("engine", sort=False):
         good = points[(points["status"].isin(["ok", "failed"])) & (points["error"] > 0)]
@@ -70,7 +71,8 @@ def _chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
     return svg_for_html(buffer.getvalue())
 
 
-def _orders(table: pd.DataFrame, scene: str, metric: str) -> dict[str, float]:
+def sweep_orders(table: pd.DataFrame, scene: str, metric: str) -> dict[str, float]:
+    """Engine -> the fitted convergence order of ``metric`` on ``scene``."""
     mine = table[
         (table["metric"] == "convergence_order")
         & (table["scenario"] == scene)
@@ -123,7 +125,7 @@ def render_sweep(rows: list[dict], path: Path) -> Path:
                 note = html.escape(str(curve["message"].iloc[0]))
                 parts.append(f"<p class='note'>{note}; not drawn.</p>")
             else:
-                parts.append(_chart(curve, _orders(table, scene, metric), unit))
+                parts.append(sweep_chart(curve, sweep_orders(table, scene, metric), unit))
             columns = [
                 c
                 for c in (

@@ -1,0 +1,110 @@
+"""What report.html leads with (issue 12): the news since the baseline, and a scene's own sweep.
+
+The news, in the page's order: regressions since the baseline, new failures, fixed findings,
+then the unchanged rows and the known findings (collapsed). Each entry links to its scene's
+card. A scene that declares ``sweep:`` gets its error-against-run-time plots in its card.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pandas as pd
+from markupsafe import Markup
+
+from validation.report.sweep_page import UNITS, sweep_chart, sweep_orders
+
+FAILING = ("error", "model_mismatch", "unstable", "failed")
+"""Outcomes that are a failure unless the baseline had them failing too."""
+
+NEWS_SECTIONS = (
+    ("regressed", "Regressions since the baseline", True),
+    ("new_failures", "New failures", True),
+    ("fixed", "Fixed (a known finding that passes: its entry can go)", True),
+    ("missing", "Missing (in the baseline, not in this run)", False),
+    ("unchanged", "Unchanged since the baseline", False),
+    ("known", "Known findings", False),
+)
+"""(key, heading, open): the news sections in order; the last ones start collapsed."""
+
+MAX_NEWS_ROWS = 200
+"""Rows listed per section; the rest are counted (every row is in the scene cards)."""
+
+
+def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]]:
+    return [
+        {
+            "scene": r["scenario"],
+            "anchor": anchors.get(r["scenario"], ""),
+            "engine": r["engine"],
+            "metric": r["metric"],
+            "outcome": r.get("outcome", ""),
+            "error": "" if pd.isna(r.get("error")) else f"{r['error']:.4g}",
+            "note": str(r.get("known", "") or r.get("message", "") or ""),
+        }
+        for _, r in rows.head(MAX_NEWS_ROWS).iterrows()
+    ]
+
+
+def _selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[str, pd.DataFrame]:
+    classes = table["baseline"].fillna("") if "baseline" in table else pd.Series("", table.index)
+    failing = table["outcome"].isin(FAILING)
+    missing = (
+        baseline[baseline["baseline"] == "missing"] if baseline is not None else table.iloc[0:0]
+    )
+    return {
+        "regressed": table[classes == "regressed"],
+        "new_failures": table[failing & (classes != "unchanged") & (classes != "regressed")],
+        "fixed": table[table["outcome"] == "fixed"],
+        "missing": missing,
+        "unchanged": table[classes == "unchanged"],
+        "known": table[table["outcome"] == "known"],
+    }
+
+
+def build_news(
+    table: pd.DataFrame, baseline: pd.DataFrame | None, anchors: dict[str, str]
+) -> dict[str, Any]:
+    """The news sections (``NEWS_SECTIONS``) of a judged results table, each with its count,
+    listed rows and how many more there are; ``against_baseline`` says whether it had one."""
+    selected = _selections(table, baseline)
+    sections = []
+    for key, heading, is_open in NEWS_SECTIONS:
+        rows = selected[key]
+        sections.append(
+            {
+                "key": key,
+                "heading": heading,
+                "open": is_open and len(rows) > 0,
+                "count": len(rows),
+                "rows": _entries(rows, anchors),
+                "hidden": max(0, len(rows) - MAX_NEWS_ROWS),
+            }
+        )
+    against = "baseline" in table and table["baseline"].fillna("").astype(bool).any()
+    return {"sections": sections, "against_baseline": bool(against)}
+
+
+def build_sweep_cards(sweep: pd.DataFrame | None, scene: str) -> list[dict[str, Any]]:
+    """The scene's sweep (a run's sweep.csv), one chart per sweep metric with its fitted
+    orders; empty when the scene declares none."""
+    if sweep is None or sweep.empty:
+        return []
+    mine = sweep[sweep["scenario"] == scene]
+    cards = []
+    for metric, unit in UNITS.items():
+        curve = mine[(mine["metric"] == metric) & mine["error"].notna()]
+        if curve.empty or not (curve["error"] > 0).any():
+            continue
+        orders = sweep_orders(sweep.assign(of=sweep.get("of", "")), scene, metric)
+        cards.append(
+            {
+                "metric": metric,
+                "reference": str(curve["expected_kind"].iloc[0])
+                if "expected_kind" in curve
+                else "",
+                "orders": {e: f"{o:.2f}" for e, o in orders.items() if pd.notna(o)},
+                "svg": Markup(sweep_chart(curve, orders, unit)),
+            }
+        )
+    return cards
