@@ -380,7 +380,8 @@ def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, j
     provenance = _provenance(executed.runs, request.argv)
     provenance["scenes"] = hashes = scene_hashes(plan)
     if resumed:
-        provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": len(plan.jobs) - resumed}
+        total = len(plan.jobs) + len(_sweep_work(plan))
+        provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}
     rows, compared = against_baseline(rows, options, hashes, output.run_folder)
     write_run(output.run_folder, rows, executed.series, executed.impacts, provenance)
     if executed.sweep_rows:
@@ -395,7 +396,11 @@ def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, j
     bad = sum(row["status"] in BAD_STATUSES for row in rows)
     notes = [n for n in (outcome_summary(rows), compared, recorded, note) if n]
     print(
-        (f"{resumed} of {len(plan.jobs)} jobs from the journal; " if resumed else "")
+        (
+            f"{resumed} of {len(plan.jobs) + len(_sweep_work(plan))} jobs from the journal; "
+            if resumed
+            else ""
+        )
         + f"{len(rows)} rows, {bad} failed or unstable -> {output.destination / RESULTS_FILE}"
         + "".join(f"; {n}" for n in notes)
     )
