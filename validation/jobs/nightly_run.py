@@ -112,24 +112,32 @@ def against_baseline(
         return rows, ""
     sha = {name: entry["sha256"] for name, entry in hashes.items()}
     classified, missing = classify(rows, options.baseline_table, sha)
-    before = {tuple(str(r[k]) for k in KEY): r for r in options.baseline_table.to_dict("records")}
-    table = [
-        {
-            **{k: row[k] for k in KEY},
-            "baseline": row["baseline"],
-            "outcome": outcome_of(row) if row["baseline"] != "missing" else "",
-            "value": row.get("value") if row["baseline"] != "missing" else math.nan,
-            "error": row.get("error") if row["baseline"] != "missing" else math.nan,
-            "baseline_outcome": before.get(tuple(str(row[k]) for k in KEY), {}).get("outcome", ""),
-            "baseline_value": before.get(tuple(str(row[k]) for k in KEY), {}).get("value"),
-            "baseline_error": before.get(tuple(str(row[k]) for k in KEY), {}).get("error"),
-        }
-        for row in [*classified, *missing]
-    ]
+    before = {_key(r): r for r in options.baseline_table.to_dict("records")}
+    table = [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
     write_atomically(folder / BASELINE_FILE, pd.DataFrame(table).to_csv(index=False))
     counts = pd.Series([r["baseline"] for r in table]).value_counts()
     words = ", ".join(f"{int(counts.get(c, 0))} {c}" for c in CLASSES if counts.get(c, 0))
     return classified, f"against {options.baseline}: {words}"
+
+
+def _key(row: dict) -> tuple[str, ...]:
+    return tuple(str(row[k]) for k in KEY)
+
+
+def _comparison(row: dict, before: dict) -> dict:
+    """One line of baseline.csv: the row's key and class, its outcome, value and error in this
+    run (empty for a missing row) and in the baseline."""
+    present = row["baseline"] != "missing"
+    return {
+        **{k: row[k] for k in KEY},
+        "baseline": row["baseline"],
+        "outcome": outcome_of(row) if present else "",
+        "value": row.get("value") if present else math.nan,
+        "error": row.get("error") if present else math.nan,
+        "baseline_outcome": before.get("outcome", ""),
+        "baseline_value": before.get("value"),
+        "baseline_error": before.get("error"),
+    }
 
 
 def outcome_summary(rows: list[dict]) -> str:
@@ -160,10 +168,10 @@ def record_history(folder: Path, options: NightlyOptions) -> str:
     return f"history run {run_id}"
 
 
-def sweep_result_rows(sweep_rows: list[dict], template: dict[str, dict]) -> list[dict]:
+def sweep_result_rows(sweep_rows: list[dict]) -> list[dict]:
     """results.csv rows of the scenes' sweeps: each fitted order, each point's error and each
-    cross-check, with the columns of a result row (``template``: scenario -> column values
-    common to its rows); no tolerance, so they are tracked, not judged."""
+    cross-check, with the columns of a result row; no tolerance, so they are tracked, not
+    judged."""
     found = []
     for row in sweep_rows:
         metric = _sweep_metric(row)
@@ -173,7 +181,6 @@ def sweep_result_rows(sweep_rows: list[dict], template: dict[str, dict]) -> list
         error = row.get("error", value)
         found.append(
             {
-                **template.get(row["scenario"], {}),
                 "scenario": row["scenario"],
                 "engine": row["engine"],
                 "metric": metric,

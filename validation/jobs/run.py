@@ -408,15 +408,11 @@ def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, j
 
 
 def _sweep_rows(plan: Plan, executed: Executed) -> list[dict]:
-    """The scenes' sweeps as result rows, their known findings applied."""
-    common = {}
-    for row in executed.rows:
-        common.setdefault(row["scenario"], {"settings": ""})
-    found = sweep_result_rows(executed.sweep_rows, common)
-    by_name = {scene.name: scene.scenario for scene, _ in plan.scenes}
+    """The scenes' sweeps as result rows, each scene's known findings applied."""
+    found = sweep_result_rows(executed.sweep_rows)
     rows = []
-    for name in dict.fromkeys(r["scenario"] for r in found):
-        rows += apply_known([r for r in found if r["scenario"] == name], by_name[name])
+    for scene, _ in plan.scenes:
+        rows += apply_known([r for r in found if r["scenario"] == scene.name], scene.scenario)
     return rows
 
 
