@@ -85,7 +85,13 @@ class StabilityChecks:
     energy0: float | None = None
     energy_scale: float = 1.0
     window_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """Largest |E - E0| / scale seen in each growth window so far."""
+    """Largest |E - E0| / scale seen in each growth window from ``window_offset`` on: the
+    windows judged already are dropped but the last ``GROWTH_WINDOWS_IN_A_ROW`` (a run of
+    growth ending in a later window needs them), so the memory and the time of a check are
+    bounded by the scene, not the duration (issue 13: before, 2,000,000 steps kept 250,000
+    windows and re-judged all of them after every batch)."""
+    window_offset: int = 0
+    """Absolute index of the window ``window_error[0]`` holds."""
 
     @property
     def speed_limit(self) -> float:
@@ -147,12 +153,18 @@ class StabilityChecks:
     def _envelope(self, t: np.ndarray, error: np.ndarray) -> None:
         """Fold the energy errors of states at times ``t`` into their windows' maxima."""
         length = GROWTH_WINDOW_STEPS * self.scene.scenario.dt
-        window = np.maximum((t / length + 1e-9).astype(int), 0)
+        window = np.maximum((t / length + 1e-9).astype(int) - self.window_offset, 0)
         if window.size and window.max() >= self.window_error.size:
             grown = np.zeros(int(window.max()) + 1)
             grown[: self.window_error.size] = self.window_error
             self.window_error = grown
         np.maximum.at(self.window_error, window, error)
+
+    def _forget(self, judged: int) -> None:
+        """Drop the first ``judged`` windows: every run of growth ending in them was judged."""
+        if judged > 0:
+            self.window_error = self.window_error[judged:].copy()
+            self.window_offset += judged
 
     def growth_failure(self, time: float, complete: bool = False) -> str | None:
         """``energy_growth`` when the energy error's envelope grew geometrically, faster than
@@ -168,6 +180,7 @@ class StabilityChecks:
         ends = np.flatnonzero(run == GROWTH_WINDOWS_IN_A_ROW) + GROWTH_WINDOWS_IN_A_ROW
         ends = ends[envelope[ends] > GROWTH_MIN_ERROR]
         if ends.size == 0:
+            self._forget(finished.size - GROWTH_WINDOWS_IN_A_ROW)
             return None
         first = int(ends[0]) - GROWTH_WINDOWS_IN_A_ROW
         factor = envelope[first + GROWTH_WINDOWS_IN_A_ROW] / envelope[first]

@@ -16,7 +16,13 @@ from validation.scenario.problems import Problem, ScenarioError, _found, _schema
 from validation.scenario.schema import (
     Scenario,
 )
-from validation.scenario.yaml_source import YamlSourceError, read_yaml
+from validation.scenario.yaml_source import (
+    BYTES_PER_VALUE,
+    MAX_BYTES,
+    MAX_VALUES,
+    YamlSourceError,
+    read_yaml,
+)
 
 BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent.parent / "scenarios"
 """The library shipped with the project (the repository's scenarios/ folder)."""
@@ -108,4 +114,10 @@ def json_schema() -> dict:
     schema["properties"].pop("source", None)
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "physval scenario, version 1"
+    schema["description"] = (
+        f"A physval scene. The file may have at most {MAX_BYTES} bytes and expand to at most "
+        f"{MAX_VALUES} values, the size cap over {BYTES_PER_VALUE} bytes a value (plain values "
+        "cannot expand, so any scene that fits the file fits the cap; YAML aliases count at "
+        "every use). Large scenes (10,000+ bodies) are plain body lists written by a script."
+    )
     return schema

@@ -24,15 +24,19 @@ from pathlib import Path
 
 import yaml
 
-MAX_VALUES = 1_000_000
-"""Values a scenario document may expand to (aliases counted at every use), matched to
-``MAX_BYTES``: a body written on one line (``{name: .., shape: {type: sphere, radius: ..},
-mass: .., position: [x, y, z]}``, about 100 bytes) has 16 values, keys included, so a file of
-``MAX_BYTES`` holds about 52,000 bodies and 840,000 values; a billion-laughs bomb has 10⁹.
-The largest bundled scene (a 6x6x6 pile) has about 3,500."""
+MAX_BYTES = 5_000_000
+"""Bytes a scenario file may have; a scene is a page of text, not a data set (a 20,000-body
+scene as ``yaml.safe_dump`` writes it, flow or block style, has 2.3 MB)."""
 
-MAX_BYTES = 5 * 1024 * 1024
-"""Bytes a scenario file may have; a scene is a page of text, not a data set."""
+BYTES_PER_VALUE = 5
+"""The value cap scales with the file-size cap: one value per 5 bytes. Plain values cannot
+expand, and a scene's bodies take 6.3 bytes a value, keys included (the benchmarks/scale.py
+grid as ``yaml.safe_dump`` writes it: 1,432,196 bytes, 226,820 values for 12,600 bodies), so
+a file of bodies up to ``MAX_BYTES`` is under the cap; only aliases (counted at every use) can
+pass it: a billion-laughs bomb has 10⁹ values."""
+
+MAX_VALUES = MAX_BYTES // BYTES_PER_VALUE
+"""Values a scenario document may expand to (aliases counted at every use): 1,000,000."""
 
 PLAIN_TAGS = {
     "tag:yaml.org,2002:str",
@@ -53,11 +57,18 @@ class _ScenarioLoader(yaml.SafeLoader):
     plain PyYAML, wants a dot in the mantissa and would read them as strings)."""
 
 
-_ScenarioLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
+class _FastScenarioLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
+    """The same rules with libyaml's parser where PyYAML has it: composing the nodes of a
+    10,000-body scene (the benchmarks/scale.py grid, 1.1 MB) took 1.9 s instead of 6.1 s in
+    pure Python (shared 2-core machine); the resolver, and so every tag, stays PyYAML's."""
+
+
+for _loader in (_ScenarioLoader, _FastScenarioLoader):
+    _loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+        list("-+0123456789"),
+    )
 
 
 class YamlSourceError(ValueError):
@@ -95,7 +106,7 @@ def read_yaml(path: Path) -> tuple[object, SourceMap]:
     except UnicodeDecodeError as error:
         raise YamlSourceError(f"not UTF-8 text (byte {error.start})") from None
     try:
-        node = yaml.compose(text, Loader=_ScenarioLoader)
+        node = yaml.compose(text, Loader=_FastScenarioLoader)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark
         what = error.problem or "not valid YAML"

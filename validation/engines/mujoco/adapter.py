@@ -21,6 +21,7 @@ from validation.engines.mujoco.mjcf import (
     INERTIAL_ORIGIN_TOLERANCE,
     RESTITUTION_NOTES,
     build_mjcf,
+    contact_note,
 )
 from validation.engines.reference import dynamic_bodies
 from validation.scenario import Scenario
@@ -244,11 +245,12 @@ class MujocoAdapter:
         settings: dict[str, object] = {
             **{f"spec.{k}": v for k, v in self.settings.items()},
             **option_settings(self.model),
-            "contact_pairs": len(self.plan.pairs),
+            "contact_pairs": self.plan.touching_pairs,
             "bodies_that_can_touch": self.plan.touching_bodies,
         }
         notes = [f"solver {self.solver} (setting {self.settings['solver']})"]
-        if self.settings["profile"] == "matched" and self.plan.pairs:
+        if self.settings["profile"] == "matched" and self.plan.touching_pairs:
+            notes.append(contact_note(self.plan, self.model))
             notes.append(RESTITUTION_NOTES[str(self.settings["restitution"])])
             notes += self._damper_caveats()
         if self.settings["profile"] == "defaults":
@@ -271,7 +273,7 @@ class MujocoAdapter:
                 "integrator=RK4 with restitution=damper: the one-step damper assumes a "
                 "first-order step; measured e ≈ 0 for requested 0.5 and 1.0 (sphere, dt = 1e-3)"
             )
-        frictional = any(p.friction > 0.0 for p in self.plan.pairs)
+        frictional = self.plan.frictional
         if frictional:
             caveats.append(FRICTION_IN_IMPACTS)
         if frictional and self.model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL:
