@@ -16,6 +16,7 @@ from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 from validation.jobs.check import check_main
+from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.run import RESUME_ALONE, run_main
 from validation.jobs.stability_search import stability_main
@@ -47,7 +48,10 @@ def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline, args.junit)
     if args.resume is not None and (any(selection) or args.history):
-        print(f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs", file=sys.stderr)
+        print(
+            f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs or --scheduler",
+            file=sys.stderr,
+        )
         return EXIT_BAD_INPUT
     return run_main(
         args.paths or default_scenario_paths(),
@@ -61,6 +65,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.baseline,
         args.junit,
         args.history,
+        args.scheduler,
     )
 
 
@@ -72,7 +77,12 @@ def command_report(args: argparse.Namespace) -> int:
 def command_stability(args: argparse.Namespace) -> int:
     """Largest stable dt per scene and engine, by bisection; writes stability.csv."""
     return stability_main(
-        args.paths or default_scenario_paths(), args.engines, args.only, args.out, args.jobs
+        args.paths or default_scenario_paths(),
+        args.engines,
+        args.only,
+        args.out,
+        args.jobs,
+        args.scheduler,
     )
 
 
@@ -85,6 +95,7 @@ def command_sweep(args: argparse.Namespace) -> int:
         args.dt,
         args.jobs,
         args.out,
+        args.scheduler,
     )
 
 
@@ -198,12 +209,21 @@ def _positive_count(text: str) -> int:
 
 
 def _jobs_argument(command: argparse.ArgumentParser) -> None:
+    """--jobs and --scheduler: where the jobs run (run, sweep, stability)."""
     command.add_argument(
         "--jobs",
         type=_positive_count,
         default=default_jobs(),
         metavar="N",
-        help="parallel worker processes (default: the machine's cores)",
+        help="parallel worker processes (default: the machine's cores; with --scheduler "
+        "local, the local cluster's workers)",
+    )
+    command.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the jobs on the Dask cluster whose scheduler is at ADDRESS "
+        "(tcp://host:8786), or 'local' for a LocalCluster of --jobs processes; needs "
+        'pip install -e ".[distributed]"',
     )
 
 
@@ -272,6 +292,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(argv)
     args.argv = argv
+    if getattr(args, "scheduler", None) is not None and distributed_missing():
+        print(distributed_missing(), file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         return COMMANDS[args.command][0](args)
     except (Interrupted, KeyboardInterrupt):

@@ -5,7 +5,12 @@ Every command that runs many (scene, engine spec[, dt]) jobs (``run``, ``sweep``
 finishes (for the progress bar), and return the results in submission order, so the output
 does not depend on which worker finished first. A backend is anything with the
 ``Executor`` interface (``submit`` returning a future, ``shutdown``); the local backends are
-in ``BACKENDS`` and a distributed one can be added there without touching the jobs.
+in ``BACKENDS``, with ``dask`` (``validation.jobs.dask_backend``: a Dask cluster, chosen by
+``--scheduler ADDRESS|local``) beside them; the jobs do not know which one runs them.
+
+A job whose worker was lost (a distributed backend only: Dask retries it first) is given to
+the command's ``lost(job, message)``, which returns the result the command records for it
+(an ``error`` row), so the run completes.
 
 Ctrl-C: workers ignore SIGINT (the main process owns the terminal); the main process stops
 every worker and raises ``Interrupted``, which the command turns into one line and exit 130.
@@ -19,6 +24,11 @@ import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from typing import Any
+
+from validation.jobs.dask_backend import (  # BackendError: the commands catch it from here
+    BackendError,  # noqa: F401
+    dask_executor,
+)
 
 WORKER_PRELOAD = [
     "validation.jobs.run",
@@ -61,11 +71,14 @@ def process_pool(workers: int) -> Executor:
     )
 
 
-BACKENDS: dict[str, Callable[[int], Executor]] = {
-    "serial": lambda workers: SerialExecutor(),
-    "processes": process_pool,
+BACKENDS: dict[str, Callable[[int, str | None], Executor]] = {
+    "serial": lambda workers, scheduler: SerialExecutor(),
+    "processes": lambda workers, scheduler: process_pool(workers),
+    "dask": lambda workers, scheduler: dask_executor(workers, scheduler or "local"),
 }
-"""Backend name -> a factory taking the number of workers."""
+"""Backend name -> a factory taking the number of workers and the scheduler (``--scheduler``:
+an address, ``local``, or None for the local backends). ``dask`` imports Dask only when it is
+used: it is an optional extra."""
 
 
 def default_jobs() -> int:
@@ -73,14 +86,39 @@ def default_jobs() -> int:
     return os.cpu_count() or 1
 
 
-def executor_for(jobs: int) -> Executor:
-    """Serial for one job at a time, else local worker processes."""
-    return BACKENDS["serial" if jobs <= 1 else "processes"](jobs)
+def executor_for(jobs: int, scheduler: str | None = None) -> Executor:
+    """A Dask cluster when a scheduler is given; else serial for one job at a time, else
+    local worker processes."""
+    if scheduler is not None:
+        return BACKENDS["dask"](jobs, scheduler)
+    return BACKENDS["serial" if jobs <= 1 else "processes"](jobs, None)
 
 
-def _completed(futures: dict[Future, int]) -> Iterator[tuple[int, Any]]:
+def _completed(
+    executor: Executor, futures: dict[Future, int], jobs: list[Any], lost: Lost | None
+) -> Iterator[tuple[int, Any]]:
+    """(index, result) as each job finishes; on a backend that can lose workers
+    (``loses_workers``), a job that failed even after its retries is ``lost(job, message)``."""
     for future in as_completed(futures):
-        yield futures[future], future.result()
+        index = futures[future]
+        try:
+            result = future.result()
+        except Exception as error:
+            if lost is None or not getattr(executor, "loses_workers", False):
+                raise
+            result = lost(jobs[index], failure_message(error))
+        yield index, result
+
+
+def failure_message(error: BaseException) -> str:
+    """The message of a job's ``error`` row when its worker was lost or it raised twice."""
+    text = str(error).strip().splitlines()
+    detail = f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
+    return f"the job failed on the Dask cluster after its retries ({detail})"
+
+
+Lost = Callable[[Any, str], Any]
+"""``lost(job, message)``: the result a command records for a job the cluster lost."""
 
 
 def run_jobs(
@@ -88,15 +126,22 @@ def run_jobs(
     jobs: Iterable[Any],
     workers: int,
     on_result: Callable[[int, Any], None] | None = None,
+    scheduler: str | None = None,
+    lost: Lost | None = None,
 ) -> list[Any]:
-    """``fn(job)`` for every job; ``on_result(index, result)`` as each finishes; the results in
-    job order. Raises ``Interrupted`` on Ctrl-C after stopping every worker."""
+    """``fn(job)`` for every job; ``on_result(index, result)`` as each finishes (in this
+    process, whatever the backend); the results in job order. ``scheduler``: run on a Dask
+    cluster (an address, or ``local``) instead of local processes; ``lost``: the result of a
+    job the cluster failed twice (module docstring). Raises ``Interrupted`` on Ctrl-C after
+    stopping every worker, ``BackendError`` when the cluster cannot be used."""
     jobs = list(jobs)
-    executor = executor_for(min(workers, len(jobs)) if jobs else 1)
+    if not jobs:
+        return []
+    executor = executor_for(min(workers, len(jobs)), scheduler)
     results: list[Any] = [None] * len(jobs)
     try:
         futures = {executor.submit(fn, job): index for index, job in enumerate(jobs)}
-        for index, result in _completed(futures):
+        for index, result in _completed(executor, futures, jobs, lost):
             results[index] = result
             if on_result is not None:
                 on_result(index, result)

@@ -38,7 +38,7 @@ from validation.contract import (
 )
 from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
-from validation.jobs.executor import run_jobs
+from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.journal import Journal, JournalError
 from validation.jobs.nightly_run import (
     NightlyOptions,
@@ -52,7 +52,12 @@ from validation.jobs.nightly_run import (
 )
 from validation.jobs.output import Output, claim
 from validation.jobs.plan import BadInputError, Plan, plan_run
-from validation.jobs.sweep import reference_problems, sweep_job, with_cross_checks
+from validation.jobs.sweep import (
+    lost_sweep_job,
+    reference_problems,
+    sweep_job,
+    with_cross_checks,
+)
 from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.metrics import Measurement
@@ -201,6 +206,16 @@ def _do(job: tuple[str, tuple]) -> object:
     return JOB_KINDS[kind](payload)
 
 
+def _lost(job: tuple[str, tuple], message: str) -> object:
+    """The result recorded for a job the cluster lost (``executor.run_jobs``): an engine run
+    with status ``error``, or the sweep's error rows."""
+    kind, payload = job
+    if kind == "sweep":
+        return lost_sweep_job(payload, message)
+    scene, spec = payload
+    return EngineRun(scene.name, spec.label, "error", message), []
+
+
 @dataclasses.dataclass
 class Executed:
     """What the jobs of a run gave, in plan order.
@@ -218,12 +233,17 @@ class Executed:
 
 
 def execute(
-    plan: Plan, jobs: int = 1, journal: Journal | None = None, done: dict | None = None
+    plan: Plan,
+    jobs: int = 1,
+    journal: Journal | None = None,
+    done: dict | None = None,
+    scheduler: str | None = None,
 ) -> Executed:
-    """Run every (scene, engine) and every scene's sweep on ``jobs`` workers, all in plan
-    order whatever order the jobs finished in. ``done``: the results already finished
-    (``journal.finished()``), not run again; with a ``journal``, each new result is committed
-    to it as it finishes (sweeps after the runs, indexed after them)."""
+    """Run every (scene, engine) and every scene's sweep on ``jobs`` workers (or on the Dask
+    cluster at ``scheduler``), all in plan order whatever order the jobs finished in.
+    ``done``: the results already finished (``journal.finished()``), not run again; with a
+    ``journal``, each new result is committed to it as it finishes (sweeps after the runs,
+    indexed after them), in this process whatever the backend."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
@@ -236,7 +256,7 @@ def execute(
         progress.advance(f"{work[index][1][0].name} · {_label(work[index][1][1])}")
 
     with Progress(len(todo)) as progress:
-        run_jobs(_do, [work[index] for index in todo], jobs, finished)
+        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, _lost)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
@@ -370,12 +390,19 @@ def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
     return request, plan
 
 
-def _finish(output: Output, journal: Journal, plan: Plan, request: RunRequest, jobs: int) -> int:
+def _finish(
+    output: Output,
+    journal: Journal,
+    plan: Plan,
+    request: RunRequest,
+    jobs: int,
+    scheduler: str | None = None,
+) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code."""
     options = request.nightly()
     done = journal.finished()
     resumed = len(done)
-    executed = execute(plan, jobs, journal, done)  # Ctrl-C: Interrupted
+    executed = execute(plan, jobs, journal, done, scheduler)  # Ctrl-C: Interrupted
     rows = executed.rows + _sweep_rows(plan, executed)
     provenance = _provenance(executed.runs, request.argv)
     provenance["scenes"] = hashes = scene_hashes(plan)
@@ -428,14 +455,15 @@ def run_main(
     baseline: str | None = None,
     junit: str | None = None,
     history: str | None = None,
+    scheduler: str | None = None,
 ) -> int:
-    """The whole job; returns the exit code (0 nothing regressed and no new failure: every
+    """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
     or a new failure; 2 bad input, a refused output folder, or an output that failed while
     writing)."""
     try:
         if resume is not None:
-            return _resume_main(resume, jobs)
+            return _resume_main(resume, jobs, scheduler)
         request = RunRequest(
             [str(p) for p in paths],
             engines,
@@ -452,8 +480,8 @@ def run_main(
         plan = request.plan()
         with claim(request.destination) as output:
             journal = Journal.create(output.journal_folder, _header(request, plan))
-            return _finish(output, journal, plan, request, jobs)
-    except BadInputError as error:
+            return _finish(output, journal, plan, request, jobs, scheduler)
+    except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as error:  # a full disk, a folder made read-only mid-run
@@ -465,11 +493,11 @@ def run_main(
         return EXIT_BAD_INPUT
 
 
-def _resume_main(destination: Path, jobs: int) -> int:
+def _resume_main(destination: Path, jobs: int, scheduler: str | None = None) -> int:
     with claim(destination, resume=True) as output:
         try:
             journal = Journal.open(output.journal_folder)
         except JournalError as error:
             raise BadInputError(f"--resume {destination}: {error}") from None
         request, plan = _resumed(journal)
-        return _finish(output, journal, plan, request, jobs)
+        return _finish(output, journal, plan, request, jobs, scheduler)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_table
-from validation.jobs.executor import run_jobs
+from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.plan import BadInputError, plan_run
 from validation.measure.runner import run_engine
 from validation.scenario import MAX_STEPS, Scenario
@@ -139,8 +139,19 @@ def _limit_job(job: tuple[Scenario, EngineSpec]) -> StabilityLimit:
     return stability_limit(*job)
 
 
+def _lost_limit(job: tuple[Scenario, EngineSpec], message: str) -> StabilityLimit:
+    """The finding recorded for a job the cluster lost (``executor.run_jobs``): not run."""
+    scenario, spec = job
+    return StabilityLimit(scenario.name or "", spec.label, None, None, f"error: {message}", "error")
+
+
 def stability_main(
-    paths: list[Path], engines: str | None, only: str | None, out: Path | None, jobs: int = 1
+    paths: list[Path],
+    engines: str | None,
+    only: str | None,
+    out: Path | None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> int:
     """``physval stability``: every limit printed as a sentence and written to stability.csv."""
     try:
@@ -148,7 +159,12 @@ def stability_main(
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    limits = run_jobs(_limit_job, [(scene.scenario, spec) for scene, spec in plan.jobs], jobs)
+    work = [(scene.scenario, spec) for scene, spec in plan.jobs]
+    try:
+        limits = run_jobs(_limit_job, work, jobs, None, scheduler, _lost_limit)
+    except BackendError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
     for limit in limits:
         print(limit.sentence())
     rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]

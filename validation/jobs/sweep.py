@@ -42,7 +42,7 @@ import numpy as np
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.registry import create_adapter
 from validation.files import write_table
-from validation.jobs.executor import run_jobs
+from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.plan import BadInputError, plan_run, step_ratio, steps_in_range
 from validation.measure.metrics import Context, measure
 from validation.measure.newton_euler import reference_motion, rotation_angle
@@ -447,11 +447,37 @@ def sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict
     return cross_check(scenario, min(runnable(scenario, dts))) if spec is None else sweep_scene(job)
 
 
-def run_sweep(jobs: list[tuple[Scenario, EngineSpec, list[float]]], workers: int) -> list[dict]:
+def lost_sweep_job(
+    job: tuple[Scenario, EngineSpec | None, list[float]], message: str
+) -> list[dict]:
+    """The rows of a sweep job the cluster lost (``executor.run_jobs``): status ``error`` at
+    every dt of the grid and for each fitted order, per sweep metric (one row per metric for
+    a cross-check), so the lost job is seen where its rows would be."""
+    scenario, spec, dts = job
+    if spec is None:
+        common = {"engine": HIGH_ACCURACY, "metric": "reference_cross_check"}
+        dt = min(runnable(scenario, dts)) / REFINE_REFERENCE
+        points = [{"dt": dt, "of": m} for m in SWEEP_METRICS]
+    else:
+        common = {"engine": spec.label}
+        points = [{"dt": dt, "metric": m} for dt in dts for m in SWEEP_METRICS]
+        points += [{"metric": "convergence_order", "of": m} for m in SWEEP_METRICS]
+    return [
+        {"scenario": scenario.name, **common, **point, "status": "error", "message": message}
+        for point in points
+    ]
+
+
+def run_sweep(
+    jobs: list[tuple[Scenario, EngineSpec, list[float]]],
+    workers: int,
+    scheduler: str | None = None,
+) -> list[dict]:
     """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
     shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
-    job order."""
-    return [row for rows in run_jobs(sweep_job, with_cross_checks(jobs), workers) for row in rows]
+    job order. ``scheduler``: on that Dask cluster (``executor.run_jobs``)."""
+    found = run_jobs(sweep_job, with_cross_checks(jobs), workers, None, scheduler, lost_sweep_job)
+    return [row for rows in found for row in rows]
 
 
 def with_cross_checks(
@@ -466,7 +492,13 @@ def with_cross_checks(
 
 
 def sweep_main(
-    paths: list[Path], engines: str | None, only: str | None, dt: str, jobs: int, out: Path | None
+    paths: list[Path],
+    engines: str | None,
+    only: str | None,
+    dt: str,
+    jobs: int,
+    out: Path | None,
+    scheduler: str | None = None,
 ) -> int:
     """``physval sweep``: the sweep of every planned (scene, engine); sweep.csv and sweep.html."""
     try:
@@ -479,7 +511,11 @@ def sweep_main(
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    rows = run_sweep(work, jobs)
+    try:
+        rows = run_sweep(work, jobs, scheduler)
+    except BackendError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
     out = out or Path("reports") / "sweep"
     out.mkdir(parents=True, exist_ok=True)
     write_table(rows, out / "sweep.csv")

@@ -1,0 +1,236 @@
+"""The Dask backend (``--scheduler``): the same files as the local executor; a worker killed
+mid-run costs a retry or an error row, never the run; without Dask, one line and exit 2."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from validation.cli import BUNDLED_SCENARIOS, main
+from validation.jobs.dask_backend import MISSING
+from validation.jobs.executor import run_jobs
+
+distributed = pytest.importorskip("distributed")
+
+FOUR_SCENES = [
+    BUNDLED_SCENARIOS / "formulas" / "projectile.yaml",
+    BUNDLED_SCENARIOS / "formulas" / "head_on_ratio_1.yaml",
+    BUNDLED_SCENARIOS / "rotation" / "torque_free_symmetric_top.yaml",
+    BUNDLED_SCENARIOS / "contact" / "box_drop_flat.yaml",
+]
+"""Free flight (with its declared sweep), a head-on pair, a spinning top, a box on a floor."""
+
+TIMING_COLUMNS = ("wall_time_s", "steps_per_second", "real_time_factor")
+"""Columns that measure the machine, not the physics: the only ones allowed to differ."""
+
+NO_NIGHTLY = ["--baseline", "none", "--history", "none"]
+
+
+def _same_files(one: Path, two: Path, names: tuple[str, ...]) -> None:
+    for name in names:
+        a = pd.read_csv(one / name).drop(columns=list(TIMING_COLUMNS), errors="ignore")
+        b = pd.read_csv(two / name).drop(columns=list(TIMING_COLUMNS), errors="ignore")
+        assert len(a) > 0, f"{name} is empty"
+        pd.testing.assert_frame_equal(a, b, check_exact=True, obj=name)
+
+
+def test_local_cluster_gives_the_files_of_the_local_executor(tmp_path):
+    """``physval run`` and ``physval sweep`` on a LocalCluster: every number and every row
+    order equal to ``--jobs 1`` (timings aside)."""
+    scenes = list(map(str, FOUR_SCENES))
+    run = ["run", *scenes, "--engines", "mini, mujoco", "--dt", "2e-3", *NO_NIGHTLY]
+    serial = main([*run, "--out", str(tmp_path / "serial"), "--jobs", "1"])
+    dask = main([*run, "--out", str(tmp_path / "dask"), "--jobs", "2", "--scheduler", "local"])
+    assert serial == dask  # the coarse --dt fails checks in both: exit 1, the same rows
+    _same_files(
+        tmp_path / "serial",
+        tmp_path / "dask",
+        ("results.csv", "series.csv", "impacts.csv", "sweep.csv"),
+    )
+    sweep = ["sweep", *scenes[:2], "--engines", "mini, mujoco", "--dt", "4e-3,2e-3"]
+    assert main([*sweep, "--out", str(tmp_path / "sweep-serial"), "--jobs", "1"]) == 0
+    assert (
+        main([*sweep, "--out", str(tmp_path / "sweep-dask"), "--jobs", "2", "--scheduler", "local"])
+        == 0
+    )
+    _same_files(tmp_path / "sweep-serial", tmp_path / "sweep-dask", ("sweep.csv",))
+
+
+def _dies_on_three(x: int) -> int:
+    """A job whose worker dies whenever it runs job 3 (an out-of-memory kill, say); each job
+    takes a moment, as a real one does (the workers have reported the earlier jobs' results
+    before a death)."""
+    time.sleep(0.5)
+    if x == 3:
+        os._exit(1)
+    return x * x
+
+
+def test_a_job_that_kills_its_worker_twice_becomes_its_lost_result():
+    """The job's worker dies, the job is given to another worker, that one dies too: the job
+    gets the command's ``lost`` result (an error row) and every other job its own."""
+    finished: list[int] = []
+    results = run_jobs(
+        _dies_on_three,
+        list(range(6)),
+        2,
+        lambda index, _: finished.append(index),
+        scheduler="local",
+        lost=lambda job, message: ("lost", job, message),
+    )
+    assert results[:3] == [0, 1, 4] and results[4:] == [16, 25]
+    kind, job, message = results[3]
+    assert (kind, job) == ("lost", 3)
+    assert "KilledWorker" in message, message
+    assert sorted(finished) == list(range(6))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _dask(*args: str, log: Path) -> subprocess.Popen:
+    found = shutil.which("dask", path=str(Path(sys.executable).parent))
+    command = [found] if found else [sys.executable, "-m", "dask"]
+    return subprocess.Popen(
+        [*command, *args], stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True
+    )
+
+
+def _wait_for(condition, timeout: float, what: str, step: float = 0.2):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = condition()
+        if found:
+            return found
+        time.sleep(step)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+ALLOWED_FAILURES = {"retried": "3", "error_row": "0"}
+"""The scheduler's ``allowed-failures``: Dask's default 3 (a job whose worker died is given
+to another worker), or 0 (it fails at once: the run's error row)."""
+
+
+@pytest.fixture(params=sorted(ALLOWED_FAILURES))
+def cluster(tmp_path, request, monkeypatch):
+    """A ``dask scheduler`` and two ``dask worker`` processes (no nanny: a killed worker
+    stays dead) on localhost; yields (what a lost job becomes, address, {worker name:
+    process})."""
+    monkeypatch.setenv(
+        "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES", ALLOWED_FAILURES[request.param]
+    )
+    monkeypatch.setenv("DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION", "1.0")
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    port = address.rsplit(":", 1)[1]
+    processes = [
+        _dask(
+            "scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            port,
+            "--no-dashboard",
+            log=tmp_path / "scheduler.log",
+        )
+    ]
+    workers = {}
+    try:
+        for k in range(2):
+            worker = _dask(
+                "worker",
+                address,
+                "--nthreads",
+                "1",
+                "--no-nanny",
+                "--no-dashboard",
+                "--name",
+                f"w{k}",
+                log=tmp_path / f"worker{k}.log",
+            )
+            processes.append(worker)
+            workers[f"w{k}"] = worker
+        with distributed.Client(address, timeout=120) as client:
+            client.wait_for_workers(2, timeout=120)
+        yield request.param, address, workers
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                process.kill()
+            process.wait(timeout=60)
+
+
+def test_a_worker_killed_mid_run_costs_a_retry_not_the_run(tmp_path, cluster):
+    """``physval run --scheduler ADDRESS``; a worker is SIGKILLed while it runs a job: the run
+    completes, every scene has its rows, nothing prints a traceback, and the lost job was
+    run again on the other worker (no error row) or, when the scheduler allows no failure,
+    is an error row saying so."""
+    becomes, address, workers = cluster
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "validation.cli", "run", *map(str, FOUR_SCENES)]
+    command += ["--engines", "mini", "--dt", "5e-4", "--out", str(out), *NO_NIGHTLY]
+    run = subprocess.Popen(
+        [*command, "--scheduler", address],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        with distributed.Client(address, timeout=120) as client:
+
+            def busy_worker():
+                processing = client.processing()
+                info = client.scheduler_info(n_workers=-1)["workers"]
+                for worker, keys in processing.items():
+                    if keys and info.get(worker, {}).get("name") in workers:
+                        return info[worker]["name"]
+                return None
+
+            victim = _wait_for(busy_worker, 300, "a worker running a job", step=0.05)
+            os.kill(workers[victim].pid, signal.SIGKILL)
+        output, _ = run.communicate(timeout=600)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert workers[victim].wait(timeout=60) == -signal.SIGKILL
+    assert run.returncode in (0, 1), output
+    assert "Traceback" not in output, output
+    rows = pd.read_csv(out / "results.csv")
+    assert set(rows.scenario) == {Path(p).stem for p in FOUR_SCENES}, sorted(set(rows.scenario))
+    lost = rows[rows.status == "error"]
+    if becomes == "retried":
+        assert lost.empty, lost[["scenario", "engine", "message"]]
+    else:
+        jobs = lost.groupby(["scenario", "engine"]).size()
+        assert 1 <= len(jobs) <= 2, lost[["scenario", "engine", "metric", "message"]]
+        assert all(m == "status" or m.startswith("sweep_") for m in lost.metric), lost.metric
+        assert all(
+            "failed on the Dask cluster after its retries (KilledWorker" in m for m in lost.message
+        ), lost.message
+
+
+@pytest.mark.parametrize("command", ["run", "sweep", "stability"])
+def test_without_dask_scheduler_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys, command):
+    """``distributed`` not importable (as when the extra is not installed): ``--scheduler``
+    prints one line naming the extra and exits 2 before any job; nothing is written."""
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    out = tmp_path / "out"
+    scene = str(FOUR_SCENES[1])
+    code = main([command, scene, "--engines", "mini", "--out", str(out), "--scheduler", "local"])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert captured.err.strip() == MISSING
+    assert '".[distributed]"' in captured.err
+    assert captured.out == ""
+    assert not out.exists()
