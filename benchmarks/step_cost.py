@@ -1,12 +1,17 @@
 """Per-step cost of mini_engine, MuJoCo and PyBullet on the same scenes, in one run, as ratios.
 
-Scenes (issues 2 and 4):
+Scenes (issues 2, 4 and 14):
 
+0. **sphere_on_plane**: one sphere (r = 0.05 m, 1 kg) resting on a ground plane, dt = 2e-3 s:
+   the per-step fixed cost of each engine (issue 14 target: mini <= 20x MuJoCo). Timed over
+   ``SMALL_TIMED_STEPS`` per block, since one step of the reference engines takes microseconds.
 1. **pile_N**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
    (ground and walls are planes), dt = 2e-3 s, frictionless, e = 0. Each engine first
    settles the pile for ``SETTLE_STEPS``, then its stepping alone is timed over
    ``TIMED_STEPS`` (median of ``REPEATS`` blocks). Target: mini <= 10 ms per step at N = 1000
-   (MuJoCo with CG measured about 9.6 ms, engines.md 1.9).
+   (MuJoCo with CG measured about 9.6 ms, engines.md 1.9). MuJoCo gets its cheapest
+   collision setup: contype/conaffinity filtering and its own broad phase (no ``<pair>``
+   list of N² candidates, which is what the matched adapter profile writes).
 2. **tumbling_box_xK**: the Gazebo "complex" box (10 kg, 0.1 x 0.4 x 0.9 m, v0 = (-2, 2, 8),
    ω0 = (0.1, 5, 0.1), g = 9.8, dt = 1e-3), K = 1 and K = 1024 independent copies in one
    model (mini: one world each; MuJoCo and PyBullet: contacts off). Target: mini's 1024
@@ -33,7 +38,7 @@ import numpy as np
 import pandas as pd
 import pybullet
 
-from mini_engine import Settings, step
+from mini_engine import Body, Plane, Settings, Sphere, build_model, step
 from mini_engine.scenes import GAZEBO_BOX_HALF_EXTENTS, sphere_pile, tumbling_box
 from mini_engine.shapes import Box
 
@@ -47,17 +52,103 @@ TIMED_STEPS = 30
 REPEATS = 7
 """Median of 7 blocks of 30 steps: on this shared 2-core machine single blocks of the same
 pile vary from 9 to 15 ms, and the median of 7 is stable to about 10 %."""
+SMALL_TIMED_STEPS = 2000
+"""Steps per block of the one-sphere scene: MuJoCo steps it in ~2 µs, so 30 steps would be
+shorter than the timer's resolution is useful for; 2000 steps are ~4 ms for MuJoCo."""
+
+SPHERE_RADIUS = 0.05
+"""m, the spheres of the pile and the one-sphere scene."""
+
 RESULTS = Path(__file__).parent / "results" / "step_cost.csv"
 
 
-def seconds_per_step(advance: Callable[[int], None]) -> float:
-    """Median over ``REPEATS`` blocks of ``TIMED_STEPS`` steps of the time per step, s."""
+def seconds_per_step(advance: Callable[[int], None], steps: int = TIMED_STEPS) -> float:
+    """Median over ``REPEATS`` blocks of ``steps`` steps of the time per step, s."""
     samples = []
     for _ in range(REPEATS):
         start = time.perf_counter()
-        advance(TIMED_STEPS)
-        samples.append((time.perf_counter() - start) / TIMED_STEPS)
+        advance(steps)
+        samples.append((time.perf_counter() - start) / steps)
     return statistics.median(samples)
+
+
+# --- one sphere resting on a plane: the fixed cost of a step -----------------------------
+
+
+def mini_sphere() -> tuple[float, int]:
+    model, state = build_model(
+        [
+            Body(Plane(), fixed=True),
+            Body(Sphere(SPHERE_RADIUS), mass=1.0, position=(0.0, 0.0, SPHERE_RADIUS)),
+        ]
+    )
+    cfg = Settings(dt=PILE_DT)
+    holder = {"state": state, "contacts": 0}
+
+    def advance(steps: int) -> None:
+        s = holder["state"]
+        for _ in range(steps):
+            s, report = step(model, s, cfg)
+        holder["state"], holder["contacts"] = s, report.contacts.count
+
+    advance(SETTLE_STEPS)
+    return seconds_per_step(advance, SMALL_TIMED_STEPS), holder["contacts"]
+
+
+def mujoco_sphere() -> tuple[float, int]:
+    xml = (
+        f'<mujoco><option timestep="{PILE_DT}" integrator="implicitfast" solver="CG"/>'
+        '<worldbody><geom type="plane" size="1 1 0.1" condim="1"/>'
+        f'<body pos="0 0 {SPHERE_RADIUS}"><freejoint/>'
+        f'<geom type="sphere" size="{SPHERE_RADIUS}" mass="1" condim="1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+
+    def advance(steps: int) -> None:
+        mujoco.mj_step(model, data, nstep=steps)
+
+    advance(SETTLE_STEPS)
+    return seconds_per_step(advance, SMALL_TIMED_STEPS), int(data.ncon)
+
+
+def pybullet_sphere() -> tuple[float, int]:
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        pybullet.setGravity(0, 0, -9.81, physicsClientId=client)
+        pybullet.setPhysicsEngineParameter(fixedTimeStep=PILE_DT, physicsClientId=client)
+        plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+        pybullet.createMultiBody(0, plane, physicsClientId=client)
+        sphere = pybullet.createCollisionShape(
+            pybullet.GEOM_SPHERE, radius=SPHERE_RADIUS, physicsClientId=client
+        )
+        body = pybullet.createMultiBody(
+            1.0,
+            sphere,
+            basePosition=[0.0, 0.0, SPHERE_RADIUS],
+            useMaximalCoordinates=True,
+            physicsClientId=client,
+        )
+        pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
+
+        def advance(steps: int) -> None:
+            for _ in range(steps):
+                pybullet.stepSimulation(physicsClientId=client)
+
+        advance(SETTLE_STEPS)
+        cost = seconds_per_step(advance, SMALL_TIMED_STEPS)
+        return cost, len(pybullet.getContactPoints(physicsClientId=client))
+    finally:
+        pybullet.disconnect(client)
+
+
+SPHERE_ENGINES = {
+    "mini": (mini_sphere, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
+    "mujoco": (mujoco_sphere, "implicitfast, CG, condim 1"),
+    "pybullet": (pybullet_sphere, "maximal coordinates, 50 iterations"),
+}
+"""Engine -> (one-sphere runner, the settings it runs with, for the table)."""
 
 
 # --- the pile in each engine -----------------------------------------------------------
@@ -94,13 +185,16 @@ PLANE_NORMALS = [
 
 
 def mujoco_pile(count: int) -> tuple[float, int]:
+    # contype/conaffinity filtering, no <pair> list: MuJoCo's broad phase finds the candidates.
+    # The walls (contype 0) never test each other; spheres (contype 1) meet walls and spheres.
     planes = "".join(
         f'<geom type="plane" size="1 1 0.1" pos="{p[0]} {p[1]} {p[2]}" zaxis="{n[0]} {n[1]} {n[2]}"'
-        ' condim="1"/>'
+        ' contype="0" conaffinity="1" condim="1"/>'
         for p, n in PLANE_NORMALS
     )
     bodies = "".join(
-        f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="0.05" mass="1" condim="1"/></body>'
+        f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="{SPHERE_RADIUS}" mass="1"'
+        ' contype="1" conaffinity="1" condim="1"/></body>'
         for x, y, z in _pile_positions(count)
     )
     xml = (
@@ -108,6 +202,7 @@ def mujoco_pile(count: int) -> tuple[float, int]:
         f"<worldbody>{planes}{bodies}</worldbody></mujoco>"
     )
     model = mujoco.MjModel.from_xml_string(xml)
+    assert model.npair == 0, "the pile must use contype filtering, not explicit pairs"
     data = mujoco.MjData(model)
 
     def advance(steps: int) -> None:
@@ -282,6 +377,12 @@ def main() -> None:
     parser.add_argument("--copies", type=int, default=1024)
     args = parser.parse_args()
     rows: list[dict] = []
+    scene = []
+    for name, (run, settings) in SPHERE_ENGINES.items():
+        cost, contacts = run()
+        scene.append(_row("sphere_on_plane", name, cost, settings, contacts=contacts))
+    _with_ratios(scene)
+    rows += scene
     for count in args.spheres:
         scene = []
         for name, (run, settings) in PILE_ENGINES.items():
