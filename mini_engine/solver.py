@@ -35,6 +35,7 @@ from mini_engine.contacts import Contacts
 from mini_engine.model import Model
 from mini_engine.rotation import apply, cross
 from mini_engine.settings import Settings
+from mini_engine.workspace import workspace
 
 RESTITUTION_MIX: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
     "max": np.maximum,
@@ -290,17 +291,15 @@ def solve_contacts(
         return ContactSolution(vel, ang_vel, ContactReport.empty(), None)
     n = model.n_bodies
     static_row = n
+    work = workspace(model)
     a, b = contacts.body_a, contacts.body_b
-    row_a = np.where(model.body_fixed[a], static_row, a)
-    row_b = np.where(model.body_fixed[b], static_row, b)
+    row_a, row_b = work.body_row[a], work.body_row[b]
 
     # colour the contact graph and put each colour in one contiguous slice
-    colour = colour_contacts(row_a, row_b, static_row) if contacts.count > 1 else np.zeros(1, int)
-    order = np.argsort(colour, kind="stable")
-    bounds = np.searchsorted(colour[order], np.arange(colour.max() + 2))
-    batches = [slice(bounds[k], bounds[k + 1]) for k in range(bounds.size - 1)]
-    contacts = Contacts(*(field[order] for field in contacts))
-    a, b, row_a, row_b = a[order], b[order], row_a[order], row_b[order]
+    order, batches = _colour_batches(work.colour_cache, row_a, row_b, static_row)
+    if order is not None:
+        contacts = Contacts(*(field[order] for field in contacts))
+        a, b, row_a, row_b = a[order], b[order], row_a[order], row_b[order]
     pair_rows = np.stack([row_a, row_b], axis=1)
 
     # pre-step: arms, Jacobians, effective masses, targets from the approach speed
@@ -373,6 +372,39 @@ def solve_contacts(
     return ContactSolution(body_twist[:n, :3].copy(), body_twist[:n, 3:].copy(), report, pseudo)
 
 
+def _colour_batches(
+    cache: dict, row_a: np.ndarray, row_b: np.ndarray, static_row: int
+) -> tuple[np.ndarray | None, list[slice]]:
+    """The colour order of the contacts and one slice per colour of the reordered contacts.
+
+    Returns ``(order, batches)``: ``order (c,)`` int, the stable sort of the contacts by
+    colour, or None when that is the identity (one contact, or already in colour order);
+    ``batches`` the slices of ``[0, c)`` holding each colour. The colouring is a function of
+    the rows alone (``colour_contacts``), so while the contact graph is unchanged from the
+    last step (a settled pile: the same rows in the same order) the last one is reused from
+    ``cache`` (the model workspace's); the result is identical.
+    """
+    count = row_a.size
+    if count == 1:
+        return None, [slice(0, 1)]
+    last = cache.get("rows")
+    if (
+        last is not None
+        and last[0].size == count
+        and np.array_equal(last[0], row_a)
+        and np.array_equal(last[1], row_b)
+    ):
+        return cache["order"], cache["batches"]
+    colour = colour_contacts(row_a, row_b, static_row)
+    order = np.argsort(colour, kind="stable")
+    bounds = np.searchsorted(colour[order], np.arange(colour.max() + 2))
+    batches = [slice(bounds[k], bounds[k + 1]) for k in range(bounds.size - 1)]
+    if np.array_equal(order, np.arange(count)):
+        order = None
+    cache.update(rows=(row_a, row_b), order=order, batches=batches)
+    return order, batches
+
+
 def _apply_impulses(body_twist, pair_rows, response, impulse, batches) -> None:
     """Add the impulses ``impulse (c,)`` along rows with ``response (c, 12)`` to the twists."""
     if not np.any(impulse):
@@ -404,6 +436,16 @@ def _warm_start_impulses(
     start = np.searchsorted(sorted_key, key, side="left")
     end = np.searchsorted(sorted_key, key, side="right")
     width = int(max((end - start).max(), 1))
+    radius = np.minimum(
+        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
+    )
+    if width == 1:  # at most one old contact per pair (spheres): no (c, width) candidates
+        source = order[np.minimum(start, order.size - 1)]
+        distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
+        matched = (start < end) & (distance_sq <= (WARM_START_MATCH_FRACTION * radius) ** 2)
+        normal = np.where(matched, previous.normal_impulse[source], 0.0)
+        friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
+        return normal, friction
     slot = start[:, None] + np.arange(width)[None, :]
     valid = slot < end[:, None]
     candidate = order[np.minimum(slot, order.size - 1)]
@@ -411,9 +453,6 @@ def _warm_start_impulses(
     distance_sq[~valid] = np.inf
     best = np.argmin(distance_sq, axis=1)
     rows = np.arange(count)
-    radius = np.minimum(
-        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
-    )
     matched = distance_sq[rows, best] <= (WARM_START_MATCH_FRACTION * radius) ** 2
     source = candidate[rows, best]
     normal = np.where(matched, previous.normal_impulse[source], 0.0)

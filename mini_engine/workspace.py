@@ -42,7 +42,7 @@ class Workspace:
         constant_torque: (n, 3) N·m, world frame, ``body_torque`` when there are no springs.
         any_torque: ``constant_torque`` has a non-zero entry (False with springs: unknown).
         body_row: (n,) int, the solver's twist row of each body (n for every fixed body).
-        colour_cache: the last contact colouring, ``(row_a, row_b, colour)``, reused while
+        colour_cache: the last contact colouring (its rows, order and colour slices), reused while
             the contact graph is unchanged (see ``solver.colour_contacts``).
     """
 
