@@ -300,7 +300,8 @@ def solve_contacts(
     if order is not None:
         contacts = Contacts(*(field[order] for field in contacts))
         a, b, row_a, row_b = a[order], b[order], row_a[order], row_b[order]
-    pair_rows = np.stack([row_a, row_b], axis=1)
+    pair_rows = np.empty((contacts.count, 2), dtype=np.int64)  # (c, 2) twist rows of A, B
+    pair_rows[:, 0], pair_rows[:, 1] = row_a, row_b
 
     # pre-step: arms, Jacobians, effective masses, targets from the approach speed
     arm_a, arm_b = contacts.point - pos[a], contacts.point - pos[b]
@@ -429,6 +430,17 @@ def _warm_start_impulses(
         return np.zeros(count), np.zeros((count, 3))
     n = model.n_bodies
     old = previous.contacts
+    radius = np.minimum(
+        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
+    )
+    if old.count == 1:  # one old contact (a body resting on the ground): nothing to search
+        source = np.zeros(count, dtype=np.int64)
+        same_pair = (contacts.body_a == old.body_a[0]) & (contacts.body_b == old.body_b[0])
+        distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
+        matched = same_pair & (distance_sq <= (WARM_START_MATCH_FRACTION * radius) ** 2)
+        normal = np.where(matched, previous.normal_impulse[source], 0.0)
+        friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
+        return normal, friction
     old_key = old.body_a * n + old.body_b
     key = contacts.body_a * n + contacts.body_b
     order = np.argsort(old_key, kind="stable")
@@ -436,9 +448,6 @@ def _warm_start_impulses(
     start = np.searchsorted(sorted_key, key, side="left")
     end = np.searchsorted(sorted_key, key, side="right")
     width = int(max((end - start).max(), 1))
-    radius = np.minimum(
-        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
-    )
     if width == 1:  # at most one old contact per pair (spheres): no (c, width) candidates
         source = order[np.minimum(start, order.size - 1)]
         distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
