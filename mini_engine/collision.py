@@ -42,7 +42,8 @@ def detect_contacts(
         shape_a, shape_b = model.body_shape[a], model.body_shape[b]
 
     pair_code = shape_a * SHAPE_CODES + shape_b  # sorts as the (shape_a, shape_b) keys do
-    codes = np.unique(pair_code)
+    first = int(pair_code[0])
+    codes = np.array([first]) if np.all(pair_code == first) else np.unique(pair_code)
     found = []
     for code in codes.tolist():
         key = divmod(code, SHAPE_CODES)

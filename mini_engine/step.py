@@ -52,7 +52,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
     """Advance ``state`` by ``settings.dt``; returns the new state and the contact report."""
     dt = settings.dt
     work = workspace(model)  # the model's index sets and constant loads, built once
-    rot = quat_to_matrix(state.quat)  # orientations as matrices, once per step
+    rot = _rotations(work, state.quat)  # orientations as matrices, once per step
 
     # 1. collision detection at the start-of-step poses (broad phase, then narrow phase)
     contacts = (
@@ -106,6 +106,19 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         pos, quat = _apply_pseudo_twist(pos, quat, solution.pseudo_twist, dt)
     memory = solution.report if solution.report.contacts.count else None
     return StepResult(State(pos, quat, vel, ang_vel, state.time + dt, memory), solution.report)
+
+
+def _rotations(work, quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of ``quat (n, 4)``, read-only; the last step's when the
+    orientations are bit-for-bit those of the last step (resting or non-spinning bodies:
+    a sphere pile, a body on the ground), so the same matrices are not rebuilt."""
+    last = work.rotation_cache.get("quat")
+    if last is not None and last.shape == quat.shape and np.array_equal(last, quat):
+        return work.rotation_cache["rot"]
+    rot = quat_to_matrix(quat)
+    rot.flags.writeable = False
+    work.rotation_cache.update(quat=quat.copy(), rot=rot)
+    return rot
 
 
 def _apply_pseudo_twist(pos, quat, pseudo_twist, dt) -> tuple[np.ndarray, np.ndarray]:

@@ -44,6 +44,8 @@ class Workspace:
         body_row: (n,) int, the solver's twist row of each body (n for every fixed body).
         colour_cache: the last contact colouring (its rows, order and colour slices), reused while
             the contact graph is unchanged (see ``solver.colour_contacts``).
+        rotation_cache: the last step's orientations and their rotation matrices, reused
+            while the orientations are unchanged (``step._rotations``).
     """
 
     moving: np.ndarray
@@ -55,6 +57,7 @@ class Workspace:
     any_torque: bool
     body_row: np.ndarray
     colour_cache: dict = field(default_factory=dict)
+    rotation_cache: dict = field(default_factory=dict)
 
 
 _WORKSPACES: weakref.WeakKeyDictionary[Model, Workspace] = weakref.WeakKeyDictionary()
