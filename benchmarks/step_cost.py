@@ -80,16 +80,9 @@ def seconds_per_step(advance: Callable[[int], None], steps: int = TIMED_STEPS) -
     return statistics.median(samples)
 
 
-# --- one sphere resting on a plane: the fixed cost of a step -----------------------------
-
-
-def mini_sphere() -> tuple[float, int]:
-    model, state = build_model(
-        [
-            Body(Plane(), fixed=True),
-            Body(Sphere(SPHERE_RADIUS), mass=1.0, position=(0.0, 0.0, SPHERE_RADIUS)),
-        ]
-    )
+def _mini_settled_cost(model, state, steps: int) -> tuple[float, int]:
+    """mini_engine's seconds per step (blocks of ``steps``) after ``SETTLE_STEPS`` at
+    ``PILE_DT``, and the contact count of the last step."""
     cfg = Settings(dt=PILE_DT)
     holder = {"state": state, "contacts": 0}
 
@@ -100,7 +93,33 @@ def mini_sphere() -> tuple[float, int]:
         holder["state"], holder["contacts"] = s, report.contacts.count
 
     advance(SETTLE_STEPS)
-    return seconds_per_step(advance, SMALL_TIMED_STEPS), holder["contacts"]
+    return seconds_per_step(advance, steps), holder["contacts"]
+
+
+def _pybullet_settled_cost(client: int, steps: int) -> tuple[float, int]:
+    """PyBullet's seconds per step (blocks of ``steps``) after ``SETTLE_STEPS``, and its
+    contact count then."""
+
+    def advance(steps: int) -> None:
+        for _ in range(steps):
+            pybullet.stepSimulation(physicsClientId=client)
+
+    advance(SETTLE_STEPS)
+    cost = seconds_per_step(advance, steps)
+    return cost, len(pybullet.getContactPoints(physicsClientId=client))
+
+
+# --- one sphere resting on a plane: the fixed cost of a step -----------------------------
+
+
+def mini_sphere() -> tuple[float, int]:
+    model, state = build_model(
+        [
+            Body(Plane(), fixed=True),
+            Body(Sphere(SPHERE_RADIUS), mass=1.0, position=(0.0, 0.0, SPHERE_RADIUS)),
+        ]
+    )
+    return _mini_settled_cost(model, state, SMALL_TIMED_STEPS)
 
 
 def mujoco_sphere() -> tuple[float, int]:
@@ -139,14 +158,7 @@ def pybullet_sphere() -> tuple[float, int]:
             physicsClientId=client,
         )
         pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
-
-        def advance(steps: int) -> None:
-            for _ in range(steps):
-                pybullet.stepSimulation(physicsClientId=client)
-
-        advance(SETTLE_STEPS)
-        cost = seconds_per_step(advance, SMALL_TIMED_STEPS)
-        return cost, len(pybullet.getContactPoints(physicsClientId=client))
+        return _pybullet_settled_cost(client, SMALL_TIMED_STEPS)
     finally:
         pybullet.disconnect(client)
 
@@ -164,17 +176,7 @@ SPHERE_ENGINES = {
 
 def mini_pile(count: int) -> tuple[float, int]:
     model, state = sphere_pile(count)
-    cfg = Settings(dt=PILE_DT)
-    holder = {"state": state, "contacts": 0}
-
-    def advance(steps: int) -> None:
-        s = holder["state"]
-        for _ in range(steps):
-            s, report = step(model, s, cfg)
-        holder["state"], holder["contacts"] = s, report.contacts.count
-
-    advance(SETTLE_STEPS)
-    return seconds_per_step(advance), holder["contacts"]
+    return _mini_settled_cost(model, state, TIMED_STEPS)
 
 
 def _pile_positions(count: int) -> np.ndarray:
@@ -245,15 +247,7 @@ def pybullet_pile(count: int) -> tuple[float, int]:
                 physicsClientId=client,
             )
             pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
-
-        def advance(steps: int) -> None:
-            for _ in range(steps):
-                pybullet.stepSimulation(physicsClientId=client)
-
-        advance(SETTLE_STEPS)
-        cost = seconds_per_step(advance)
-        contacts = len(pybullet.getContactPoints(physicsClientId=client))
-        return cost, contacts
+        return _pybullet_settled_cost(client, TIMED_STEPS)
     finally:
         pybullet.disconnect(client)
 

@@ -21,12 +21,11 @@ padding, and the exact bounding-sphere test.
 
 from __future__ import annotations
 
-import weakref
 from typing import NamedTuple
 
 import numpy as np
 
-from mini_engine.model import SHARED_WORLD, Model
+from mini_engine.model import SHARED_WORLD, Model, per_model
 from mini_engine.shapes import ShapeType
 
 LARGE_BODY_FACTOR = 4.0
@@ -85,19 +84,9 @@ class BroadPhasePlan(NamedTuple):
     direct_reach: np.ndarray
 
 
-_PLANS: weakref.WeakKeyDictionary[Model, BroadPhasePlan] = weakref.WeakKeyDictionary()
-"""Model -> its broad-phase plan (a model never changes; the entry goes with the model)."""
-
-
+@per_model
 def broadphase_plan(model: Model) -> BroadPhasePlan:
-    """The (cached) ``BroadPhasePlan`` of ``model``."""
-    plan = _PLANS.get(model)
-    if plan is None:
-        plan = _PLANS[model] = _build_plan(model)
-    return plan
-
-
-def _build_plan(model: Model) -> BroadPhasePlan:
+    """The ``BroadPhasePlan`` of ``model``, built on first use and kept per model."""
     collidable = model.body_collides
     is_plane = model.body_shape == ShapeType.PLANE
     planes = np.flatnonzero(collidable & is_plane)

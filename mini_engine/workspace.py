@@ -2,9 +2,9 @@
 
 A ``Model`` never changes during a run, so the index sets, flags and constant arrays the
 phases derive from it are computed once, on the first ``step`` of that model, and kept
-here (``workspace(model)``, cached per model object). Nothing in it depends on the state;
-every entry is exactly what the phase computed every step before (same values, same
-order), so the physics is unchanged bit for bit.
+here (``workspace(model)``, kept per model object by ``model.per_model``). Nothing in it
+depends on the state; every entry is exactly what the phase computed every step before
+(same values, same order), so the physics is unchanged bit for bit.
 
 Index sets that cover every body are stored as ``slice(None)`` instead of an index array:
 ``x[slice(None)]`` is a view, so the hot path neither gathers nor scatters copies.
@@ -12,12 +12,11 @@ Index sets that cover every body are stored as ``slice(None)`` instead of an ind
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from mini_engine.model import Model
+from mini_engine.model import Model, per_model
 
 BodySelection = slice | np.ndarray
 """Either ``slice(None)`` (every body) or an ``(k,)`` int array of body indices."""
@@ -60,19 +59,9 @@ class Workspace:
     rotation_cache: dict = field(default_factory=dict)
 
 
-_WORKSPACES: weakref.WeakKeyDictionary[Model, Workspace] = weakref.WeakKeyDictionary()
-"""Model -> its workspace; entries go when the model does."""
-
-
+@per_model
 def workspace(model: Model) -> Workspace:
-    """The (cached) workspace of ``model``."""
-    found = _WORKSPACES.get(model)
-    if found is None:
-        found = _WORKSPACES[model] = _build(model)
-    return found
-
-
-def _build(model: Model) -> Workspace:
+    """The workspace of ``model``, built on its first step and kept per model."""
     n = model.n_bodies
     moving = np.flatnonzero(model.body_dynamic)
     has_springs = model.n_springs > 0
