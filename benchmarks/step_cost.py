@@ -1,12 +1,17 @@
 """Per-step cost of mini_engine, MuJoCo and PyBullet on the same scenes, in one run, as ratios.
 
-Scenes (issues 2 and 4):
+Scenes (issues 2, 4 and 14):
 
+0. **sphere_on_plane**: one sphere (r = 0.05 m, 1 kg) resting on a ground plane, dt = 2e-3 s:
+   the per-step fixed cost of each engine (issue 14 target: mini <= 20x MuJoCo). Timed over
+   ``SMALL_TIMED_STEPS`` per block, since one step of the reference engines takes microseconds.
 1. **pile_N**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
    (ground and walls are planes), dt = 2e-3 s, frictionless, e = 0. Each engine first
    settles the pile for ``SETTLE_STEPS``, then its stepping alone is timed over
    ``TIMED_STEPS`` (median of ``REPEATS`` blocks). Target: mini <= 10 ms per step at N = 1000
-   (MuJoCo with CG measured about 9.6 ms, engines.md 1.9).
+   (MuJoCo with CG measured about 9.6 ms, engines.md 1.9). MuJoCo gets its cheapest
+   collision setup: contype/conaffinity filtering and its own broad phase (no ``<pair>``
+   list of N² candidates, which is what the matched adapter profile writes).
 2. **tumbling_box_xK**: the Gazebo "complex" box (10 kg, 0.1 x 0.4 x 0.9 m, v0 = (-2, 2, 8),
    ω0 = (0.1, 5, 0.1), g = 9.8, dt = 1e-3), K = 1 and K = 1024 independent copies in one
    model (mini: one world each; MuJoCo and PyBullet: contacts off). Target: mini's 1024
@@ -17,7 +22,7 @@ Every engine runs with the settings of the adapters' matched profile that matter
 table and writes ``benchmarks/results/step_cost.csv``. Not a test: wall-clock numbers
 depend on the machine; the ratios are what to compare.
 
-    python benchmarks/step_cost.py [--spheres 1 10 100 1000] [--copies 1024]
+    python benchmarks/step_cost.py [--spheres 1 10 100 1000] [--copies 1024] [--clock cpu]
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ import numpy as np
 import pandas as pd
 import pybullet
 
-from mini_engine import Settings, step
+from mini_engine import Body, Plane, Settings, Sphere, build_model, step
 from mini_engine.scenes import GAZEBO_BOX_HALF_EXTENTS, sphere_pile, tumbling_box
 from mini_engine.shapes import Box
 
@@ -47,24 +52,37 @@ TIMED_STEPS = 30
 REPEATS = 7
 """Median of 7 blocks of 30 steps: on this shared 2-core machine single blocks of the same
 pile vary from 9 to 15 ms, and the median of 7 is stable to about 10 %."""
+SMALL_TIMED_STEPS = 2000
+"""Steps per block of the one-sphere scene: MuJoCo steps it in ~2 µs, so 30 steps would be
+shorter than the timer's resolution is useful for; 2000 steps are ~4 ms for MuJoCo."""
+
+SPHERE_RADIUS = 0.05
+"""m, the spheres of the pile and the one-sphere scene."""
+
 RESULTS = Path(__file__).parent / "results" / "step_cost.csv"
 
 
-def seconds_per_step(advance: Callable[[int], None]) -> float:
-    """Median over ``REPEATS`` blocks of ``TIMED_STEPS`` steps of the time per step, s."""
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+"""``--clock``: wall time, or this process's CPU time. Every engine steps single-threaded
+here, so on a shared machine (other jobs on the 2 cores) CPU time is the steadier measure
+of the same work; wall time is what a user waits."""
+
+clock = CLOCKS["wall"]
+
+
+def seconds_per_step(advance: Callable[[int], None], steps: int = TIMED_STEPS) -> float:
+    """Median over ``REPEATS`` blocks of ``steps`` steps of the time per step, s."""
     samples = []
     for _ in range(REPEATS):
-        start = time.perf_counter()
-        advance(TIMED_STEPS)
-        samples.append((time.perf_counter() - start) / TIMED_STEPS)
+        start = clock()
+        advance(steps)
+        samples.append((clock() - start) / steps)
     return statistics.median(samples)
 
 
-# --- the pile in each engine -----------------------------------------------------------
-
-
-def mini_pile(count: int) -> tuple[float, int]:
-    model, state = sphere_pile(count)
+def _mini_settled_cost(model, state, steps: int) -> tuple[float, int]:
+    """mini_engine's seconds per step (blocks of ``steps``) after ``SETTLE_STEPS`` at
+    ``PILE_DT``, and the contact count of the last step."""
     cfg = Settings(dt=PILE_DT)
     holder = {"state": state, "contacts": 0}
 
@@ -75,7 +93,90 @@ def mini_pile(count: int) -> tuple[float, int]:
         holder["state"], holder["contacts"] = s, report.contacts.count
 
     advance(SETTLE_STEPS)
-    return seconds_per_step(advance), holder["contacts"]
+    return seconds_per_step(advance, steps), holder["contacts"]
+
+
+def _pybullet_settled_cost(client: int, steps: int) -> tuple[float, int]:
+    """PyBullet's seconds per step (blocks of ``steps``) after ``SETTLE_STEPS``, and its
+    contact count then."""
+
+    def advance(steps: int) -> None:
+        for _ in range(steps):
+            pybullet.stepSimulation(physicsClientId=client)
+
+    advance(SETTLE_STEPS)
+    cost = seconds_per_step(advance, steps)
+    return cost, len(pybullet.getContactPoints(physicsClientId=client))
+
+
+# --- one sphere resting on a plane: the fixed cost of a step -----------------------------
+
+
+def mini_sphere() -> tuple[float, int]:
+    model, state = build_model(
+        [
+            Body(Plane(), fixed=True),
+            Body(Sphere(SPHERE_RADIUS), mass=1.0, position=(0.0, 0.0, SPHERE_RADIUS)),
+        ]
+    )
+    return _mini_settled_cost(model, state, SMALL_TIMED_STEPS)
+
+
+def mujoco_sphere() -> tuple[float, int]:
+    xml = (
+        f'<mujoco><option timestep="{PILE_DT}" integrator="implicitfast" solver="CG"/>'
+        '<worldbody><geom type="plane" size="1 1 0.1" condim="1"/>'
+        f'<body pos="0 0 {SPHERE_RADIUS}"><freejoint/>'
+        f'<geom type="sphere" size="{SPHERE_RADIUS}" mass="1" condim="1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+
+    def advance(steps: int) -> None:
+        mujoco.mj_step(model, data, nstep=steps)
+
+    advance(SETTLE_STEPS)
+    return seconds_per_step(advance, SMALL_TIMED_STEPS), int(data.ncon)
+
+
+def pybullet_sphere() -> tuple[float, int]:
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        pybullet.setGravity(0, 0, -9.81, physicsClientId=client)
+        pybullet.setPhysicsEngineParameter(fixedTimeStep=PILE_DT, physicsClientId=client)
+        plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+        pybullet.createMultiBody(0, plane, physicsClientId=client)
+        sphere = pybullet.createCollisionShape(
+            pybullet.GEOM_SPHERE, radius=SPHERE_RADIUS, physicsClientId=client
+        )
+        body = pybullet.createMultiBody(
+            1.0,
+            sphere,
+            basePosition=[0.0, 0.0, SPHERE_RADIUS],
+            useMaximalCoordinates=True,
+            physicsClientId=client,
+        )
+        pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
+        return _pybullet_settled_cost(client, SMALL_TIMED_STEPS)
+    finally:
+        pybullet.disconnect(client)
+
+
+SPHERE_ENGINES = {
+    "mini": (mini_sphere, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
+    "mujoco": (mujoco_sphere, "implicitfast, CG, condim 1"),
+    "pybullet": (pybullet_sphere, "maximal coordinates, 50 iterations"),
+}
+"""Engine -> (one-sphere runner, the settings it runs with, for the table)."""
+
+
+# --- the pile in each engine -----------------------------------------------------------
+
+
+def mini_pile(count: int) -> tuple[float, int]:
+    model, state = sphere_pile(count)
+    return _mini_settled_cost(model, state, TIMED_STEPS)
 
 
 def _pile_positions(count: int) -> np.ndarray:
@@ -94,13 +195,16 @@ PLANE_NORMALS = [
 
 
 def mujoco_pile(count: int) -> tuple[float, int]:
+    # contype/conaffinity filtering, no <pair> list: MuJoCo's broad phase finds the candidates.
+    # The walls (contype 0) never test each other; spheres (contype 1) meet walls and spheres.
     planes = "".join(
         f'<geom type="plane" size="1 1 0.1" pos="{p[0]} {p[1]} {p[2]}" zaxis="{n[0]} {n[1]} {n[2]}"'
-        ' condim="1"/>'
+        ' contype="0" conaffinity="1" condim="1"/>'
         for p, n in PLANE_NORMALS
     )
     bodies = "".join(
-        f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="0.05" mass="1" condim="1"/></body>'
+        f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="{SPHERE_RADIUS}" mass="1"'
+        ' contype="1" conaffinity="1" condim="1"/></body>'
         for x, y, z in _pile_positions(count)
     )
     xml = (
@@ -108,6 +212,7 @@ def mujoco_pile(count: int) -> tuple[float, int]:
         f"<worldbody>{planes}{bodies}</worldbody></mujoco>"
     )
     model = mujoco.MjModel.from_xml_string(xml)
+    assert model.npair == 0, "the pile must use contype filtering, not explicit pairs"
     data = mujoco.MjData(model)
 
     def advance(steps: int) -> None:
@@ -142,15 +247,7 @@ def pybullet_pile(count: int) -> tuple[float, int]:
                 physicsClientId=client,
             )
             pybullet.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=client)
-
-        def advance(steps: int) -> None:
-            for _ in range(steps):
-                pybullet.stepSimulation(physicsClientId=client)
-
-        advance(SETTLE_STEPS)
-        cost = seconds_per_step(advance)
-        contacts = len(pybullet.getContactPoints(physicsClientId=client))
-        return cost, contacts
+        return _pybullet_settled_cost(client, TIMED_STEPS)
     finally:
         pybullet.disconnect(client)
 
@@ -280,8 +377,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spheres", type=int, nargs="*", default=[1, 10, 100, 1000])
     parser.add_argument("--copies", type=int, default=1024)
+    parser.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
     args = parser.parse_args()
+    global clock
+    clock = CLOCKS[args.clock]
     rows: list[dict] = []
+    scene = []
+    for name, (run, settings) in SPHERE_ENGINES.items():
+        cost, contacts = run()
+        scene.append(_row("sphere_on_plane", name, cost, settings, contacts=contacts))
+    _with_ratios(scene)
+    rows += scene
     for count in args.spheres:
         scene = []
         for name, (run, settings) in PILE_ENGINES.items():
@@ -304,6 +410,7 @@ def main() -> None:
     table = pd.DataFrame(rows)
     table["numpy_version"], table["mujoco_version"] = np.__version__, mujoco.__version__
     table["pybullet_api"] = pybullet.getAPIVersion()
+    table["clock"] = args.clock
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     temporary = RESULTS.with_suffix(".tmp")
     table.to_csv(temporary, index=False)
@@ -311,7 +418,7 @@ def main() -> None:
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(
             table.drop(
-                columns=["numpy_version", "mujoco_version", "pybullet_api", "settings"]
+                columns=["numpy_version", "mujoco_version", "pybullet_api", "settings", "clock"]
             ).to_string(index=False)
         )
     print(f"numpy {np.__version__}, mujoco {mujoco.__version__}; results in {RESULTS}")

@@ -21,9 +21,11 @@ padding, and the exact bounding-sphere test.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from mini_engine.model import SHARED_WORLD, Model
+from mini_engine.model import SHARED_WORLD, Model, per_model
 from mini_engine.shapes import ShapeType
 
 LARGE_BODY_FACTOR = 4.0
@@ -58,67 +60,131 @@ HALF_NEIGHBOURHOOD = np.array(
 """The cell itself and the 13 lexicographically positive neighbour offsets (14, 3)."""
 
 
+class BroadPhasePlan(NamedTuple):
+    """What the broad phase knows from the model alone, computed once per model.
+
+    Attributes:
+        planes, finite: (P,) and (F,) int, collidable planes and collidable finite bodies.
+        plane_admissible: (P, F) bool, plane-body pairs that may touch (``admissible``).
+        small: (s,) int, finite bodies that go through the grid.
+        small_radius, small_world: (s,) m bounding radii and (s,) int worlds of those.
+        direct_a, direct_b: (d,) int, a < b, the admissible direct pairs (large bodies
+            against the finite bodies of their worlds), in ``direct_pairs`` order.
+        direct_reach: (d,) m, ``r_a + r_b`` of those pairs (the padding is added per step).
+    """
+
+    planes: np.ndarray
+    finite: np.ndarray
+    plane_admissible: np.ndarray
+    small: np.ndarray
+    small_radius: np.ndarray
+    small_world: np.ndarray
+    direct_a: np.ndarray
+    direct_b: np.ndarray
+    direct_reach: np.ndarray
+
+
+@per_model
+def broadphase_plan(model: Model) -> BroadPhasePlan:
+    """The ``BroadPhasePlan`` of ``model``, built on first use and kept per model."""
+    collidable = model.body_collides
+    is_plane = model.body_shape == ShapeType.PLANE
+    planes = np.flatnonzero(collidable & is_plane)
+    finite = np.flatnonzero(collidable & ~is_plane)
+    radius = model.body_bound_radius
+    plane_a, plane_b = np.repeat(planes, finite.size), np.tile(finite, planes.size)
+    plane_admissible = admissible(
+        model, np.minimum(plane_a, plane_b), np.maximum(plane_a, plane_b)
+    ).reshape(planes.size, finite.size)
+    empty = np.zeros(0, np.int64)
+    small, direct_a, direct_b = empty, empty, empty
+    if finite.size >= 2:
+        median = np.median(radius[finite])
+        large_mask = radius[finite] > LARGE_BODY_FACTOR * median
+        large_mask |= model.body_world[finite] == SHARED_WORLD
+        large, small = finite[large_mask], finite[~large_mask]
+        a, b = direct_pairs(large, finite, model.body_world)
+        a, b = np.minimum(a, b), np.maximum(a, b)
+        keep = admissible(model, a, b)
+        direct_a, direct_b = a[keep], b[keep]
+    return BroadPhasePlan(
+        planes=planes,
+        finite=finite,
+        plane_admissible=plane_admissible,
+        small=small,
+        small_radius=radius[small],
+        small_world=model.body_world[small],
+        direct_a=direct_a,
+        direct_b=direct_b,
+        direct_reach=radius[direct_a] + radius[direct_b],
+    )
+
+
 def candidate_pairs(
     model: Model, pos: np.ndarray, rot: np.ndarray, padding: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Candidate pairs (a, b), each (p,) int with a < b, whose bounding spheres may touch.
 
-    Each unordered pair appears once; the order is deterministic (by construction).
+    Each unordered pair appears once; the order is deterministic (by construction):
+    plane pairs, then direct pairs, then grid pairs.
 
     Args:
         pos: (n, 3) m, world frame, body centres.
         rot: (n, 3, 3) body-to-world rotations (planes' normals are their +z axes).
         padding: m, added to each bounding radius (contact margin).
     """
-    collidable = model.body_collides
-    is_plane = model.body_shape == ShapeType.PLANE
-    planes = np.flatnonzero(collidable & is_plane)
-    finite = np.flatnonzero(collidable & ~is_plane)
+    work = broadphase_plan(model)
     radius = model.body_bound_radius
+    a_parts, b_parts = [], []
+    if work.planes.size and work.finite.size:  # plane pairs are admissible or not by index
+        a, b = _plane_pairs(model, pos, rot, work.planes, work.finite, padding, work)
+        a_parts.append(a), b_parts.append(b)
+    if work.direct_a.size:
+        a, b = work.direct_a, work.direct_b
+        offset = pos[a] - pos[b]
+        reach = work.direct_reach + 2.0 * padding
+        near = np.einsum("ij,ij->i", offset, offset) <= reach * reach
+        a_parts.append(a[near]), b_parts.append(b[near])
+    if work.small.size >= 2:
+        small = work.small
+        a, b = _grid_pairs(pos[small], work.small_radius + padding, small, work.small_world)
+        if a.size:
+            a, b = np.minimum(a, b), np.maximum(a, b)
+            keep = admissible(model, a, b)
+            offset = pos[a] - pos[b]
+            reach = radius[a] + radius[b] + 2.0 * padding
+            keep &= np.einsum("ij,ij->i", offset, offset) <= reach * reach
+            a_parts.append(a[keep]), b_parts.append(b[keep])
+    if not a_parts:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    if len(a_parts) == 1:
+        return a_parts[0], b_parts[0]
+    return np.concatenate(a_parts), np.concatenate(b_parts)
 
-    pairs = [_plane_pairs(model, pos, rot, planes, finite, padding)]
-    if finite.size >= 2:
-        median = np.median(radius[finite])
-        large_mask = radius[finite] > LARGE_BODY_FACTOR * median
-        large_mask |= model.body_world[finite] == SHARED_WORLD
-        large, small = finite[large_mask], finite[~large_mask]
-        pairs.append(_direct_pairs(large, finite, model.body_world))
-        pairs.append(
-            _grid_pairs(pos[small], radius[small] + padding, small, model.body_world[small])
-        )
-    a = np.concatenate([p[0] for p in pairs])
-    b = np.concatenate([p[1] for p in pairs])
-    a, b = np.minimum(a, b), np.maximum(a, b)
-    keep = _admissible(model, a, b)
-    finite_pair = ~(is_plane[a] | is_plane[b])
-    offset = pos[a] - pos[b]
-    reach = np.where(finite_pair, radius[a] + radius[b] + 2.0 * padding, np.inf)
-    keep &= np.einsum("ij,ij->i", offset, offset) <= reach * reach
-    return a[keep], b[keep]
 
-
-def _admissible(model: Model, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def admissible(model: Model, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(p,) bool: distinct bodies, not both fixed, in the same world or one shared."""
     world_a, world_b = model.body_world[a], model.body_world[b]
     same_world = (world_a == world_b) | (world_a == SHARED_WORLD) | (world_b == SHARED_WORLD)
     return (a != b) & ~(model.body_fixed[a] & model.body_fixed[b]) & same_world
 
 
-def _plane_pairs(model, pos, rot, planes, finite, padding) -> tuple[np.ndarray, np.ndarray]:
-    """Plane-body pairs (P*F tested at once) whose padded bounding sphere reaches the plane.
+def _plane_pairs(model, pos, rot, planes, finite, padding, work) -> tuple[np.ndarray, np.ndarray]:
+    """Admissible plane-body pairs (P*F tested at once) whose padded bounding sphere reaches
+    the plane, each ordered a < b.
 
     A plane's normal is its body +z axis, the last column of its rotation ``rot (n, 3, 3)``.
+    Their bounding-sphere test always passes (a plane's radius is infinite).
     """
-    if planes.size == 0 or finite.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     normal = rot[planes][:, :, 2]  # (P, 3) world frame
     height = np.einsum("pfi,pi->pf", pos[finite][None, :, :] - pos[planes][:, None, :], normal)
     reach = model.body_bound_radius[finite][None, :] + padding
-    plane_idx, body_idx = np.nonzero(height <= reach)
-    return planes[plane_idx], finite[body_idx]
+    plane_idx, body_idx = np.nonzero((height <= reach) & work.plane_admissible)
+    a, b = planes[plane_idx], finite[body_idx]
+    return np.minimum(a, b), np.maximum(a, b)
 
 
-def _direct_pairs(
+def direct_pairs(
     large: np.ndarray, finite: np.ndarray, body_world: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every large body against every other finite body of its world (every finite body for

@@ -13,6 +13,10 @@ from mini_engine.broadphase import candidate_pairs
 from mini_engine.contacts import Contacts
 from mini_engine.model import Model
 from mini_engine.narrowphase import NARROW_PHASE
+from mini_engine.shapes import ShapeType
+
+SHAPE_CODES = len(ShapeType)
+"""Base of the combined shape-pair code ``shape_a * SHAPE_CODES + shape_b`` (one sort key)."""
 
 
 class UnsupportedShapePairError(ValueError):
@@ -31,19 +35,30 @@ def detect_contacts(
     a, b = candidate_pairs(model, pos, rot, margin + padding)
     if a.size == 0:
         return Contacts.empty()
-    swap = model.body_shape[a] > model.body_shape[b]
-    a, b = np.where(swap, b, a), np.where(swap, a, b)
     shape_a, shape_b = model.body_shape[a], model.body_shape[b]
+    swap = shape_a > shape_b
+    if swap.any():
+        a, b = np.where(swap, b, a), np.where(swap, a, b)
+        shape_a, shape_b = model.body_shape[a], model.body_shape[b]
 
+    pair_code = shape_a * SHAPE_CODES + shape_b  # sorts as the (shape_a, shape_b) keys do
+    first = int(pair_code[0])
+    codes = np.array([first]) if np.all(pair_code == first) else np.unique(pair_code)
     found = []
-    for key in sorted(set(zip(shape_a.tolist(), shape_b.tolist(), strict=True))):
+    for code in codes.tolist():
+        key = divmod(code, SHAPE_CODES)
         collide = NARROW_PHASE.get(key)
         if collide is None:
             raise UnsupportedShapePairError(f"no narrow phase for shape pair {key}")
-        group = np.flatnonzero((shape_a == key[0]) & (shape_b == key[1]))
-        ga, gb = a[group], b[group]
+        if codes.size == 1:  # one shape pair: the whole batch, no gather
+            ga, gb = a, b
+        else:
+            group = np.flatnonzero(pair_code == code)
+            ga, gb = a[group], b[group]
         hits = collide(
             pos[ga], rot[ga], model.body_size[ga], pos[gb], rot[gb], model.body_size[gb], margin
         )
         found.append(Contacts(ga[hits.pair], gb[hits.pair], hits.point, hits.normal, hits.depth))
+    if len(found) == 1:
+        return found[0]
     return Contacts(*(np.concatenate(parts) for parts in zip(*found, strict=True)))

@@ -34,9 +34,19 @@ def integrate_linear_velocity(vel: np.ndarray, lin_acc: np.ndarray, dt: float) -
 
 # --- angular velocity: the gyroscopic rules ---------------------------------------------
 
-GyroscopicRule = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], None]
+BodySelection = slice | np.ndarray
+"""Bodies a phase acts on: ``(k,)`` int indices, or ``slice(None)`` for every body (a view,
+no gather/scatter copies; ``workspace.Workspace`` picks it when the set is complete)."""
+
+GyroscopicRule = Callable[
+    [np.ndarray, np.ndarray, np.ndarray, np.ndarray, BodySelection, float], None
+]
 """``rule(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt)`` updates ``ang_vel[bodies]``
 in place for the torque-free motion ω̇ = -I⁻¹(ω × Iω) over one step."""
+
+
+def _is_empty(bodies: BodySelection) -> bool:
+    return isinstance(bodies, np.ndarray) and bodies.size == 0
 
 
 def _gyroscopic_none(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -> None:
@@ -46,7 +56,7 @@ def _gyroscopic_none(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -
 def _gyroscopic_explicit(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -> None:
     """Explicit Euler on the gyroscopic term, in the body frame:
     ``ω_b ← ω_b - dt I⁻¹ (ω_b × I ω_b)``. Gains energy by O(dt) (MuJoCo Euler, Bullet multibody)."""
-    if bodies.size == 0:
+    if _is_empty(bodies):
         return
     R = rot[bodies]
     omega_body = apply_transpose(R, ang_vel[bodies])
@@ -62,7 +72,7 @@ def _gyroscopic_implicit(ang_vel, rot, inertia_body, inv_inertia_body, bodies, d
     ``J = I + dt (skew(ω) I - skew(I ω))`` (Bullet's ``computeGyroscopicImpulseImplicit_Body``,
     Catto GDC 2015). Dissipates energy by O(dt²) per step (MuJoCo implicit, Bullet rigid body).
     """
-    if bodies.size == 0:
+    if _is_empty(bodies):
         return
     R = rot[bodies]
     inertia = inertia_body[bodies]
@@ -97,9 +107,10 @@ def integrate_angular_velocity(
     rot: np.ndarray,
     inertia_body: np.ndarray,
     inv_inertia_body: np.ndarray,
-    gyroscopic_bodies: np.ndarray,
+    gyroscopic_bodies: BodySelection,
     gyroscopic: str,
     dt: float,
+    any_torque: bool = True,
 ) -> np.ndarray:
     """New angular velocities (n, 3) rad/s, world frame.
 
@@ -109,10 +120,13 @@ def integrate_angular_velocity(
     Args:
         inv_inertia_world: (n, 3, 3) ``R I⁻¹ Rᵀ`` at the start of the step.
         rot: (n, 3, 3) body-to-world rotations at the start of the step.
-        gyroscopic_bodies: (g,) int, the bodies whose ω × Iω can be non-zero.
+        gyroscopic_bodies: (g,) int or ``slice(None)``, the bodies whose ω × Iω can be non-zero.
+        any_torque: False when ``torque`` is known to be all zero (the torque update is skipped).
     """
     new = ang_vel.copy()
     GYROSCOPIC_RULES[gyroscopic](new, rot, inertia_body, inv_inertia_body, gyroscopic_bodies, dt)
+    if not any_torque:
+        return new
     torqued = np.flatnonzero(np.any(torque != 0.0, axis=1))
     if torqued.size:
         new[torqued] += apply(inv_inertia_world[torqued], torque[torqued]) * dt
@@ -144,7 +158,7 @@ def integrate_pose(
     quat: np.ndarray,
     vel: np.ndarray,
     ang_vel: np.ndarray,
-    moving: np.ndarray,
+    moving: BodySelection,
     orientation_update: str,
     dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -152,8 +166,20 @@ def integrate_pose(
 
     ``vel``/``ang_vel`` are the velocities the integrator uses for the position update
     (the new ones for semi-implicit Euler, the old ones for explicit Euler).
-    ``moving (m,) int`` lists the bodies that can move; the others keep their pose exactly.
+    ``moving`` (``(m,) int`` or ``slice(None)`` for all) lists the bodies that can move; the
+    others keep their pose exactly.
     """
+    rule = ORIENTATION_RULES[orientation_update]
+    if isinstance(moving, slice):  # every body moves: whole-array updates, no gathers
+        new_pos = pos + vel * dt
+        turning = np.any(ang_vel != 0.0, axis=1)
+        if turning.all():
+            return new_pos, rule(quat, ang_vel, dt)
+        spinning = np.flatnonzero(turning)
+        new_quat = quat.copy()
+        if spinning.size:
+            new_quat[spinning] = rule(quat[spinning], ang_vel[spinning], dt)
+        return new_pos, new_quat
     new_pos = pos.copy()
     new_quat = quat.copy()
     new_pos[moving] += vel[moving] * dt

@@ -13,9 +13,12 @@ one ground plane under all copies.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+import weakref
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TypeVar
 
 import numpy as np
 
@@ -264,6 +267,24 @@ class State:
             and np.isfinite(self.vel).all()
             and np.isfinite(self.ang_vel).all()
         )
+
+
+Derived = TypeVar("Derived")
+
+
+def per_model(build: Callable[[Model], Derived]) -> Callable[[Model], Derived]:
+    """Decorator: ``build(model)`` runs once per ``Model`` object and its result is kept
+    while the model lives (a model never changes, so nothing derived from it goes stale)."""
+    cache: weakref.WeakKeyDictionary[Model, Derived] = weakref.WeakKeyDictionary()
+
+    @functools.wraps(build)
+    def cached(model: Model) -> Derived:
+        found = cache.get(model)
+        if found is None:
+            found = cache[model] = build(model)
+        return found
+
+    return cached
 
 
 def _vector(values: Sequence[float] | np.ndarray, length: int, what: str) -> np.ndarray:

@@ -214,6 +214,23 @@ def _emit(
     )
 
 
+def _emit_one_per_pair(
+    valid: np.ndarray, point: np.ndarray, normal: np.ndarray, depth: np.ndarray
+) -> PairContacts:
+    """``_emit`` for functions with at most one contact per pair: ``valid (k,)``,
+    ``point (k, 3)``, ``normal (k, 3)``, ``depth (k,)``. When every pair touches (a resting
+    scene) the arrays are passed on (made contiguous, as a gather would), without gathers."""
+    if valid.all():
+        return PairContacts(
+            np.arange(valid.size),
+            np.ascontiguousarray(point),
+            np.ascontiguousarray(normal),
+            np.ascontiguousarray(depth),
+        )
+    pair = np.flatnonzero(valid)
+    return PairContacts(pair, point[pair], normal[pair], depth[pair])
+
+
 def _sphere_pair(
     centre_a: np.ndarray,
     radius_a: np.ndarray,
@@ -397,7 +414,7 @@ def collide_plane_sphere(
     height = _dot(pos_b - pos_a, normal)
     depth = radius - height
     point = pos_b - (0.5 * (radius + height))[:, None] * normal
-    return _emit((depth >= -margin)[:, None], point[:, None], normal, depth[:, None])
+    return _emit_one_per_pair(depth >= -margin, point, normal, depth)
 
 
 def collide_plane_capsule(
@@ -489,7 +506,7 @@ def collide_sphere_sphere(
     if len(pos_a) == 0:
         return PairContacts.empty()
     point, normal, depth = _sphere_pair(pos_a, size_a[:, 0], pos_b, size_b[:, 0], _Z_AXIS)
-    return _emit((depth >= -margin)[:, None], point[:, None], normal, depth[:, None])
+    return _emit_one_per_pair(depth >= -margin, point, normal, depth)
 
 
 def collide_sphere_capsule(
@@ -515,7 +532,7 @@ def collide_sphere_capsule(
     t = np.clip(_dot(pos_a - pos_b, axis), -half, half)
     nearest = pos_b + t[:, None] * axis
     point, normal, depth = _sphere_pair(pos_a, size_a[:, 0], nearest, size_b[:, 0], rot_b[:, :, 0])
-    return _emit((depth >= -margin)[:, None], point[:, None], normal, depth[:, None])
+    return _emit_one_per_pair(depth >= -margin, point, normal, depth)
 
 
 def collide_capsule_capsule(

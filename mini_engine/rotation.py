@@ -84,4 +84,8 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
     bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
+    out = np.empty((a.shape[0], 3))  # filled column by column: cheaper than np.stack
+    out[:, 0] = ay * bz - az * by
+    out[:, 1] = az * bx - ax * bz
+    out[:, 2] = ax * by - ay * bx
+    return out

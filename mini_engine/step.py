@@ -29,6 +29,7 @@ from mini_engine.rotation import (
 )
 from mini_engine.settings import Settings
 from mini_engine.solver import ContactReport, solve_contacts
+from mini_engine.workspace import workspace
 
 DEFAULT_SETTINGS = Settings()
 
@@ -50,8 +51,8 @@ POSE_VELOCITY = {
 def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> StepResult:
     """Advance ``state`` by ``settings.dt``; returns the new state and the contact report."""
     dt = settings.dt
-    moving = np.flatnonzero(model.body_dynamic)
-    rot = quat_to_matrix(state.quat)  # orientations as matrices, once per step
+    work = workspace(model)  # the model's index sets and constant loads, built once
+    rot = _rotations(work, state.quat)  # orientations as matrices, once per step
 
     # 1. collision detection at the start-of-step poses (broad phase, then narrow phase)
     contacts = (
@@ -60,10 +61,15 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         else Contacts.empty()
     )
     # 2. applied loads at the start-of-step state: gravity, spring-dampers, constant loads
-    force, torque = applied_loads(model, state, rot)
-    lin_acc = gravity_acceleration(model) + force * model.body_inv_mass[:, None]
+    #    (without springs they do not depend on the state: the workspace holds them)
+    if work.has_springs:
+        force, torque = applied_loads(model, state, rot)
+        lin_acc = gravity_acceleration(model) + force * model.body_inv_mass[:, None]
+        any_torque = bool(np.any(torque != 0.0))
+    else:
+        lin_acc, torque, any_torque = work.constant_lin_acc, work.constant_torque, work.any_torque
     # 3. world inverse inertia R I⁻¹ Rᵀ, only where a torque or an impulse will use it
-    needs_inertia = contacts.count > 0 or np.any(torque != 0.0)
+    needs_inertia = contacts.count > 0 or any_torque
     inv_inertia_world = world_inertia(rot, model.body_inv_inertia) if needs_inertia else None
     # 4. integrate velocities: v += a dt; ω per the gyroscopic rule, then ω += I⁻¹τ dt
     vel = integrate_linear_velocity(state.vel, lin_acc, dt)
@@ -74,9 +80,10 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         rot,
         model.body_inertia,
         model.body_inv_inertia,
-        model.gyroscopic_bodies,
+        work.gyroscopic_selection,
         settings.gyroscopic,
         dt,
+        any_torque,
     )
     # 5. contact impulses (sequential impulses with restitution; friction if any μ > 0)
     solution = solve_contacts(
@@ -90,7 +97,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         state.quat,
         choose(state.vel, vel),
         choose(state.ang_vel, ang_vel),
-        moving,
+        work.moving_selection,
         settings.orientation_update,
         dt,
     )
@@ -99,6 +106,19 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         pos, quat = _apply_pseudo_twist(pos, quat, solution.pseudo_twist, dt)
     memory = solution.report if solution.report.contacts.count else None
     return StepResult(State(pos, quat, vel, ang_vel, state.time + dt, memory), solution.report)
+
+
+def _rotations(work, quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of ``quat (n, 4)``, read-only; the last step's when the
+    orientations are bit-for-bit those of the last step (resting or non-spinning bodies:
+    a sphere pile, a body on the ground), so the same matrices are not rebuilt."""
+    last = work.rotation_cache.get("quat")
+    if last is not None and last.shape == quat.shape and np.array_equal(last, quat):
+        return work.rotation_cache["rot"]
+    rot = quat_to_matrix(quat)
+    rot.flags.writeable = False
+    work.rotation_cache.update(quat=quat.copy(), rot=rot)
+    return rot
 
 
 def _apply_pseudo_twist(pos, quat, pseudo_twist, dt) -> tuple[np.ndarray, np.ndarray]:

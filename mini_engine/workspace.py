@@ -1,0 +1,89 @@
+"""Per-model step workspace: what ``step`` can know about a ``Model`` before the first step.
+
+A ``Model`` never changes during a run, so the index sets, flags and constant arrays the
+phases derive from it are computed once, on the first ``step`` of that model, and kept
+here (``workspace(model)``, kept per model object by ``model.per_model``). Nothing in it
+depends on the state; every entry is exactly what the phase computed every step before
+(same values, same order), so the physics is unchanged bit for bit.
+
+Index sets that cover every body are stored as ``slice(None)`` instead of an index array:
+``x[slice(None)]`` is a view, so the hot path neither gathers nor scatters copies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mini_engine.model import Model, per_model
+
+BodySelection = slice | np.ndarray
+"""Either ``slice(None)`` (every body) or an ``(k,)`` int array of body indices."""
+
+
+def _selection(indices: np.ndarray, n: int) -> BodySelection:
+    """``slice(None)`` when ``indices`` are all ``n`` bodies in order, else ``indices``."""
+    return slice(None) if indices.size == n and n > 0 else indices
+
+
+@dataclass(frozen=True, eq=False)
+class Workspace:
+    """Constant per-model data of ``step`` and its phases (n bodies).
+
+    Attributes:
+        moving: (m,) int, the dynamic bodies (``np.flatnonzero(model.body_dynamic)``).
+        moving_selection: ``moving`` or ``slice(None)`` when every body moves.
+        gyroscopic_selection: ``model.gyroscopic_bodies`` or ``slice(None)`` when all are.
+        has_springs: the model has springs (else the spring phase is skipped).
+        constant_lin_acc: (n, 3) m/s², world frame, ``g + F_const / m`` (0 for fixed bodies)
+            when there are no springs; None otherwise (then it depends on the state).
+        constant_torque: (n, 3) N·m, world frame, ``body_torque`` when there are no springs.
+        any_torque: ``constant_torque`` has a non-zero entry (False with springs: unknown).
+        body_row: (n,) int, the solver's twist row of each body (n for every fixed body).
+        colour_cache: the last contact colouring (its rows, order and colour slices), reused while
+            the contact graph is unchanged (see ``solver.colour_contacts``).
+        rotation_cache: the last step's orientations and their rotation matrices, reused
+            while the orientations are unchanged (``step._rotations``).
+    """
+
+    moving: np.ndarray
+    moving_selection: BodySelection
+    gyroscopic_selection: BodySelection
+    has_springs: bool
+    constant_lin_acc: np.ndarray | None
+    constant_torque: np.ndarray | None
+    any_torque: bool
+    body_row: np.ndarray
+    colour_cache: dict = field(default_factory=dict)
+    rotation_cache: dict = field(default_factory=dict)
+
+
+@per_model
+def workspace(model: Model) -> Workspace:
+    """The workspace of ``model``, built on its first step and kept per model."""
+    n = model.n_bodies
+    moving = np.flatnonzero(model.body_dynamic)
+    has_springs = model.n_springs > 0
+    if has_springs:
+        lin_acc, torque, any_torque = None, None, False
+    else:
+        gravity = np.where(model.body_fixed[:, None], 0.0, model.gravity[None, :])
+        force = np.zeros((n, 3)) + model.body_force  # what applied_loads returns
+        lin_acc = gravity + force * model.body_inv_mass[:, None]
+        torque = np.zeros((n, 3)) + model.body_torque
+        any_torque = bool(np.any(torque != 0.0))
+        for array in (lin_acc, torque):
+            array.flags.writeable = False
+    body_row = np.where(model.body_fixed, n, np.arange(n))
+
+    return Workspace(
+        moving=moving,
+        moving_selection=_selection(moving, n),
+        gyroscopic_selection=_selection(model.gyroscopic_bodies, n),
+        has_springs=has_springs,
+        constant_lin_acc=lin_acc,
+        constant_torque=torque,
+        any_torque=any_torque,
+        body_row=body_row,
+    )
