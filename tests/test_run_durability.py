@@ -33,6 +33,21 @@ checks: {position_error: 1.0e-3}
 WALL_TIME_COLUMNS = ["wall_time_s"]
 """results.csv columns that differ between two runs by nature (a job's own clock)."""
 
+RELEASE_FILE = "release"
+HELD = f"""
+import pathlib, time
+import validation.jobs.run as run
+job = run.JOB_KINDS["run"]
+def held(payload):
+    deadline = time.monotonic() + 60
+    while not pathlib.Path({RELEASE_FILE!r}).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return job(payload)
+run.JOB_KINDS["run"] = held
+"""
+"""Injected into the first of two concurrent runs: its jobs wait for the release file, so the
+second run meets the lock however fast the engines are."""
+
 RUN_TIMEOUT_S = 120
 """Loose bound for one small run in a subprocess on a shared 2-core machine."""
 
@@ -166,11 +181,12 @@ def test_without_an_atomic_exchange_a_kill_between_the_renames_is_put_back(tmp_p
 def test_two_concurrent_runs_on_one_out_end_without_a_traceback_and_one_report(tmp_path):
     scene = tmp_path / "slow_fall.yaml"
     scene.write_text(SLOW_SCENE)
-    processes = [physval("run", str(scene), "--out", "out", "--jobs", "1", cwd=tmp_path)]
+    first = physval("run", str(scene), "--out", "out", "--jobs", "1", cwd=tmp_path, code=HELD)
     while not list(tmp_path.glob(".out-staging-*")):
         time.sleep(0.01)
-    processes.append(physval("run", str(scene), "--out", "out", "--jobs", "1", cwd=tmp_path))
-    ended = [finish(p) for p in processes]
+    second = finish(physval("run", str(scene), "--out", "out", "--jobs", "1", cwd=tmp_path))
+    (tmp_path / RELEASE_FILE).touch()  # the first run holds its lock until the second has ended
+    ended = [finish(first), second]
     assert all("Traceback" not in err for _, _, err in ended), ended
     assert sorted(code for code, _, _ in ended) == [0, 2], ended
     loser = next(err for code, _, err in ended if code == 2)
