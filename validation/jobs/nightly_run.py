@@ -21,12 +21,12 @@ from validation.nightly.baseline import (
     KEY,
     classify,
     is_new_failure,
-    outcome_of,
     read_baseline,
     scene_hash,
 )
 from validation.nightly.history import record_run
 from validation.nightly.junit import write_junit
+from validation.nightly.known import outcome_of
 
 DEFAULT_BASELINE = Path("baselines") / "default.csv"
 """The baseline a run compares against when the repository (the working folder) has one."""

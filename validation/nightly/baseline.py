@@ -34,7 +34,7 @@ from validation.contract import (
 )
 from validation.files import write_atomically
 from validation.measure.noise import moved
-from validation.nightly.known import FIXED, KNOWN, row_verdict
+from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_results
 
 KEY = ("scenario", "engine", "metric")
@@ -79,14 +79,6 @@ def scene_hash(path: str | Path) -> str:
         return hashlib.sha256(Path(path).read_bytes()).hexdigest()
     except OSError:
         return ""
-
-
-def outcome_of(row: pd.Series | dict) -> str:
-    """A row's outcome: its ``outcome`` column when present, else its own verdict."""
-    outcome = row.get("outcome")
-    if isinstance(outcome, str) and outcome:
-        return outcome
-    return row_verdict(str(row.get("status", "")), row.get("passed"))
 
 
 def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.DataFrame:

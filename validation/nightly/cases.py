@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from numbers import Real
 
-from validation.nightly.known import KNOWN, row_verdict
+from validation.nightly.known import KNOWN, outcome_of
 
 FAILURE, ERROR, SKIPPED, PASSED = "failure", "error", "skipped", "passed"
 """A case's verdicts, in the words of JUnit XML (its elements) and pytest."""
@@ -48,8 +48,7 @@ def _text(value: object) -> str:
 
 def outcome(row: dict) -> str:
     """The row's outcome: ``apply_known``'s when applied, else its own verdict."""
-    given = _text(row.get("outcome"))
-    return given or row_verdict(_text(row.get("status")), row.get("passed"))
+    return outcome_of(row)
 
 
 def reason(row: dict) -> str:

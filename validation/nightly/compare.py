@@ -35,7 +35,7 @@ from validation.nightly.history import (
     load_run,
     read_run_folder,
 )
-from validation.nightly.known import FIXED, KNOWN, row_verdict
+from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.nightly.pages import render_page
 from validation.report.build import format_number
 
@@ -92,13 +92,9 @@ class RunSide:
 
 
 def _verdicts(rows: pd.DataFrame) -> list[str]:
-    """Each row's verdict: its ``outcome`` when the run wrote one (known findings), else
-    ``known.row_verdict`` of its status and check."""
-    outcomes = rows["outcome"] if "outcome" in rows else [None] * len(rows)
-    return [
-        outcome if isinstance(outcome, str) and outcome else row_verdict(str(status), passed)
-        for outcome, status, passed in zip(outcomes, rows["status"], rows["passed"], strict=True)
-    ]
+    """Each row's verdict: its ``outcome`` when the run wrote one (known findings), else its
+    own (``known.outcome_of``)."""
+    return [outcome_of(row) for row in rows.to_dict("records")]
 
 
 def _side(label: str, created: Any, commit: Any, versions: dict, rows: pd.DataFrame) -> RunSide:

@@ -33,6 +33,16 @@ def row_verdict(status: str, passed: object) -> str:
     return "no_tolerance"
 
 
+def outcome_of(row: dict) -> str:
+    """A row's outcome: its ``outcome`` column when ``apply_known`` wrote one, else its own
+    verdict (``row_verdict``)."""
+    outcome = row.get("outcome")
+    if isinstance(outcome, str) and outcome:
+        return outcome
+    status = row.get("status")
+    return row_verdict(status if isinstance(status, str) else "", row.get("passed"))
+
+
 def _label(spec: str) -> str:
     return parse_engine_spec(spec).label
 
