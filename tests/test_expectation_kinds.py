@@ -5,14 +5,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scene_rows import rows
 
 from mini_engine.rotation import quat_to_matrix
-from validation.jobs.run import run_job
-from validation.measure.comparator import compare_scene
 from validation.measure.newton_euler import reference_motion
 from validation.scenario import Scenario
 from validation.scenario.compiled import compile_scene
-from validation.scenario.engine_spec import parse_engine_spec
 
 G = 9.81
 RK4_TIME_TOLERANCE = 1e-4
@@ -25,12 +23,6 @@ continuous-time instant sqrt(2 h / g)."""
 
 ROUND_OFF = 1e-9
 """Relative: quantities the engines keep exactly (a constant spin, a free fall's energy)."""
-
-
-def rows(data: dict, engine: str) -> dict[str, dict]:
-    scene = compile_scene(Scenario.model_validate(data))
-    run, measured = run_job((scene, parse_engine_spec(engine)))
-    return {r["metric"]: r for r in compare_scene(scene, [run], [measured])}
 
 
 def box(expect: list[dict]) -> dict:

@@ -7,10 +7,9 @@ import math
 
 import numpy as np
 import pytest
+from scene_rows import rows
 
 from mini_engine.rotation import quat_to_matrix
-from validation.jobs.run import run_job
-from validation.measure.comparator import compare_scene
 from validation.measure.newton_euler import reference_motion
 from validation.scenario import Scenario, ScenarioError, load_scenario
 from validation.scenario.compiled import compile_scene
@@ -42,12 +41,6 @@ L = τ t, p = F t)."""
 
 DOP853_AGREEMENT = 1e-9
 """Relative: SciPy DOP853 at rtol 1e-12 against the closed form of a constant-load spin-up."""
-
-
-def rows(data: dict, engine: str) -> dict[str, dict]:
-    scene = compile_scene(Scenario.model_validate(data))
-    run, measured = run_job((scene, parse_engine_spec(engine)))
-    return {r["metric"]: r for r in compare_scene(scene, [run], [measured])}
 
 
 def incline_scene() -> dict:
