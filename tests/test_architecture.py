@@ -34,6 +34,7 @@ WINGS: dict[str, int] = {
     "validation.jobs": 6,
     "validation.cli": 7,
     "validation.pytest_plugin": 7,
+    "validation.entry": 8,
 }
 """Wing (module prefix) -> rank. A wing may import its own modules and those of lower-ranked
 wings, never a higher or an equally ranked other wing (except ``ALSO_ALLOWED``)."""

@@ -234,3 +234,78 @@ def test_without_dask_scheduler_is_one_line_and_exit_2(tmp_path, monkeypatch, ca
     assert '".[distributed]"' in captured.err
     assert captured.out == ""
     assert not out.exists()
+
+
+def _processes() -> dict[int, tuple[int, str]]:
+    """Every process of the machine: pid -> (parent pid, state letter; Z for a zombie)."""
+    found = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except (OSError, IndexError):
+                continue  # ended while being read
+            found[int(entry.name)] = (int(fields[1]), fields[0])
+    return found
+
+
+def _descendants(root: int) -> set[int]:
+    """The pids of every process started by ``root``, its children's children included."""
+    processes = _processes()
+    found, frontier = set(), {root}
+    while frontier:
+        frontier = {pid for pid, (parent, _) in processes.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pids: set[int]) -> set[int]:
+    """Those of ``pids`` still running (a zombie has ended: init reaps it soon)."""
+    processes = _processes()
+    return {pid for pid in pids if pid in processes and processes[pid][1] != "Z"}
+
+
+CLUSTER_GONE_S = 30
+"""s, for every process the run started to have ended after the run exited: the run ends
+them before it exits; this only bounds how long the machine takes to notice."""
+
+INTERRUPT_MOMENTS = {
+    "starting": lambda run, out: _descendants(run.pid),
+    "running": lambda run, out: list(out.parent.glob(".run-staging-*/journal/job-*.pickle")),
+}
+"""When Ctrl-C comes: as soon as the run has started a process of the cluster (its
+scheduler and workers are starting), or once it has committed a finished job to its
+journal."""
+
+
+@pytest.mark.parametrize("moment", sorted(INTERRUPT_MOMENTS))
+def test_ctrl_c_with_a_local_cluster_is_one_line_and_leaves_no_dask_process(tmp_path, moment):
+    """Ctrl-C (SIGINT to the run's whole process group, as a terminal sends it) while the
+    local cluster starts or while it runs jobs: exit 130, the one interrupted line and no
+    traceback, and no process of the cluster left. Before the cluster had a session of its
+    own, the workers got the signal too and printed Dask's "Nanny failed to start" or an
+    event loop's KeyboardInterrupt traceback."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "validation.cli", "run", *map(str, FOUR_SCENES)]
+    command += ["--engines", "mini", "--dt", "5e-4", "--out", str(out), *NO_NIGHTLY]
+    run = subprocess.Popen(
+        [*command, "--scheduler", "local", "--jobs", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        _wait_for(lambda: INTERRUPT_MOMENTS[moment](run, out), 300, moment, step=0.02)
+        started = _descendants(run.pid)
+        os.killpg(run.pid, signal.SIGINT)
+        _, stderr = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    lines = [line for line in stderr.splitlines() if not line.startswith("pybullet build time")]
+    assert run.returncode == 130, (run.returncode, stderr[-3000:])
+    assert "Traceback" not in stderr, stderr[-3000:]
+    assert len(lines) == 1 and lines[0].startswith("interrupted"), lines
+    _wait_for(lambda: not _alive(started), CLUSTER_GONE_S, "the cluster's processes to end")
+    assert not out.exists()

@@ -111,3 +111,25 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     # the lock file, and the run's staging folder with its journal for ``--resume``
     assert leftovers[1] == ".out.lock" and len(leftovers) == 2, leftovers
     assert (tmp_path / leftovers[0] / "journal" / "header.json").is_file(), leftovers
+
+
+class _InterruptedImport:
+    """A meta-path finder whose import of ``validation.cli`` is interrupted: what a Ctrl-C
+    in the second Python spends importing NumPy, MuJoCo and the harness does."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "validation.cli":
+            raise KeyboardInterrupt
+        return None
+
+
+def test_ctrl_c_while_the_command_is_still_importing_is_the_same_one_line(monkeypatch, capsys):
+    """The ``physval`` entry point (``validation.entry``) imports the harness inside the
+    Ctrl-C handling: one line and exit 130 however early the Ctrl-C comes, no traceback."""
+    from validation.contract import EXIT_INTERRUPTED, INTERRUPTED_MESSAGE
+    from validation.entry import main as entry
+
+    monkeypatch.delitem(sys.modules, "validation.cli")
+    monkeypatch.setattr(sys, "meta_path", [_InterruptedImport(), *sys.meta_path])
+    assert entry() == EXIT_INTERRUPTED
+    assert capsys.readouterr().err == INTERRUPTED_MESSAGE + "\n"

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
+from validation.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, INTERRUPTED_MESSAGE
 from validation.jobs.check import check_main
 from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
@@ -30,13 +30,6 @@ from validation.scenario import (  # BUNDLED_SCENARIOS: tests and scripts import
     default_scenario_paths,
     json_schema,
 )
-
-INTERRUPTED_MESSAGE = (
-    "interrupted: every worker stopped; nothing was replaced (physval run --resume DIR "
-    "finishes a run)"
-)
-"""The one line a Ctrl-C prints (results are published only after every job has finished;
-a run's finished jobs stay in its journal)."""
 
 
 def command_check(args: argparse.Namespace) -> int:
@@ -292,10 +285,10 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(argv)
     args.argv = argv
-    if getattr(args, "scheduler", None) is not None and distributed_missing():
-        print(distributed_missing(), file=sys.stderr)
-        return EXIT_BAD_INPUT
     try:
+        if getattr(args, "scheduler", None) is not None and distributed_missing():
+            print(distributed_missing(), file=sys.stderr)
+            return EXIT_BAD_INPUT
         return COMMANDS[args.command][0](args)
     except (Interrupted, KeyboardInterrupt):
         print(INTERRUPTED_MESSAGE, file=sys.stderr)

@@ -93,3 +93,10 @@ BASELINE_CLASSES = ("regressed", "new", "missing", "scene_changed", "improved", 
 
 EXIT_INTERRUPTED = 130
 """Ctrl-C (128 + SIGINT, the shell's convention): every worker stopped, nothing published."""
+
+INTERRUPTED_MESSAGE = (
+    "interrupted: every worker stopped; nothing was replaced (physval run --resume DIR "
+    "finishes a run)"
+)
+"""The one line a Ctrl-C prints, whenever it comes (results are published only after every
+job has finished; a run's finished jobs stay in its journal)."""

@@ -4,7 +4,10 @@
 ``scheduler`` (``tcp://host:8786``: an existing cluster whose workers have physval
 installed) or, for ``local``, starts a ``distributed.LocalCluster`` of ``workers`` worker
 processes of one thread each (the engines hold the GIL: threads would not run in parallel),
-and returns it as a ``concurrent.futures.Executor`` for ``executor.run_jobs``.
+and returns it as a ``concurrent.futures.Executor`` for ``executor.run_jobs``. The local
+cluster runs in a child process in a session of its own (``validation.jobs.local_cluster``):
+a terminal's Ctrl-C reaches this process alone, which then stops the cluster, so Dask's
+processes print nothing and the way out cannot hang on them.
 
 Each job is one Dask task, submitted with ``pure=False`` (a job is never deduplicated or
 cached: two equal jobs are two runs) and ``retries=RETRIES``. What Dask does when a job
@@ -13,8 +16,8 @@ fails:
 - the job raised on its worker: Dask runs it again ``RETRIES`` more times (``retries=``);
 - its worker died (killed, out of memory): the scheduler gives the job to another worker
   until ``allowed-failures`` workers have died running it, then fails it with
-  ``KilledWorker``. A local cluster is started with ``LOCAL_ALLOWED_FAILURES`` (the job is
-  run twice in all); an existing cluster uses its scheduler's
+  ``KilledWorker``. A local cluster is started with ``local_cluster.LOCAL_ALLOWED_FAILURES``
+  (the job is run twice in all); an existing cluster uses its scheduler's
   ``distributed.scheduler.allowed-failures`` (Dask's default 3).
 
 A job that still failed reaches ``run_jobs`` as an exception, and the command records it as
@@ -27,9 +30,17 @@ Dask run the job again, which is not counted as a failure.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
 from concurrent.futures import Executor, Future
-from typing import Any
+from typing import IO, Any
 
 
 class BackendError(Exception):
@@ -40,21 +51,16 @@ class BackendError(Exception):
 RETRIES = 1
 """Dask ``retries=``: a job that raised is run once more before it counts as failed."""
 
-LOCAL_ALLOWED_FAILURES = 1
-"""A local cluster's ``allowed-failures``: a job whose worker died is given to another
-worker once; a second death fails it (``KilledWorker``)."""
-
-LOCAL_SCHEDULER = {
-    "distributed.scheduler.allowed-failures": LOCAL_ALLOWED_FAILURES,
-    "distributed.scheduler.worker-saturation": 1.0,
-}
-"""A local cluster's scheduler settings. ``worker-saturation`` 1.0: a worker of one thread
-holds only the job it runs (Dask's default 1.1 assigns it a second one ahead), so a worker
-that dies counts a death against that job alone, never against an innocent job queued
-behind it."""
-
 CONNECT_TIMEOUT_S = 30
 """How long to wait for the scheduler at ``--scheduler ADDRESS`` to answer."""
+
+LOCAL_START_TIMEOUT_S = 120
+"""s, how long a local cluster may take to print its address. Measured: about 3 s on this
+2-core machine idle, about 10 s with both cores busy; 120 s is a hung start, not a slow one."""
+
+LOCAL_CLOSE_TIMEOUT_S = 30
+"""s, how long a local cluster may take to close its workers once asked; then its whole
+process group is killed (a worker stuck in a job does not hold the run's exit)."""
 
 MISSING = (
     '--scheduler needs Dask: pip install -e ".[distributed]" (dask[distributed]); '
@@ -79,7 +85,7 @@ class DaskExecutor(Executor):
     loses_workers = True
     """A worker may die mid-job: ``run_jobs`` asks the command for the job's error result."""
 
-    def __init__(self, client: Any, cluster: Any = None):
+    def __init__(self, client: Any, cluster: LocalClusterProcess | None = None):
         self._client = client
         self._cluster = cluster
         self._executor = client.get_executor(retries=RETRIES, pure=False)
@@ -88,17 +94,66 @@ class DaskExecutor(Executor):
         return self._executor.submit(fn, *args, **kwargs)
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        """Close the client (and the cluster it started); with ``cancel_futures``, the
-        unfinished jobs are cancelled first."""
+        """Close the client (and the cluster it started); with ``cancel_futures`` (Ctrl-C, a
+        failure), the unfinished jobs are cancelled and a local cluster is ended at once."""
         try:
             self._executor.shutdown(wait=wait and not cancel_futures)
-        finally:
             self._client.close()
+        finally:
             if self._cluster is not None:
-                self._cluster.close()
+                self._cluster.stop(at_once=cancel_futures)
 
 
-def _quiet() -> None:
+class LocalClusterProcess:
+    """``python -m validation.jobs.local_cluster WORKERS`` in a new session: its address,
+    and ``stop``. Its stdin is a pipe from this process: when this process ends, even by
+    SIGKILL, the pipe closes and the cluster closes itself."""
+
+    def __init__(self, workers: int):
+        self._log: IO[bytes] = tempfile.TemporaryFile()  # noqa: SIM115 (closed by stop)
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "validation.jobs.local_cluster", str(workers)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._log,
+            env={**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)},
+            start_new_session=True,
+        )
+
+    def address(self) -> str:
+        """The scheduler's address once the cluster is up; ``BackendError`` if it ended or
+        did not answer within ``LOCAL_START_TIMEOUT_S``."""
+        assert self._process.stdout is not None
+        ready, _, _ = select.select([self._process.stdout], [], [], LOCAL_START_TIMEOUT_S)
+        line = self._process.stdout.readline().decode().strip() if ready else ""
+        if not line.startswith("tcp://"):
+            self.stop(at_once=True)
+            self._log.seek(0)
+            said = [text for text in self._log.read().decode(errors="replace").splitlines() if text]
+            reason = said[-1] if said else f"no address within {LOCAL_START_TIMEOUT_S} s"
+            raise BackendError(
+                f"--scheduler local: the local Dask cluster did not start ({reason})"
+            )
+        return line
+
+    def stop(self, at_once: bool = False) -> None:
+        """Close the cluster: by closing its stdin and waiting ``LOCAL_CLOSE_TIMEOUT_S``, or
+        ``at_once`` (SIGKILL to its process group: the scheduler and every worker)."""
+        if self._process.poll() is None and not at_once:
+            assert self._process.stdin is not None
+            self._process.stdin.close()
+            deadline = time.monotonic() + LOCAL_CLOSE_TIMEOUT_S
+            while self._process.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+        with contextlib.suppress(ProcessLookupError):  # anything left: workers included
+            os.killpg(self._process.pid, signal.SIGKILL)
+        self._process.wait()
+        for pipe in (self._process.stdin, self._process.stdout, self._log):
+            if pipe is not None:
+                pipe.close()
+
+
+def quiet_dask_logs() -> None:
     """Dask's log lines off in this process: what a lost job says is in its error row."""
     for name in ("distributed", "dask"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
@@ -110,20 +165,16 @@ def dask_executor(workers: int, scheduler: str) -> DaskExecutor:
     does not answer."""
     if distributed_missing():
         raise BackendError(MISSING)
-    import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    _quiet()
+    quiet_dask_logs()
     if scheduler == "local":
-        with dask.config.set({"distributed.scheduler.allowed-failures": LOCAL_ALLOWED_FAILURES}):
-            cluster = LocalCluster(
-                n_workers=max(1, workers),
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.CRITICAL,
-            )
-        return DaskExecutor(Client(cluster), cluster)
+        cluster = LocalClusterProcess(workers)
+        try:
+            return DaskExecutor(Client(cluster.address(), timeout=CONNECT_TIMEOUT_S), cluster)
+        except BaseException:  # Ctrl-C while it starts, a client that cannot connect
+            cluster.stop(at_once=True)
+            raise
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
     except (OSError, TimeoutError, ValueError) as error:
