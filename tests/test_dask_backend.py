@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import time
+from concurrent.futures import Executor, Future
 from pathlib import Path
 
 import pandas as pd
@@ -17,7 +18,10 @@ import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
 from validation.jobs.dask_backend import MISSING
-from validation.jobs.executor import run_jobs
+from validation.jobs.executor import BACKENDS, run_jobs
+from validation.jobs.journal import Journal
+from validation.jobs.plan import plan_run
+from validation.jobs.run import execute
 
 distributed = pytest.importorskip("distributed")
 
@@ -309,3 +313,42 @@ def test_ctrl_c_with_a_local_cluster_is_one_line_and_leaves_no_dask_process(tmp_
     assert len(lines) == 1 and lines[0].startswith("interrupted"), lines
     _wait_for(lambda: not _alive(started), CLUSTER_GONE_S, "the cluster's processes to end")
     assert not out.exists()
+
+
+class _LosesTheFirstJob(Executor):
+    """A cluster that loses the first job submitted (``KilledWorker`` after its retries, as
+    Dask reports it) and runs the others in this process."""
+
+    loses_workers = True
+
+    def __init__(self):
+        self.submitted = 0
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        future: Future = Future()
+        self.submitted += 1
+        if self.submitted == 1:
+            future.set_exception(RuntimeError("KilledWorker: the worker died twice"))
+        else:
+            future.set_result(fn(*args, **kwargs))
+        return future
+
+
+def test_a_job_the_cluster_lost_is_an_error_row_and_runs_again_on_resume(tmp_path, monkeypatch):
+    """A lost job gets its ``error`` row in the run, but is not committed to the journal:
+    the cluster failed, not the job, so ``--resume`` (of a run killed later) runs it again
+    and gets its real rows."""
+    plan = plan_run([FOUR_SCENES[1]], "mini, mujoco", None, None)
+    monkeypatch.setitem(BACKENDS, "dask", lambda workers, scheduler: _LosesTheFirstJob())
+    journal = Journal.create(tmp_path / "journal", {"run": "test"})
+    first = execute(plan, 2, journal, scheduler="tcp://lossy:8786")
+    lost = [run for run in first.runs if run.status == "error"]
+    assert [run.engine for run in lost] == ["mini"], [(r.engine, r.status) for r in first.runs]
+    assert "KilledWorker" in lost[0].message, lost[0].message
+    committed = journal.finished()
+    assert 0 not in committed and len(committed) == len(plan.jobs) + len(plan.sweeps) - 1, sorted(
+        committed
+    )
+    resumed = execute(plan, 1, journal, committed)
+    assert [run.status for run in resumed.runs] == ["ok", "ok"], [r.message for r in resumed.runs]
+    assert sorted(journal.finished()) == sorted([0, *committed])

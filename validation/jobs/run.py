@@ -243,20 +243,27 @@ def execute(
     cluster at ``scheduler``), all in plan order whatever order the jobs finished in.
     ``done``: the results already finished (``journal.finished()``), not run again; with a
     ``journal``, each new result is committed to it as it finishes (sweeps after the runs,
-    indexed after them), in this process whatever the backend."""
+    indexed after them), in this process whatever the backend. A job the cluster lost gets
+    its error rows in this run but is not committed: the cluster failed, not the job, so a
+    ``--resume`` of this run (killed later) runs it again."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
+    lost_jobs: list[tuple] = []  # the cluster lost them: their error rows are not journaled
+
+    def lost(job: tuple, message: str) -> object:
+        lost_jobs.append(job)
+        return _lost(job, message)
 
     def finished(position: int, result) -> None:
         index = todo[position]
-        if journal is not None:
-            journal.append(index, result)
+        if journal is not None and not any(work[index] is job for job in lost_jobs):
+            journal.append(index, result)  # a lost job is run again by --resume
         done[index] = result
         progress.advance(f"{work[index][1][0].name} · {_label(work[index][1][1])}")
 
     with Progress(len(todo)) as progress:
-        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, _lost)
+        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, lost)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
