@@ -13,6 +13,7 @@ wall-clock numbers depend on the machine, and on a shared machine on who else is
 (expect close to 2x on 2 free cores).
 
     python benchmarks/dask_speedup.py [--scenes 16] [--dt 2e-3,1e-3,5e-4] [--workers 2]
+                                      [--order longest_first|plan]
 
 Prints the figures and writes ``benchmarks/results/dask_speedup.csv``.
 """
@@ -29,7 +30,7 @@ import pandas as pd
 from validation.cli import BUNDLED_SCENARIOS
 from validation.jobs.executor import run_jobs
 from validation.jobs.plan import plan_run
-from validation.jobs.sweep import lost_sweep_job, parse_dt_grid, sweep_job
+from validation.jobs.sweep import lost_sweep_job, parse_dt_grid, sweep_cost, sweep_job
 
 FOLDERS = ("formulas", "rotation", "contact")
 LEFT_OUT = ("box_stack",)
@@ -60,9 +61,16 @@ def _serial(jobs: list[tuple]) -> tuple[float, list[dict], list[float]]:
     return sum(seconds), rows, seconds
 
 
-def _timed(jobs: list[tuple], workers: int, scheduler: str | None) -> tuple[float, list[dict]]:
+ORDERS = {"longest_first": sweep_cost, "plan": None}
+"""``--order``: the jobs handed out longest first, as ``physval sweep`` does, or in plan
+order (what the executor did before it knew a job's cost)."""
+
+
+def _timed(
+    jobs: list[tuple], workers: int, scheduler: str | None, order: str
+) -> tuple[float, list[dict]]:
     start = time.perf_counter()
-    found = run_jobs(sweep_job, jobs, workers, None, scheduler, lost_sweep_job)
+    found = run_jobs(sweep_job, jobs, workers, None, scheduler, lost_sweep_job, ORDERS[order])
     return time.perf_counter() - start, [row for rows in found for row in rows]
 
 
@@ -79,13 +87,14 @@ def main() -> None:
     parser.add_argument("--scenes", type=int, default=16)
     parser.add_argument("--dt", default="2e-3,1e-3,5e-4")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--order", choices=sorted(ORDERS), default="longest_first")
     args = parser.parse_args()
     jobs = _jobs(args.scenes, parse_dt_grid(args.dt))
     load = os.getloadavg()[0]
     serial_s, serial, each = _serial(jobs)
-    dask_s, dask = _timed(jobs, args.workers, "local")
+    dask_s, dask = _timed(jobs, args.workers, "local", args.order)
     _same(serial, dask)
-    processes_s, processes = _timed(jobs, args.workers, None)
+    processes_s, processes = _timed(jobs, args.workers, None, args.order)
     _same(serial, processes)
     bound = serial_s / max(serial_s / args.workers, max(each))
     rows = [
@@ -100,7 +109,8 @@ def main() -> None:
     table["best_possible"] = [1.0, bound, bound]
     table["load_before"] = load
     print(
-        f"{len(jobs)} sweep jobs (mini, dt {args.dt}), {os.cpu_count()} cores, load average "
+        f"{len(jobs)} sweep jobs (mini, dt {args.dt}, {args.order.replace('_', ' ')}), "
+        f"{os.cpu_count()} cores, load average "
         f"{load:.2f} before; rows identical in all three; the longest job "
         f"{max(each):.1f} s of {serial_s:.1f} s"
     )

@@ -133,3 +133,37 @@ def test_ctrl_c_while_the_command_is_still_importing_is_the_same_one_line(monkey
     monkeypatch.setattr(sys, "meta_path", [_InterruptedImport(), *sys.meta_path])
     assert entry() == EXIT_INTERRUPTED
     assert capsys.readouterr().err == INTERRUPTED_MESSAGE + "\n"
+
+
+def test_the_longest_jobs_are_handed_out_first_and_results_keep_job_order():
+    """With a cost, a pool is given the most expensive jobs first (a long job started last
+    runs alone while the other worker waits); every result still lands at its job's index.
+    One worker keeps job order: it gains nothing from another."""
+    from validation.jobs.executor import submission_order
+
+    cost = {0: 1.0, 1: 5.0, 2: 2.0, 3: 5.0, 4: 0.5}.__getitem__
+    assert submission_order(list(range(5)), cost) == [1, 3, 2, 0, 4]  # ties in job order
+    assert submission_order(list(range(5)), None) == [0, 1, 2, 3, 4]
+    finished: list[int] = []
+    results = run_jobs(_square, list(range(5)), 2, lambda i, _: finished.append(i), cost=cost)
+    assert results == [x * x for x in range(5)]
+    assert sorted(finished) == list(range(5))
+
+
+def test_a_pool_receives_the_jobs_longest_first(monkeypatch):
+    """What the pool is handed, in order: ``run_jobs`` with a cost submits by it."""
+    from concurrent.futures import Future
+
+    from validation.jobs import executor
+
+    handed: list[int] = []
+
+    class Recording(executor.SerialExecutor):
+        def submit(self, fn, /, *args, **kwargs) -> Future:
+            handed.append(args[0])
+            return super().submit(fn, *args, **kwargs)
+
+    monkeypatch.setitem(executor.BACKENDS, "processes", lambda workers, scheduler: Recording())
+    results = run_jobs(_square, [3, 9, 1, 7], 2, cost=float)
+    assert handed == [9, 7, 3, 1]
+    assert results == [9, 81, 1, 49]

@@ -57,6 +57,23 @@ def step_ratio(duration: float, dt: float) -> float:
         return float(np.float64(duration) / np.float64(dt))
 
 
+STEP_COST_PER_BODY = 0.04
+"""A body's share of the cost of a step, relative to a step's fixed cost: mini (the engine
+that dominates a run) steps one sphere in 0.2 ms and a 1,000-sphere pile in 8.6 ms
+(``benchmarks/step_cost.py``), (8.6 - 0.2) / 1000 / 0.2 = 0.04."""
+
+
+def expected_cost(scenario: Scenario, dts: list[float]) -> float:
+    """A job's expected cost in fixed step costs: its steps at each of ``dts`` times
+    (1 + ``STEP_COST_PER_BODY`` x bodies). It orders the work (the executor starts the
+    longest jobs first); no result depends on it."""
+    bodies = len(scenario.bodies)
+    steps = sum(
+        step_ratio(scenario.duration, dt) for dt in dts if steps_in_range(scenario.duration, dt)
+    )
+    return steps * (1.0 + STEP_COST_PER_BODY * bodies)
+
+
 def steps_in_range(duration: float, dt: float) -> bool:
     """``duration / dt`` is 1 to ``MAX_STEPS`` steps, judged in floats before any integer is
     made of it (an infinite ratio is what ``round`` cannot convert)."""

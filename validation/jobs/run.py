@@ -51,10 +51,11 @@ from validation.jobs.nightly_run import (
     write_ci_files,
 )
 from validation.jobs.output import Output, claim
-from validation.jobs.plan import BadInputError, Plan, plan_run
+from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
 from validation.jobs.sweep import (
     lost_sweep_job,
     reference_problems,
+    sweep_cost,
     sweep_job,
     with_cross_checks,
 )
@@ -206,6 +207,16 @@ def _do(job: tuple[str, tuple]) -> object:
     return JOB_KINDS[kind](payload)
 
 
+def _cost(job: tuple[str, tuple]) -> float:
+    """A tagged job's expected cost (``plan.expected_cost``): a run at its scene's dt, or a
+    sweep over its grid."""
+    kind, payload = job
+    if kind == "sweep":
+        return sweep_cost(payload)
+    scene, _ = payload
+    return expected_cost(scene.scenario, [scene.scenario.dt])
+
+
 def _lost(job: tuple[str, tuple], message: str) -> object:
     """The result recorded for a job the cluster lost (``executor.run_jobs``): an engine run
     with status ``error``, or the sweep's error rows."""
@@ -263,7 +274,7 @@ def execute(
         progress.advance(f"{work[index][1][0].name} · {_label(work[index][1][1])}")
 
     with Progress(len(todo)) as progress:
-        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, lost)
+        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, lost, _cost)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:

@@ -12,7 +12,7 @@ from pathlib import Path
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_table
 from validation.jobs.executor import BackendError, run_jobs
-from validation.jobs.plan import BadInputError, plan_run
+from validation.jobs.plan import BadInputError, expected_cost, plan_run
 from validation.measure.runner import run_engine
 from validation.scenario import MAX_STEPS, Scenario
 from validation.scenario.compiled import compile_scene
@@ -161,7 +161,15 @@ def stability_main(
         return EXIT_BAD_INPUT
     work = [(scene.scenario, spec) for scene, spec in plan.jobs]
     try:
-        limits = run_jobs(_limit_job, work, jobs, None, scheduler, _lost_limit)
+        limits = run_jobs(
+            _limit_job,
+            work,
+            jobs,
+            None,
+            scheduler,
+            _lost_limit,
+            lambda job: expected_cost(job[0], [job[0].dt]),  # the longest scenes first
+        )
     except BackendError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -43,7 +43,13 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.registry import create_adapter
 from validation.files import write_table
 from validation.jobs.executor import BackendError, run_jobs
-from validation.jobs.plan import BadInputError, plan_run, step_ratio, steps_in_range
+from validation.jobs.plan import (
+    BadInputError,
+    expected_cost,
+    plan_run,
+    step_ratio,
+    steps_in_range,
+)
 from validation.measure.metrics import Context, measure
 from validation.measure.newton_euler import reference_motion, rotation_angle
 from validation.measure.runner import EngineRun, run_engine
@@ -447,6 +453,13 @@ def sweep_job(job: tuple[Scenario, EngineSpec | None, list[float]]) -> list[dict
     return cross_check(scenario, min(runnable(scenario, dts))) if spec is None else sweep_scene(job)
 
 
+def sweep_cost(job: tuple[Scenario, EngineSpec | None, list[float]]) -> float:
+    """A sweep job's expected cost (``plan.expected_cost`` over its grid): the executor
+    starts the longest grids first."""
+    scenario, _, dts = job
+    return expected_cost(scenario, dts)
+
+
 def lost_sweep_job(
     job: tuple[Scenario, EngineSpec | None, list[float]], message: str
 ) -> list[dict]:
@@ -476,7 +489,15 @@ def run_sweep(
     """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
     shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
     job order. ``scheduler``: on that Dask cluster (``executor.run_jobs``)."""
-    found = run_jobs(sweep_job, with_cross_checks(jobs), workers, None, scheduler, lost_sweep_job)
+    found = run_jobs(
+        sweep_job,
+        with_cross_checks(jobs),
+        workers,
+        None,
+        scheduler,
+        lost_sweep_job,
+        sweep_cost,
+    )
     return [row for rows in found for row in rows]
 
 
