@@ -237,3 +237,41 @@ def test_an_unreadable_results_file_is_exit_2_naming_it(tmp_path, capsys, damage
     else:
         results.write_bytes(b"scenario,engine\n\xff\xfe\x00garbage\n")
     assert "results.csv" in refused(["report", str(run_dir)], capsys)
+
+
+OUT_TARGETS = {
+    "a file": lambda root: root / "precious.txt",
+    "below a file": lambda root: root / "precious.txt" / "below",
+    "a symlink to a file": lambda root: root / "link",
+}
+"""``--out`` values that name something the command must not write (or cannot write into)."""
+
+OUT_COMMANDS = {
+    "sweep": ["sweep", PROJECTILE, "--engines", "mini", "--dt", "4e-3,2e-3", "--jobs", "1"],
+    "stability": ["stability", PROJECTILE, "--engines", "mini", "--jobs", "1"],
+}
+
+
+@pytest.mark.parametrize("target", sorted(OUT_TARGETS))
+@pytest.mark.parametrize("command", sorted(OUT_COMMANDS))
+def test_sweep_and_stability_refuse_a_bad_out_before_any_work(tmp_path, capsys, command, target):
+    """``sweep --out DIR`` and ``stability --out FILE``: a file where a folder must be, a
+    path below a file, a symlink that a rename would replace: one line naming ``--out``,
+    exit 2, before any engine runs, and the user's file untouched (``stability --out`` at a
+    file it may replace is refused only through a symlink; sweep wrote a traceback after
+    all its work before, and stability replaced the link)."""
+    (tmp_path / "precious.txt").write_text("precious")
+    (tmp_path / "link").symlink_to(tmp_path / "precious.txt")
+    out = OUT_TARGETS[target](tmp_path)
+    if command == "stability" and target == "a file":
+        out = tmp_path / "folder"  # the file is its output; a folder is what it must refuse
+        out.mkdir()
+    start = time.monotonic()
+    code = main([*OUT_COMMANDS[command], "--out", str(out)])
+    seconds = time.monotonic() - start
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, (code, err)
+    assert len(err) == 1 and err[0].startswith(f"--out {out}:"), err
+    assert seconds < BAD_INPUT_SECONDS, f"refused after {seconds:.1f} s: after the work"
+    assert (tmp_path / "precious.txt").read_text() == "precious"
+    assert (tmp_path / "link").is_symlink()

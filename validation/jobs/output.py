@@ -95,10 +95,38 @@ def check_destination(destination: Path) -> None:
         if not stat.S_ISDIR(found.st_mode):
             raise _refuse(destination, "is an existing file, not a folder; it is left as it was")
         return
+    _check_ancestors(destination)
+
+
+def check_file_destination(destination: Path) -> None:
+    """Refuse an ``--out FILE`` (a CSV written atomically: by rename) that is a folder, a
+    symlink (the rename would replace the link, not its target) or below a file."""
+    if destination.is_symlink():
+        raise _refuse(
+            destination,
+            f"is a symlink to {os.readlink(destination)}; the file is replaced by rename, "
+            "which would replace the link: give the file it points to",
+        )
+    if destination.is_dir():
+        raise _refuse(destination, "is a folder; give the CSV file to write")
+    _check_ancestors(destination)
+
+
+def check_folder_destination(destination: Path) -> None:
+    """Refuse an ``--out DIR`` that files are written into (each atomically, the folder
+    kept) when it is an existing file or below a file; a symlink to a folder is written
+    through."""
+    if destination.exists() and not destination.is_dir():
+        raise _refuse(destination, "is an existing file, not a folder; it is left as it was")
+    _check_ancestors(destination)
+
+
+def _check_ancestors(destination: Path) -> None:
+    """The nearest existing ancestor of ``destination`` is a folder."""
     for ancestor in destination.absolute().parents:
         if ancestor.exists():
             if not ancestor.is_dir():
-                raise _refuse(destination, f"{ancestor} is a file, so no folder can be below it")
+                raise _refuse(destination, f"{ancestor} is a file, so nothing can be below it")
             return
 
 

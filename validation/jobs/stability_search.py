@@ -12,6 +12,7 @@ from pathlib import Path
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_table
 from validation.jobs.executor import BackendError, run_jobs
+from validation.jobs.output import check_file_destination, check_room, locked
 from validation.jobs.plan import BadInputError, expected_cost, plan_run
 from validation.measure.runner import run_engine
 from validation.scenario import MAX_STEPS, Scenario
@@ -154,27 +155,31 @@ def stability_main(
     scheduler: str | None = None,
 ) -> int:
     """``physval stability``: every limit printed as a sentence and written to stability.csv."""
+    out = out or Path("reports") / "stability.csv"
     try:
         plan = plan_run(paths, engines, None, only)
+        check_file_destination(out)
+        check_room(out)
     except BadInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     work = [(scene.scenario, spec) for scene, spec in plan.jobs]
     try:
-        limits = run_jobs(
-            _limit_job,
-            work,
-            jobs,
-            None,
-            scheduler,
-            _lost_limit,
-            lambda job: expected_cost(job[0], [job[0].dt]),  # the longest scenes first
-        )
-    except BackendError as error:
+        with locked(out):  # a second search on the same --out: exit 2 at once
+            limits = run_jobs(
+                _limit_job,
+                work,
+                jobs,
+                None,
+                scheduler,
+                _lost_limit,
+                lambda job: expected_cost(job[0], [job[0].dt]),  # the longest scenes first
+            )
+            rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
+            write_table(rows, out)  # atomically
+    except (BackendError, BadInputError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     for limit in limits:
         print(limit.sentence())
-    rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
-    write_table(rows, out or Path("reports") / "stability.csv")
     return EXIT_OK

@@ -43,6 +43,7 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.registry import create_adapter
 from validation.files import write_table
 from validation.jobs.executor import BackendError, run_jobs
+from validation.jobs.output import check_folder_destination, check_room, locked
 from validation.jobs.plan import (
     BadInputError,
     expected_cost,
@@ -529,17 +530,20 @@ def sweep_main(
         problems = reference_problems(work)
         if problems:
             raise BadInputError("\n".join(problems))
+        out = out or Path("reports") / "sweep"
+        check_folder_destination(out)
+        check_room(out)
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
-        rows = run_sweep(work, jobs, scheduler)
-    except BackendError as error:
+        with locked(out):  # a second sweep on the same --out: exit 2 at once
+            rows = run_sweep(work, jobs, scheduler)
+            out.mkdir(parents=True, exist_ok=True)
+            write_table(rows, out / "sweep.csv")  # each file written atomically
+            render_sweep(rows, out / "sweep.html")
+    except (BackendError, BadInputError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
-    out = out or Path("reports") / "sweep"
-    out.mkdir(parents=True, exist_ok=True)
-    write_table(rows, out / "sweep.csv")
-    render_sweep(rows, out / "sweep.html")
     print(f"{len(rows)} rows -> {out / 'sweep.csv'}, {out / 'sweep.html'}")
     return EXIT_OK
