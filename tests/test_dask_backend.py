@@ -352,3 +352,21 @@ def test_a_job_the_cluster_lost_is_an_error_row_and_runs_again_on_resume(tmp_pat
     resumed = execute(plan, 1, journal, committed)
     assert [run.status for run in resumed.runs] == ["ok", "ok"], [r.message for r in resumed.runs]
     assert sorted(journal.finished()) == sorted([0, *committed])
+
+
+def test_a_local_cluster_that_cannot_start_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    """The local cluster's process ends before it gives an address (a broken Dask install,
+    say): one line with its last words, exit 2, nothing written."""
+    from validation.jobs import dask_backend
+
+    broken = [sys.executable, "-c", "import sys; sys.exit('distributed is broken here')"]
+    monkeypatch.setattr(dask_backend, "LOCAL_CLUSTER_COMMAND", broken)
+    out = tmp_path / "out"
+    run = ["run", str(FOUR_SCENES[1]), "--engines", "mini", "--out", str(out), *NO_NIGHTLY]
+    code = main([*run, "--scheduler", "local", "--jobs", "2"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, (code, err)
+    assert err == [
+        "--scheduler local: the local Dask cluster did not start (distributed is broken here)"
+    ], err
+    assert not out.exists()

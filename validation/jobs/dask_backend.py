@@ -54,9 +54,13 @@ RETRIES = 1
 CONNECT_TIMEOUT_S = 30
 """How long to wait for the scheduler at ``--scheduler ADDRESS`` to answer."""
 
+LOCAL_CLUSTER_COMMAND = [sys.executable, "-m", "validation.jobs.local_cluster"]
+"""The local cluster's process, given its number of workers (``local_cluster.serve``)."""
+
 LOCAL_START_TIMEOUT_S = 120
-"""s, how long a local cluster may take to print its address. Measured: about 3 s on this
-2-core machine idle, about 10 s with both cores busy; 120 s is a hung start, not a slow one."""
+"""s, how long a local cluster may take to print its address. Measured: 1.2 s for 2 workers
+on this 2-core machine with both cores busy (load average 2); 120 s is a hung start, not a
+slow one."""
 
 LOCAL_CLOSE_TIMEOUT_S = 30
 """s, how long a local cluster may take to close its workers once asked; then its whole
@@ -112,7 +116,7 @@ class LocalClusterProcess:
     def __init__(self, workers: int):
         self._log: IO[bytes] = tempfile.TemporaryFile()  # noqa: SIM115 (closed by stop)
         self._process = subprocess.Popen(
-            [sys.executable, "-m", "validation.jobs.local_cluster", str(workers)],
+            [*LOCAL_CLUSTER_COMMAND, str(workers)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=self._log,
@@ -127,9 +131,9 @@ class LocalClusterProcess:
         ready, _, _ = select.select([self._process.stdout], [], [], LOCAL_START_TIMEOUT_S)
         line = self._process.stdout.readline().decode().strip() if ready else ""
         if not line.startswith("tcp://"):
-            self.stop(at_once=True)
             self._log.seek(0)
             said = [text for text in self._log.read().decode(errors="replace").splitlines() if text]
+            self.stop(at_once=True)
             reason = said[-1] if said else f"no address within {LOCAL_START_TIMEOUT_S} s"
             raise BackendError(
                 f"--scheduler local: the local Dask cluster did not start ({reason})"
