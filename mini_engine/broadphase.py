@@ -65,6 +65,7 @@ class BroadPhasePlan(NamedTuple):
 
     Attributes:
         planes, finite: (P,) and (F,) int, collidable planes and collidable finite bodies.
+        finite_radius: (F,) m, the bounding radii of those finite bodies.
         plane_admissible: (P, F) bool, plane-body pairs that may touch (``admissible``).
         small: (s,) int, finite bodies that go through the grid.
         small_radius, small_world: (s,) m bounding radii and (s,) int worlds of those.
@@ -75,6 +76,7 @@ class BroadPhasePlan(NamedTuple):
 
     planes: np.ndarray
     finite: np.ndarray
+    finite_radius: np.ndarray
     plane_admissible: np.ndarray
     small: np.ndarray
     small_radius: np.ndarray
@@ -110,6 +112,7 @@ def broadphase_plan(model: Model) -> BroadPhasePlan:
     return BroadPhasePlan(
         planes=planes,
         finite=finite,
+        finite_radius=radius[finite],
         plane_admissible=plane_admissible,
         small=small,
         small_radius=radius[small],
@@ -126,33 +129,66 @@ def candidate_pairs(
     """Candidate pairs (a, b), each (p,) int with a < b, whose bounding spheres may touch.
 
     Each unordered pair appears once; the order is deterministic (by construction):
-    plane pairs, then direct pairs, then grid pairs.
+    plane pairs (``plane_pairs``), then finite pairs (``finite_pairs``: direct, then grid).
 
     Args:
         pos: (n, 3) m, world frame, body centres.
         rot: (n, 3, 3) body-to-world rotations (planes' normals are their +z axes).
         padding: m, added to each bounding radius (contact margin).
     """
+    plane, body = plane_pairs(model, pos, rot, padding)
+    a, b = finite_pairs(model, pos, padding)
+    return (
+        np.concatenate([np.minimum(plane, body), a]),
+        np.concatenate([np.maximum(plane, body), b]),
+    )
+
+
+def plane_pairs(
+    model: Model, pos: np.ndarray, rot: np.ndarray, padding: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Admissible (plane, body) pairs, each (p,) int, whose padded bounding sphere reaches the
+    plane (all P*F pairs tested at once), in plane-major order; the plane comes first.
+
+    A plane's normal is its body +z axis, the last column of its rotation ``rot (n, 3, 3)``.
+    Their bounding-sphere test always passes (a plane's radius is infinite). Arguments as
+    in ``candidate_pairs``.
+    """
     work = broadphase_plan(model)
-    radius = model.body_bound_radius
+    planes, finite = work.planes, work.finite
+    if not (planes.size and finite.size):  # plane pairs are admissible or not by index
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    normal = rot.take(planes, axis=0)[:, :, 2]  # (P, 3) world frame
+    offset = pos.take(finite, axis=0)[None, :, :] - pos.take(planes, axis=0)[:, None, :]
+    height = np.einsum("pfi,pi->pf", offset, normal)
+    plane_idx, body_idx = np.nonzero(
+        (height <= work.finite_radius + padding) & work.plane_admissible
+    )
+    return planes.take(plane_idx), finite.take(body_idx)
+
+
+def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs (a, b) of finite bodies, each (p,) int with a < b: the direct pairs of
+    large bodies, then the grid pairs. Arguments as in ``candidate_pairs``."""
+    work = broadphase_plan(model)
     a_parts, b_parts = [], []
-    if work.planes.size and work.finite.size:  # plane pairs are admissible or not by index
-        a, b = _plane_pairs(model, pos, rot, work.planes, work.finite, padding, work)
-        a_parts.append(a), b_parts.append(b)
     if work.direct_a.size:
         a, b = work.direct_a, work.direct_b
-        offset = pos[a] - pos[b]
+        offset = pos.take(a, axis=0) - pos.take(b, axis=0)
         reach = work.direct_reach + 2.0 * padding
         near = np.einsum("ij,ij->i", offset, offset) <= reach * reach
         a_parts.append(a[near]), b_parts.append(b[near])
     if work.small.size >= 2:
         small = work.small
-        a, b = _grid_pairs(pos[small], work.small_radius + padding, small, work.small_world)
+        a, b = _grid_pairs(
+            pos.take(small, axis=0), work.small_radius + padding, small, work.small_world
+        )
         if a.size:
             a, b = np.minimum(a, b), np.maximum(a, b)
             keep = admissible(model, a, b)
-            offset = pos[a] - pos[b]
-            reach = radius[a] + radius[b] + 2.0 * padding
+            offset = pos.take(a, axis=0) - pos.take(b, axis=0)
+            radius = model.body_bound_radius
+            reach = radius.take(a) + radius.take(b) + 2.0 * padding
             keep &= np.einsum("ij,ij->i", offset, offset) <= reach * reach
             a_parts.append(a[keep]), b_parts.append(b[keep])
     if not a_parts:
@@ -164,24 +200,9 @@ def candidate_pairs(
 
 def admissible(model: Model, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(p,) bool: distinct bodies, not both fixed, in the same world or one shared."""
-    world_a, world_b = model.body_world[a], model.body_world[b]
+    world_a, world_b = model.body_world.take(a), model.body_world.take(b)
     same_world = (world_a == world_b) | (world_a == SHARED_WORLD) | (world_b == SHARED_WORLD)
-    return (a != b) & ~(model.body_fixed[a] & model.body_fixed[b]) & same_world
-
-
-def _plane_pairs(model, pos, rot, planes, finite, padding, work) -> tuple[np.ndarray, np.ndarray]:
-    """Admissible plane-body pairs (P*F tested at once) whose padded bounding sphere reaches
-    the plane, each ordered a < b.
-
-    A plane's normal is its body +z axis, the last column of its rotation ``rot (n, 3, 3)``.
-    Their bounding-sphere test always passes (a plane's radius is infinite).
-    """
-    normal = rot[planes][:, :, 2]  # (P, 3) world frame
-    height = np.einsum("pfi,pi->pf", pos[finite][None, :, :] - pos[planes][:, None, :], normal)
-    reach = model.body_bound_radius[finite][None, :] + padding
-    plane_idx, body_idx = np.nonzero((height <= reach) & work.plane_admissible)
-    a, b = planes[plane_idx], finite[body_idx]
-    return np.minimum(a, b), np.maximum(a, b)
+    return (a != b) & ~(model.body_fixed.take(a) & model.body_fixed.take(b)) & same_world
 
 
 def direct_pairs(
