@@ -158,7 +158,7 @@ def integrate_pose(
     quat: np.ndarray,
     vel: np.ndarray,
     ang_vel: np.ndarray,
-    moving: BodySelection,
+    moving: slice | np.ndarray,
     orientation_update: str,
     dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -166,26 +166,20 @@ def integrate_pose(
 
     ``vel``/``ang_vel`` are the velocities the integrator uses for the position update
     (the new ones for semi-implicit Euler, the old ones for explicit Euler).
-    ``moving`` (``(m,) int`` or ``slice(None)`` for all) lists the bodies that can move; the
-    others keep their pose exactly.
+    ``moving`` (``(n,) bool``, or ``slice(None)`` when every body moves) marks the bodies
+    that can move; the others keep their pose exactly.
     """
     rule = ORIENTATION_RULES[orientation_update]
-    if isinstance(moving, slice):  # every body moves: whole-array updates, no gathers
+    turning = (ang_vel != 0.0).any(axis=1)
+    if isinstance(moving, slice):  # every body moves: whole-array updates
         new_pos = pos + vel * dt
-        turning = np.any(ang_vel != 0.0, axis=1)
-        if turning.all():
-            return new_pos, rule(quat, ang_vel, dt)
-        spinning = np.flatnonzero(turning)
-        new_quat = quat.copy()
-        if spinning.size:
-            new_quat[spinning] = rule(quat[spinning], ang_vel[spinning], dt)
-        return new_pos, new_quat
-    new_pos = pos.copy()
+    else:
+        new_pos = np.add(pos, vel * dt, out=pos.copy(), where=moving[:, None])
+        turning &= moving
+    spinning = np.flatnonzero(turning)
+    if spinning.size and spinning.size == turning.size:  # every body turns: no gathers
+        return new_pos, rule(quat, ang_vel, dt)
     new_quat = quat.copy()
-    new_pos[moving] += vel[moving] * dt
-    spinning = moving[np.any(ang_vel[moving] != 0.0, axis=1)]
     if spinning.size:
-        new_quat[spinning] = ORIENTATION_RULES[orientation_update](
-            quat[spinning], ang_vel[spinning], dt
-        )
+        new_quat[spinning] = rule(quat[spinning], ang_vel[spinning], dt)
     return new_pos, new_quat

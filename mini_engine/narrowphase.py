@@ -121,7 +121,7 @@ fallback of a never-zero direction in ``_capsule_box`` (box frame)."""
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Dot products over the last axis: ``(..., 3) · (..., 3) -> (...)``."""
-    return np.sum(a * b, axis=-1)
+    return (a * b).sum(axis=-1)  # the method: np.sum's reduction without its Python wrapper
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -220,7 +220,7 @@ def _emit_one_per_pair(
     """``_emit`` for functions with at most one contact per pair: ``valid (k,)``,
     ``point (k, 3)``, ``normal (k, 3)``, ``depth (k,)``. When every pair touches (a resting
     scene) the arrays are passed on (made contiguous, as a gather would), without gathers."""
-    if valid.all():
+    if np.count_nonzero(valid) == valid.size:  # valid.all(), without its Python wrapper
         return PairContacts(
             np.arange(valid.size),
             np.ascontiguousarray(point),
