@@ -69,6 +69,8 @@ class BroadPhasePlan(NamedTuple):
         plane_admissible: (P, F) bool, plane-body pairs that may touch (``admissible``).
         small: (s,) int, finite bodies that go through the grid.
         small_radius, small_world: (s,) m bounding radii and (s,) int worlds of those.
+        small_all_admissible: every pair of small bodies is admissible (none fixed, one world),
+            so their grid pairs skip the ``admissible`` test.
         direct_a, direct_b: (d,) int, a < b, the admissible direct pairs (large bodies
             against the finite bodies of their worlds), in ``direct_pairs`` order.
         direct_reach: (d,) m, ``r_a + r_b`` of those pairs (the padding is added per step).
@@ -81,6 +83,7 @@ class BroadPhasePlan(NamedTuple):
     small: np.ndarray
     small_radius: np.ndarray
     small_world: np.ndarray
+    small_all_admissible: bool
     direct_a: np.ndarray
     direct_b: np.ndarray
     direct_reach: np.ndarray
@@ -117,6 +120,9 @@ def broadphase_plan(model: Model) -> BroadPhasePlan:
         small=small,
         small_radius=radius[small],
         small_world=model.body_world[small],
+        small_all_admissible=bool(
+            not model.body_fixed[small].any() and np.unique(model.body_world[small]).size <= 1
+        ),
         direct_a=direct_a,
         direct_b=direct_b,
         direct_reach=radius[direct_a] + radius[direct_b],
@@ -185,11 +191,12 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
         )
         if a.size:
             a, b = np.minimum(a, b), np.maximum(a, b)
-            keep = admissible(model, a, b)
             offset = pos.take(a, axis=0) - pos.take(b, axis=0)
             radius = model.body_bound_radius
             reach = radius.take(a) + radius.take(b) + 2.0 * padding
-            keep &= np.einsum("ij,ij->i", offset, offset) <= reach * reach
+            keep = np.einsum("ij,ij->i", offset, offset) <= reach * reach
+            if not work.small_all_admissible:
+                keep &= admissible(model, a, b)
             a_parts.append(a[keep]), b_parts.append(b[keep])
     if not a_parts:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
@@ -263,11 +270,12 @@ def _grid_pairs(
     if m < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     cell_size = 2.0 * radius.max()
-    span = (centre.max(axis=0) - centre.min(axis=0)) / cell_size
+    lowest = centre.min(axis=0)
+    span = (centre.max(axis=0) - lowest) / cell_size
     if not np.isfinite(span).all() or span.max() > GRID_SPAN_LIMIT:  # exploded: no grid fits
         first, second = np.triu_indices(m, k=1)
         return body[first], body[second]
-    cell = np.floor((centre - centre.min(axis=0)) / cell_size).astype(np.int64) + 1
+    cell = np.floor((centre - lowest) / cell_size).astype(np.int64) + 1
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
     strides = np.array([dims[1] * dims[2], dims[2], 1])
     per_world = int(np.prod(dims))
@@ -296,19 +304,15 @@ def _grid_pairs(
                 np.searchsorted(sorted_key, keys, side="right"),
             )
 
-    firsts, seconds = [], []
-    for offset in HALF_NEIGHBOURHOOD:
-        start, end = run(key + int(offset @ strides))
-        if not offset.any():
-            start = np.maximum(start, rank + 1)  # own cell: each pair once
-        count = np.maximum(end - start, 0)
-        total = int(count.sum())
-        if total == 0:
-            continue
-        owner = np.repeat(np.arange(m), count)
-        within = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-        firsts.append(body[owner])
-        seconds.append(body[order[np.repeat(start, count) + within]])
-    if not firsts:
+    # all 14 neighbourhoods at once, (14, m): offset-major, then body order, as one flat list
+    start, end = run(key[None, :] + (HALF_NEIGHBOURHOOD @ strides)[:, None])
+    start[0] = np.maximum(start[0], rank + 1)  # own cell (offset 0): each pair once
+    count = np.maximum(end - start, 0).ravel()
+    total = int(count.sum())
+    if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(firsts), np.concatenate(seconds)
+    # the j-th pair of a run is the run's start + j: start - (pairs before the run) + arange
+    run_shift = start.ravel() - (np.cumsum(count) - count)
+    first = np.repeat(np.tile(body, HALF_NEIGHBOURHOOD.shape[0]), count)
+    second = body.take(order.take(np.arange(total) + np.repeat(run_shift, count)))
+    return first, second

@@ -170,14 +170,17 @@ def integrate_pose(
     that can move; the others keep their pose exactly.
     """
     rule = ORIENTATION_RULES[orientation_update]
-    turning = (ang_vel != 0.0).any(axis=1)
     if isinstance(moving, slice):  # every body moves: whole-array updates
         new_pos = pos + vel * dt
     else:
         new_pos = np.add(pos, vel * dt, out=pos.copy(), where=moving[:, None])
+    if not ang_vel.any():  # nothing turns (bodies at rest, frictionless spheres)
+        return new_pos, quat.copy()
+    turning = ang_vel.any(axis=1)  # ω != 0 (NaN included, as !=)
+    if not isinstance(moving, slice):
         turning &= moving
-    spinning = np.flatnonzero(turning)
-    if spinning.size and spinning.size == turning.size:  # every body turns: no gathers
+    spinning = turning.nonzero()[0]
+    if spinning.size == turning.size:  # every body turns: no gathers
         return new_pos, rule(quat, ang_vel, dt)
     new_quat = quat.copy()
     if spinning.size:

@@ -151,7 +151,7 @@ def _normalize(v: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     Where ``|v| <= DISTANCE_EPS`` the (unit) ``fallback`` (broadcast to ``v``) is returned.
     """
-    length = np.linalg.norm(v, axis=-1)
+    length = np.sqrt(_dot(v, v))  # np.linalg.norm's operations, without its dispatch
     defined = length > DISTANCE_EPS
     unit = v / np.where(defined, length, 1.0)[..., None]
     return np.where(defined[..., None], unit, fallback), length
@@ -227,8 +227,8 @@ def _emit_one_per_pair(
             np.ascontiguousarray(normal),
             np.ascontiguousarray(depth),
         )
-    pair = np.flatnonzero(valid)
-    return PairContacts(pair, point[pair], normal[pair], depth[pair])
+    pair = valid.nonzero()[0]
+    return PairContacts(pair, point.take(pair, axis=0), normal.take(pair, axis=0), depth.take(pair))
 
 
 def _sphere_pair(

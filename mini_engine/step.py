@@ -113,12 +113,12 @@ def _rotations(work, quat: np.ndarray) -> np.ndarray:
     orientations are bit-for-bit those of the last step (resting or non-spinning bodies:
     a sphere pile, a body on the ground), so the same matrices are not rebuilt."""
     cache = work.rotation_cache
-    last = cache.get("quat")
-    if last is not None and last.shape == quat.shape and (last == quat).all():
+    quat_bits = quat.tobytes()  # bit-for-bit comparison: a byte string equality
+    if cache.get("quat_shape") == quat.shape and cache.get("quat_bits") == quat_bits:
         return cache["rot"]
     rot = quat_to_matrix(quat)
     rot.flags.writeable = False
-    cache.update(quat=quat.copy(), rot=rot)
+    cache.update(quat_shape=quat.shape, quat_bits=quat_bits, rot=rot)
     return rot
 
 
