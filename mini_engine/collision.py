@@ -49,7 +49,9 @@ def detect_contacts(
     """
     plane_pair, finite_pair = known_shape_pairs(model)
     reach = margin + padding
-    found = _collide_pairs(model, pos, rot, margin, *plane_pairs(model, pos, rot, reach), plane_pair)
+    found = _collide_pairs(
+        model, pos, rot, margin, *plane_pairs(model, pos, rot, reach), plane_pair
+    )
     found += _collide_pairs(model, pos, rot, margin, *finite_pairs(model, pos, reach), finite_pair)
     if not found:
         return Contacts.empty()

@@ -35,6 +35,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mini_engine.contacts import PairContacts
+from mini_engine.rotation import last_axis_sum
 from mini_engine.shapes import ShapeType
 
 # ---------------------------------------------------------------------------------------
@@ -121,7 +122,7 @@ fallback of a never-zero direction in ``_capsule_box`` (box frame)."""
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Dot products over the last axis: ``(..., 3) · (..., 3) -> (...)``."""
-    return (a * b).sum(axis=-1)  # the method: np.sum's reduction without its Python wrapper
+    return last_axis_sum(a * b)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mini_engine.integrate import BodyInertia, body_inertia
 from mini_engine.model import Model, per_model
 
 BodySelection = slice | np.ndarray
@@ -35,6 +36,7 @@ class Workspace:
         moving_selection: (n,) bool, the dynamic bodies (``model.body_dynamic``), or
             ``slice(None)`` when every body moves.
         gyroscopic_selection: ``model.gyroscopic_bodies`` or ``slice(None)`` when all are.
+        gyroscopic_inertia: the body-frame inertia of those bodies (``integrate.BodyInertia``).
         has_springs: the model has springs (else the spring phase is skipped).
         constant_lin_acc: (n, 3) m/s², world frame, ``g + F_const / m`` (0 for fixed bodies)
             when there are no springs; None otherwise (then it depends on the state).
@@ -50,6 +52,7 @@ class Workspace:
 
     moving_selection: slice | np.ndarray
     gyroscopic_selection: BodySelection
+    gyroscopic_inertia: BodyInertia
     has_springs: bool
     constant_lin_acc: np.ndarray | None
     constant_torque: np.ndarray | None
@@ -76,10 +79,12 @@ def workspace(model: Model) -> Workspace:
         for array in (lin_acc, torque):
             array.flags.writeable = False
     body_row = np.where(model.body_fixed, n, np.arange(n))
+    gyroscopic = _selection(model.gyroscopic_bodies, n)
 
     return Workspace(
         moving_selection=slice(None) if every_body_moves else model.body_dynamic,
-        gyroscopic_selection=_selection(model.gyroscopic_bodies, n),
+        gyroscopic_selection=gyroscopic,
+        gyroscopic_inertia=body_inertia(model.body_inertia, model.body_inv_inertia, gyroscopic),
         has_springs=has_springs,
         constant_lin_acc=lin_acc,
         constant_torque=torque,
