@@ -197,7 +197,8 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
             keep = np.einsum("ij,ij->i", offset, offset) <= reach * reach
             if not work.small_all_admissible:
                 keep &= admissible(model, a, b)
-            a_parts.append(a[keep]), b_parts.append(b[keep])
+            kept = keep.nonzero()[0]
+            a_parts.append(a.take(kept)), b_parts.append(b.take(kept))
     if not a_parts:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     if len(a_parts) == 1:

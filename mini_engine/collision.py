@@ -23,6 +23,13 @@ ShapePair = tuple[int, int]
 """``(shape_a, shape_b)`` with ``shape_a <= shape_b``: a key of ``NARROW_PHASE``."""
 
 
+SPHERE_ROTATIONS = np.broadcast_to(np.eye(3), (1 << 40, 3, 3))
+"""Rotations handed to the narrow phase for spheres: identities, as a read-only zero-stride
+view sliced to the batch length. A sphere's contacts do not depend on its orientation (no
+narrow-phase function reads a sphere's rotation), so sphere rotations are not gathered.
+2**40 rows: more pairs than any batch that fits in memory."""
+
+
 class UnsupportedShapePairError(ValueError):
     """Two shapes that may touch but have no narrow-phase function."""
 
@@ -108,11 +115,19 @@ def _narrow_phase(
     size = model.body_size
     hits = collide(
         pos.take(a, axis=0),
-        rot.take(a, axis=0),
+        _rotations_of(rot, a, key[0]),
         size.take(a, axis=0),
         pos.take(b, axis=0),
-        rot.take(b, axis=0),
+        _rotations_of(rot, b, key[1]),
         size.take(b, axis=0),
         margin,
     )
     return Contacts(a.take(hits.pair), b.take(hits.pair), hits.point, hits.normal, hits.depth)
+
+
+def _rotations_of(rot: np.ndarray, bodies: np.ndarray, shape: int) -> np.ndarray:
+    """The rotations (k, 3, 3) of ``bodies (k,)``, all of one ``shape``; identities for
+    spheres (``SPHERE_ROTATIONS``), whose contacts do not depend on them."""
+    if shape == ShapeType.SPHERE:
+        return SPHERE_ROTATIONS[: bodies.size]
+    return rot.take(bodies, axis=0)

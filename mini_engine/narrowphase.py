@@ -154,6 +154,8 @@ def _normalize(v: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndar
     """
     length = np.sqrt(_dot(v, v))  # np.linalg.norm's operations, without its dispatch
     defined = length > DISTANCE_EPS
+    if np.count_nonzero(defined) == defined.size:  # every direction defined: no fallback
+        return v / length[..., None], length
     unit = v / np.where(defined, length, 1.0)[..., None]
     return np.where(defined[..., None], unit, fallback), length
 
