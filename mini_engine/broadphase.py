@@ -74,6 +74,8 @@ class BroadPhasePlan(NamedTuple):
         direct_a, direct_b: (d,) int, a < b, the admissible direct pairs (large bodies
             against the finite bodies of their worlds), in ``direct_pairs`` order.
         direct_reach: (d,) m, ``r_a + r_b`` of those pairs (the padding is added per step).
+        any_finite_pairs: there are direct pairs or at least two small bodies (else
+            ``finite_pairs`` has nothing to test).
     """
 
     planes: np.ndarray
@@ -87,6 +89,7 @@ class BroadPhasePlan(NamedTuple):
     direct_a: np.ndarray
     direct_b: np.ndarray
     direct_reach: np.ndarray
+    any_finite_pairs: bool
 
 
 @per_model
@@ -126,6 +129,7 @@ def broadphase_plan(model: Model) -> BroadPhasePlan:
         direct_a=direct_a,
         direct_b=direct_b,
         direct_reach=radius[direct_a] + radius[direct_b],
+        any_finite_pairs=bool(direct_a.size or small.size >= 2),
     )
 
 
@@ -177,6 +181,8 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
     """Candidate pairs (a, b) of finite bodies, each (p,) int with a < b: the direct pairs of
     large bodies, then the grid pairs. Arguments as in ``candidate_pairs``."""
     work = broadphase_plan(model)
+    if not work.any_finite_pairs:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     a_parts, b_parts = [], []
     if work.direct_a.size:
         a, b = work.direct_a, work.direct_b

@@ -210,7 +210,7 @@ def integrate_pose(
         new_pos = pos + vel * dt
     else:
         new_pos = np.add(pos, vel * dt, out=pos.copy(), where=moving[:, None])
-    if not ang_vel.any():  # nothing turns (bodies at rest, frictionless spheres)
+    if not np.count_nonzero(ang_vel):  # nothing turns (bodies at rest, frictionless spheres)
         return new_pos, quat.copy()
     nonzero = ang_vel != 0.0
     turning = nonzero[:, 0] | nonzero[:, 1] | nonzero[:, 2]  # .any(axis=1), 3 whole-array ops
