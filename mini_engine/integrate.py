@@ -210,7 +210,7 @@ def integrate_pose(
         new_pos = pos + vel * dt
     else:
         new_pos = np.add(pos, vel * dt, out=pos.copy(), where=moving[:, None])
-    if not np.count_nonzero(ang_vel):  # nothing turns (bodies at rest, frictionless spheres)
+    if not np.count_nonzero(ang_vel):  # nothing turns (bodies at rest or sliding)
         return new_pos, quat.copy()
     nonzero = ang_vel != 0.0
     turning = nonzero[:, 0] | nonzero[:, 1] | nonzero[:, 2]  # .any(axis=1), 3 whole-array ops
@@ -221,5 +221,5 @@ def integrate_pose(
         return new_pos, rule(quat, ang_vel, dt)
     new_quat = quat.copy()
     if spinning.size:
-        new_quat[spinning] = rule(quat[spinning], ang_vel[spinning], dt)
+        new_quat[spinning] = rule(quat.take(spinning, axis=0), ang_vel.take(spinning, axis=0), dt)
     return new_pos, new_quat
