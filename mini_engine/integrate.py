@@ -49,7 +49,7 @@ class BodyInertia(NamedTuple):
         diagonal, inv_diagonal: (g, 3) the tensors' diagonals when every off-diagonal entry
             is exactly 0 (body axes are principal axes, as for every solid shape), else None.
             Then ``I ω`` is ``diagonal * ω``: the tensor product's terms without its exact
-            zeros, so the same value.
+            zeros, so the same value for finite ω (a zero result may differ in sign).
     """
 
     tensor: np.ndarray

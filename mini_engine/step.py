@@ -109,8 +109,8 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
 
 def _rotations(work, quat: np.ndarray) -> np.ndarray:
     """Rotation matrices (n, 3, 3) of ``quat (n, 4)``, read-only; the last step's when the
-    orientations are bit-for-bit those of the last step (resting or non-spinning bodies:
-    a sphere pile, a body on the ground), so the same matrices are not rebuilt."""
+    orientations are bit-for-bit those of the last step (their bytes compare equal: resting
+    or non-spinning bodies, a body on the ground), so the same matrices are not rebuilt."""
     cache = work.rotation_cache
     quat_bits = quat.tobytes()  # bit-for-bit comparison: a byte string equality
     if cache.get("quat_shape") == quat.shape and cache.get("quat_bits") == quat_bits:
