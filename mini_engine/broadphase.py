@@ -195,8 +195,7 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
         a, b = _grid_pairs(
             pos.take(small, axis=0), work.small_radius + padding, small, work.small_world
         )
-        if a.size:
-            a, b = np.minimum(a, b), np.maximum(a, b)
+        if a.size:  # every test is symmetric in a and b: order the survivors only
             offset = pos.take(a, axis=0) - pos.take(b, axis=0)
             radius = model.body_bound_radius
             reach = radius.take(a) + radius.take(b) + 2.0 * padding
@@ -204,7 +203,8 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
             if not work.small_all_admissible:
                 keep &= admissible(model, a, b)
             kept = keep.nonzero()[0]
-            a_parts.append(a.take(kept)), b_parts.append(b.take(kept))
+            a, b = a.take(kept), b.take(kept)
+            a_parts.append(np.minimum(a, b)), b_parts.append(np.maximum(a, b))
     if not a_parts:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     if len(a_parts) == 1:
