@@ -65,23 +65,31 @@ class BroadPhasePlan(NamedTuple):
 
     Attributes:
         planes, finite: (P,) and (F,) int, collidable planes and collidable finite bodies.
+        finite_radius: (F,) m, the bounding radii of those finite bodies.
         plane_admissible: (P, F) bool, plane-body pairs that may touch (``admissible``).
         small: (s,) int, finite bodies that go through the grid.
         small_radius, small_world: (s,) m bounding radii and (s,) int worlds of those.
+        small_all_admissible: every pair of small bodies is admissible (none fixed, one world),
+            so their grid pairs skip the ``admissible`` test.
         direct_a, direct_b: (d,) int, a < b, the admissible direct pairs (large bodies
             against the finite bodies of their worlds), in ``direct_pairs`` order.
         direct_reach: (d,) m, ``r_a + r_b`` of those pairs (the padding is added per step).
+        any_finite_pairs: there are direct pairs or at least two small bodies (else
+            ``finite_pairs`` has nothing to test).
     """
 
     planes: np.ndarray
     finite: np.ndarray
+    finite_radius: np.ndarray
     plane_admissible: np.ndarray
     small: np.ndarray
     small_radius: np.ndarray
     small_world: np.ndarray
+    small_all_admissible: bool
     direct_a: np.ndarray
     direct_b: np.ndarray
     direct_reach: np.ndarray
+    any_finite_pairs: bool
 
 
 @per_model
@@ -110,13 +118,18 @@ def broadphase_plan(model: Model) -> BroadPhasePlan:
     return BroadPhasePlan(
         planes=planes,
         finite=finite,
+        finite_radius=radius[finite],
         plane_admissible=plane_admissible,
         small=small,
         small_radius=radius[small],
         small_world=model.body_world[small],
+        small_all_admissible=bool(
+            not model.body_fixed[small].any() and np.unique(model.body_world[small]).size <= 1
+        ),
         direct_a=direct_a,
         direct_b=direct_b,
         direct_reach=radius[direct_a] + radius[direct_b],
+        any_finite_pairs=bool(direct_a.size or small.size >= 2),
     )
 
 
@@ -126,35 +139,72 @@ def candidate_pairs(
     """Candidate pairs (a, b), each (p,) int with a < b, whose bounding spheres may touch.
 
     Each unordered pair appears once; the order is deterministic (by construction):
-    plane pairs, then direct pairs, then grid pairs.
+    plane pairs (``plane_pairs``), then finite pairs (``finite_pairs``: direct, then grid).
 
     Args:
         pos: (n, 3) m, world frame, body centres.
         rot: (n, 3, 3) body-to-world rotations (planes' normals are their +z axes).
         padding: m, added to each bounding radius (contact margin).
     """
+    plane, body = plane_pairs(model, pos, rot, padding)
+    a, b = finite_pairs(model, pos, padding)
+    return (
+        np.concatenate([np.minimum(plane, body), a]),
+        np.concatenate([np.maximum(plane, body), b]),
+    )
+
+
+def plane_pairs(
+    model: Model, pos: np.ndarray, rot: np.ndarray, padding: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Admissible (plane, body) pairs, each (p,) int, whose padded bounding sphere reaches the
+    plane (all P*F pairs tested at once), in plane-major order; the plane comes first.
+
+    A plane's normal is its body +z axis, the last column of its rotation ``rot (n, 3, 3)``.
+    Their bounding-sphere test always passes (a plane's radius is infinite). Arguments as
+    in ``candidate_pairs``.
+    """
     work = broadphase_plan(model)
-    radius = model.body_bound_radius
+    planes, finite = work.planes, work.finite
+    if not (planes.size and finite.size):  # plane pairs are admissible or not by index
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    normal = rot.take(planes, axis=0)[:, :, 2]  # (P, 3) world frame
+    offset = pos.take(finite, axis=0)[None, :, :] - pos.take(planes, axis=0)[:, None, :]
+    height = np.einsum("pfi,pi->pf", offset, normal)
+    plane_idx, body_idx = np.nonzero(
+        (height <= work.finite_radius + padding) & work.plane_admissible
+    )
+    return planes.take(plane_idx), finite.take(body_idx)
+
+
+def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs (a, b) of finite bodies, each (p,) int with a < b: the direct pairs of
+    large bodies, then the grid pairs. Arguments as in ``candidate_pairs``."""
+    work = broadphase_plan(model)
+    if not work.any_finite_pairs:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     a_parts, b_parts = [], []
-    if work.planes.size and work.finite.size:  # plane pairs are admissible or not by index
-        a, b = _plane_pairs(model, pos, rot, work.planes, work.finite, padding, work)
-        a_parts.append(a), b_parts.append(b)
     if work.direct_a.size:
         a, b = work.direct_a, work.direct_b
-        offset = pos[a] - pos[b]
+        offset = pos.take(a, axis=0) - pos.take(b, axis=0)
         reach = work.direct_reach + 2.0 * padding
         near = np.einsum("ij,ij->i", offset, offset) <= reach * reach
         a_parts.append(a[near]), b_parts.append(b[near])
     if work.small.size >= 2:
         small = work.small
-        a, b = _grid_pairs(pos[small], work.small_radius + padding, small, work.small_world)
-        if a.size:
-            a, b = np.minimum(a, b), np.maximum(a, b)
-            keep = admissible(model, a, b)
-            offset = pos[a] - pos[b]
-            reach = radius[a] + radius[b] + 2.0 * padding
-            keep &= np.einsum("ij,ij->i", offset, offset) <= reach * reach
-            a_parts.append(a[keep]), b_parts.append(b[keep])
+        a, b = _grid_pairs(
+            pos.take(small, axis=0), work.small_radius + padding, small, work.small_world
+        )
+        if a.size:  # every test is symmetric in a and b: order the survivors only
+            offset = pos.take(a, axis=0) - pos.take(b, axis=0)
+            radius = model.body_bound_radius
+            reach = radius.take(a) + radius.take(b) + 2.0 * padding
+            keep = np.einsum("ij,ij->i", offset, offset) <= reach * reach
+            if not work.small_all_admissible:
+                keep &= admissible(model, a, b)
+            kept = keep.nonzero()[0]
+            a, b = a.take(kept), b.take(kept)
+            a_parts.append(np.minimum(a, b)), b_parts.append(np.maximum(a, b))
     if not a_parts:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     if len(a_parts) == 1:
@@ -164,24 +214,9 @@ def candidate_pairs(
 
 def admissible(model: Model, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(p,) bool: distinct bodies, not both fixed, in the same world or one shared."""
-    world_a, world_b = model.body_world[a], model.body_world[b]
+    world_a, world_b = model.body_world.take(a), model.body_world.take(b)
     same_world = (world_a == world_b) | (world_a == SHARED_WORLD) | (world_b == SHARED_WORLD)
-    return (a != b) & ~(model.body_fixed[a] & model.body_fixed[b]) & same_world
-
-
-def _plane_pairs(model, pos, rot, planes, finite, padding, work) -> tuple[np.ndarray, np.ndarray]:
-    """Admissible plane-body pairs (P*F tested at once) whose padded bounding sphere reaches
-    the plane, each ordered a < b.
-
-    A plane's normal is its body +z axis, the last column of its rotation ``rot (n, 3, 3)``.
-    Their bounding-sphere test always passes (a plane's radius is infinite).
-    """
-    normal = rot[planes][:, :, 2]  # (P, 3) world frame
-    height = np.einsum("pfi,pi->pf", pos[finite][None, :, :] - pos[planes][:, None, :], normal)
-    reach = model.body_bound_radius[finite][None, :] + padding
-    plane_idx, body_idx = np.nonzero((height <= reach) & work.plane_admissible)
-    a, b = planes[plane_idx], finite[body_idx]
-    return np.minimum(a, b), np.maximum(a, b)
+    return (a != b) & ~(model.body_fixed.take(a) & model.body_fixed.take(b)) & same_world
 
 
 def direct_pairs(
@@ -242,11 +277,12 @@ def _grid_pairs(
     if m < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     cell_size = 2.0 * radius.max()
-    span = (centre.max(axis=0) - centre.min(axis=0)) / cell_size
+    lowest = centre.min(axis=0)
+    span = (centre.max(axis=0) - lowest) / cell_size
     if not np.isfinite(span).all() or span.max() > GRID_SPAN_LIMIT:  # exploded: no grid fits
         first, second = np.triu_indices(m, k=1)
         return body[first], body[second]
-    cell = np.floor((centre - centre.min(axis=0)) / cell_size).astype(np.int64) + 1
+    cell = np.floor((centre - lowest) / cell_size).astype(np.int64) + 1
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
     strides = np.array([dims[1] * dims[2], dims[2], 1])
     per_world = int(np.prod(dims))
@@ -275,19 +311,15 @@ def _grid_pairs(
                 np.searchsorted(sorted_key, keys, side="right"),
             )
 
-    firsts, seconds = [], []
-    for offset in HALF_NEIGHBOURHOOD:
-        start, end = run(key + int(offset @ strides))
-        if not offset.any():
-            start = np.maximum(start, rank + 1)  # own cell: each pair once
-        count = np.maximum(end - start, 0)
-        total = int(count.sum())
-        if total == 0:
-            continue
-        owner = np.repeat(np.arange(m), count)
-        within = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-        firsts.append(body[owner])
-        seconds.append(body[order[np.repeat(start, count) + within]])
-    if not firsts:
+    # all 14 neighbourhoods at once, (14, m): offset-major, then body order, as one flat list
+    start, end = run(key[None, :] + (HALF_NEIGHBOURHOOD @ strides)[:, None])
+    start[0] = np.maximum(start[0], rank + 1)  # own cell (offset 0): each pair once
+    count = np.maximum(end - start, 0).ravel()
+    total = int(count.sum())
+    if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(firsts), np.concatenate(seconds)
+    # the j-th pair of a run is the run's start + j: start - (pairs before the run) + arange
+    run_shift = start.ravel() - (np.cumsum(count) - count)
+    first = np.repeat(np.tile(body, HALF_NEIGHBOURHOOD.shape[0]), count)
+    second = body.take(order.take(np.arange(total) + np.repeat(run_shift, count)))
+    return first, second

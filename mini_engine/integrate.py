@@ -14,6 +14,7 @@ by ``Settings.orientation_update``; the gyroscopic term the rule named by
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -38,34 +39,69 @@ BodySelection = slice | np.ndarray
 """Bodies a phase acts on: ``(k,)`` int indices, or ``slice(None)`` for every body (a view,
 no gather/scatter copies; ``workspace.Workspace`` picks it when the set is complete)."""
 
-GyroscopicRule = Callable[
-    [np.ndarray, np.ndarray, np.ndarray, np.ndarray, BodySelection, float], None
-]
-"""``rule(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt)`` updates ``ang_vel[bodies]``
-in place for the torque-free motion ω̇ = -I⁻¹(ω × Iω) over one step."""
+
+class BodyInertia(NamedTuple):
+    """Body-frame inertia of the bodies a gyroscopic rule acts on (g bodies), gathered once
+    per model (``workspace.Workspace.gyroscopic_inertia``).
+
+    Attributes:
+        tensor, inv_tensor: (g, 3, 3) kg·m² and 1/(kg·m²), body frame.
+        diagonal, inv_diagonal: (g, 3) the tensors' diagonals when every off-diagonal entry
+            is exactly 0 (body axes are principal axes, as for every solid shape), else None.
+            Then ``I ω`` is ``diagonal * ω``: the tensor product's terms without its exact
+            zeros, so the same value for finite ω (a zero result may differ in sign).
+    """
+
+    tensor: np.ndarray
+    inv_tensor: np.ndarray
+    diagonal: np.ndarray | None
+    inv_diagonal: np.ndarray | None
+
+
+def body_inertia(
+    inertia_body: np.ndarray, inv_inertia_body: np.ndarray, bodies: BodySelection
+) -> BodyInertia:
+    """The ``BodyInertia`` of ``bodies`` from ``(n, 3, 3)`` body-frame tensors and inverses."""
+    tensor, inv_tensor = inertia_body[bodies], inv_inertia_body[bodies]
+    off_diagonal = ~np.eye(3, dtype=bool)
+    if tensor[:, off_diagonal].any() or inv_tensor[:, off_diagonal].any():
+        return BodyInertia(tensor, inv_tensor, None, None)
+    diagonal = np.diagonal(tensor, axis1=1, axis2=2).copy()
+    return BodyInertia(
+        tensor, inv_tensor, diagonal, np.diagonal(inv_tensor, axis1=1, axis2=2).copy()
+    )
+
+
+GyroscopicRule = Callable[[np.ndarray, np.ndarray, BodyInertia, BodySelection, float], None]
+"""``rule(ang_vel, rot, inertia, bodies, dt)`` updates ``ang_vel[bodies]`` in place for the
+torque-free motion ω̇ = -I⁻¹(ω × Iω) over one step; ``inertia`` is that of ``bodies``."""
 
 
 def _is_empty(bodies: BodySelection) -> bool:
     return isinstance(bodies, np.ndarray) and bodies.size == 0
 
 
-def _gyroscopic_none(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -> None:
+def _gyroscopic_none(ang_vel, rot, inertia, bodies, dt) -> None:
     """The documented law α = I⁻¹τ drops ω × Iω: torque-free bodies keep ω (not L)."""
 
 
-def _gyroscopic_explicit(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -> None:
+def _gyroscopic_explicit(ang_vel, rot, inertia: BodyInertia, bodies, dt) -> None:
     """Explicit Euler on the gyroscopic term, in the body frame:
     ``ω_b ← ω_b - dt I⁻¹ (ω_b × I ω_b)``. Gains energy by O(dt) (MuJoCo Euler, Bullet multibody)."""
     if _is_empty(bodies):
         return
     R = rot[bodies]
     omega_body = apply_transpose(R, ang_vel[bodies])
-    momentum_body = apply(inertia_body[bodies], omega_body)
-    omega_body -= dt * apply(inv_inertia_body[bodies], cross(omega_body, momentum_body))
+    if inertia.diagonal is None:
+        momentum_body = apply(inertia.tensor, omega_body)
+        omega_body -= dt * apply(inertia.inv_tensor, cross(omega_body, momentum_body))
+    else:  # principal body axes: (g, 3) products instead of (g, 3, 3) ones
+        momentum_body = inertia.diagonal * omega_body
+        omega_body -= dt * (inertia.inv_diagonal * cross(omega_body, momentum_body))
     ang_vel[bodies] = apply(R, omega_body)
 
 
-def _gyroscopic_implicit(ang_vel, rot, inertia_body, inv_inertia_body, bodies, dt) -> None:
+def _gyroscopic_implicit(ang_vel, rot, inertia: BodyInertia, bodies, dt) -> None:
     """One Newton step on ``f(ω') = I (ω' - ω) + dt ω' × I ω' = 0`` in the body frame.
 
     Starting from ω' = ω, the step is ``ω' = ω - J⁻¹ f(ω)`` with
@@ -75,11 +111,11 @@ def _gyroscopic_implicit(ang_vel, rot, inertia_body, inv_inertia_body, bodies, d
     if _is_empty(bodies):
         return
     R = rot[bodies]
-    inertia = inertia_body[bodies]
+    tensor = inertia.tensor
     omega_body = apply_transpose(R, ang_vel[bodies])
-    momentum_body = apply(inertia, omega_body)
+    momentum_body = apply(tensor, omega_body)
     residual = dt * cross(omega_body, momentum_body)
-    jacobian = inertia + dt * (skew(omega_body) @ inertia - skew(momentum_body))
+    jacobian = tensor + dt * (skew(omega_body) @ tensor - skew(momentum_body))
     omega_body -= np.linalg.solve(jacobian, residual[:, :, None])[:, :, 0]
     ang_vel[bodies] = apply(R, omega_body)
 
@@ -105,8 +141,7 @@ def integrate_angular_velocity(
     torque: np.ndarray,
     inv_inertia_world: np.ndarray,
     rot: np.ndarray,
-    inertia_body: np.ndarray,
-    inv_inertia_body: np.ndarray,
+    gyroscopic_inertia: BodyInertia,
     gyroscopic_bodies: BodySelection,
     gyroscopic: str,
     dt: float,
@@ -120,11 +155,12 @@ def integrate_angular_velocity(
     Args:
         inv_inertia_world: (n, 3, 3) ``R I⁻¹ Rᵀ`` at the start of the step.
         rot: (n, 3, 3) body-to-world rotations at the start of the step.
+        gyroscopic_inertia: the body-frame inertia of ``gyroscopic_bodies``.
         gyroscopic_bodies: (g,) int or ``slice(None)``, the bodies whose ω × Iω can be non-zero.
         any_torque: False when ``torque`` is known to be all zero (the torque update is skipped).
     """
     new = ang_vel.copy()
-    GYROSCOPIC_RULES[gyroscopic](new, rot, inertia_body, inv_inertia_body, gyroscopic_bodies, dt)
+    GYROSCOPIC_RULES[gyroscopic](new, rot, gyroscopic_inertia, gyroscopic_bodies, dt)
     if not any_torque:
         return new
     torqued = np.flatnonzero(np.any(torque != 0.0, axis=1))
@@ -158,7 +194,7 @@ def integrate_pose(
     quat: np.ndarray,
     vel: np.ndarray,
     ang_vel: np.ndarray,
-    moving: BodySelection,
+    moving: slice | np.ndarray,
     orientation_update: str,
     dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -166,26 +202,24 @@ def integrate_pose(
 
     ``vel``/``ang_vel`` are the velocities the integrator uses for the position update
     (the new ones for semi-implicit Euler, the old ones for explicit Euler).
-    ``moving`` (``(m,) int`` or ``slice(None)`` for all) lists the bodies that can move; the
-    others keep their pose exactly.
+    ``moving`` (``(n,) bool``, or ``slice(None)`` when every body moves) marks the bodies
+    that can move; the others keep their pose exactly.
     """
     rule = ORIENTATION_RULES[orientation_update]
-    if isinstance(moving, slice):  # every body moves: whole-array updates, no gathers
+    if isinstance(moving, slice):  # every body moves: whole-array updates
         new_pos = pos + vel * dt
-        turning = np.any(ang_vel != 0.0, axis=1)
-        if turning.all():
-            return new_pos, rule(quat, ang_vel, dt)
-        spinning = np.flatnonzero(turning)
-        new_quat = quat.copy()
-        if spinning.size:
-            new_quat[spinning] = rule(quat[spinning], ang_vel[spinning], dt)
-        return new_pos, new_quat
-    new_pos = pos.copy()
+    else:
+        new_pos = np.add(pos, vel * dt, out=pos.copy(), where=moving[:, None])
+    if not np.count_nonzero(ang_vel):  # nothing turns (bodies at rest or sliding)
+        return new_pos, quat.copy()
+    nonzero = ang_vel != 0.0
+    turning = nonzero[:, 0] | nonzero[:, 1] | nonzero[:, 2]  # .any(axis=1), 3 whole-array ops
+    if not isinstance(moving, slice):
+        turning &= moving
+    spinning = turning.nonzero()[0]
+    if spinning.size == turning.size:  # every body turns: no gathers
+        return new_pos, rule(quat, ang_vel, dt)
     new_quat = quat.copy()
-    new_pos[moving] += vel[moving] * dt
-    spinning = moving[np.any(ang_vel[moving] != 0.0, axis=1)]
     if spinning.size:
-        new_quat[spinning] = ORIENTATION_RULES[orientation_update](
-            quat[spinning], ang_vel[spinning], dt
-        )
+        new_quat[spinning] = rule(quat.take(spinning, axis=0), ang_vel.take(spinning, axis=0), dt)
     return new_pos, new_quat

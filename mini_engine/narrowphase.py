@@ -35,6 +35,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mini_engine.contacts import PairContacts
+from mini_engine.rotation import last_axis_sum
 from mini_engine.shapes import ShapeType
 
 # ---------------------------------------------------------------------------------------
@@ -121,7 +122,7 @@ fallback of a never-zero direction in ``_capsule_box`` (box frame)."""
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Dot products over the last axis: ``(..., 3) · (..., 3) -> (...)``."""
-    return np.sum(a * b, axis=-1)
+    return last_axis_sum(a * b)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -151,8 +152,10 @@ def _normalize(v: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     Where ``|v| <= DISTANCE_EPS`` the (unit) ``fallback`` (broadcast to ``v``) is returned.
     """
-    length = np.linalg.norm(v, axis=-1)
+    length = np.sqrt(_dot(v, v))  # np.linalg.norm's operations, without its dispatch
     defined = length > DISTANCE_EPS
+    if np.count_nonzero(defined) == defined.size:  # every direction defined: no fallback
+        return v / length[..., None], length
     unit = v / np.where(defined, length, 1.0)[..., None]
     return np.where(defined[..., None], unit, fallback), length
 
@@ -220,15 +223,15 @@ def _emit_one_per_pair(
     """``_emit`` for functions with at most one contact per pair: ``valid (k,)``,
     ``point (k, 3)``, ``normal (k, 3)``, ``depth (k,)``. When every pair touches (a resting
     scene) the arrays are passed on (made contiguous, as a gather would), without gathers."""
-    if valid.all():
+    if np.count_nonzero(valid) == valid.size:  # valid.all(), without its Python wrapper
         return PairContacts(
             np.arange(valid.size),
             np.ascontiguousarray(point),
             np.ascontiguousarray(normal),
             np.ascontiguousarray(depth),
         )
-    pair = np.flatnonzero(valid)
-    return PairContacts(pair, point[pair], normal[pair], depth[pair])
+    pair = valid.nonzero()[0]
+    return PairContacts(pair, point.take(pair, axis=0), normal.take(pair, axis=0), depth.take(pair))
 
 
 def _sphere_pair(

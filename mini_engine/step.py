@@ -70,7 +70,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         lin_acc, torque, any_torque = work.constant_lin_acc, work.constant_torque, work.any_torque
     # 3. world inverse inertia R I⁻¹ Rᵀ, only where a torque or an impulse will use it
     needs_inertia = contacts.count > 0 or any_torque
-    inv_inertia_world = world_inertia(rot, model.body_inv_inertia) if needs_inertia else None
+    inv_inertia_world = _world_inverse_inertia(work, model, rot) if needs_inertia else None
     # 4. integrate velocities: v += a dt; ω per the gyroscopic rule, then ω += I⁻¹τ dt
     vel = integrate_linear_velocity(state.vel, lin_acc, dt)
     ang_vel = integrate_angular_velocity(
@@ -78,8 +78,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         torque,
         inv_inertia_world,
         rot,
-        model.body_inertia,
-        model.body_inv_inertia,
+        work.gyroscopic_inertia,
         work.gyroscopic_selection,
         settings.gyroscopic,
         dt,
@@ -110,15 +109,27 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
 
 def _rotations(work, quat: np.ndarray) -> np.ndarray:
     """Rotation matrices (n, 3, 3) of ``quat (n, 4)``, read-only; the last step's when the
-    orientations are bit-for-bit those of the last step (resting or non-spinning bodies:
-    a sphere pile, a body on the ground), so the same matrices are not rebuilt."""
-    last = work.rotation_cache.get("quat")
-    if last is not None and last.shape == quat.shape and np.array_equal(last, quat):
-        return work.rotation_cache["rot"]
+    orientations are bit-for-bit those of the last step (their bytes compare equal: resting
+    or non-spinning bodies, a body on the ground), so the same matrices are not rebuilt."""
+    cache = work.rotation_cache
+    quat_bits = quat.tobytes()  # bit-for-bit comparison: a byte string equality
+    if cache.get("quat_shape") == quat.shape and cache.get("quat_bits") == quat_bits:
+        return cache["rot"]
     rot = quat_to_matrix(quat)
     rot.flags.writeable = False
-    work.rotation_cache.update(quat=quat.copy(), rot=rot)
+    cache.update(quat_shape=quat.shape, quat_bits=quat_bits, rot=rot)
     return rot
+
+
+def _world_inverse_inertia(work, model: Model, rot: np.ndarray) -> np.ndarray:
+    """World inverse inertias ``R I⁻¹ Rᵀ`` (n, 3, 3) for the rotations ``rot`` of
+    ``_rotations``, read-only; the cached ones while ``rot`` is the cached matrices."""
+    cache = work.rotation_cache
+    if cache.get("inertia_rot") is not rot:
+        inv_inertia_world = world_inertia(rot, model.body_inv_inertia)
+        inv_inertia_world.flags.writeable = False
+        cache.update(inertia_rot=rot, inv_inertia_world=inv_inertia_world)
+    return cache["inv_inertia_world"]
 
 
 def _apply_pseudo_twist(pos, quat, pseudo_twist, dt) -> tuple[np.ndarray, np.ndarray]:

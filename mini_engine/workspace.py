@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mini_engine.integrate import BodyInertia, body_inertia
 from mini_engine.model import Model, per_model
 
 BodySelection = slice | np.ndarray
@@ -32,9 +33,10 @@ class Workspace:
     """Constant per-model data of ``step`` and its phases (n bodies).
 
     Attributes:
-        moving: (m,) int, the dynamic bodies (``np.flatnonzero(model.body_dynamic)``).
-        moving_selection: ``moving`` or ``slice(None)`` when every body moves.
+        moving_selection: (n,) bool, the dynamic bodies (``model.body_dynamic``), or
+            ``slice(None)`` when every body moves.
         gyroscopic_selection: ``model.gyroscopic_bodies`` or ``slice(None)`` when all are.
+        gyroscopic_inertia: the body-frame inertia of those bodies (``integrate.BodyInertia``).
         has_springs: the model has springs (else the spring phase is skipped).
         constant_lin_acc: (n, 3) m/s², world frame, ``g + F_const / m`` (0 for fixed bodies)
             when there are no springs; None otherwise (then it depends on the state).
@@ -43,13 +45,14 @@ class Workspace:
         body_row: (n,) int, the solver's twist row of each body (n for every fixed body).
         colour_cache: the last contact colouring (its rows, order and colour slices), reused while
             the contact graph is unchanged (see ``solver.colour_contacts``).
-        rotation_cache: the last step's orientations and their rotation matrices, reused
-            while the orientations are unchanged (``step._rotations``).
+        rotation_cache: the last step's orientations, their rotation matrices and world
+            inverse inertias, reused while the orientations are unchanged (``step._rotations``,
+            ``step._world_inverse_inertia``).
     """
 
-    moving: np.ndarray
-    moving_selection: BodySelection
+    moving_selection: slice | np.ndarray
     gyroscopic_selection: BodySelection
+    gyroscopic_inertia: BodyInertia
     has_springs: bool
     constant_lin_acc: np.ndarray | None
     constant_torque: np.ndarray | None
@@ -63,7 +66,7 @@ class Workspace:
 def workspace(model: Model) -> Workspace:
     """The workspace of ``model``, built on its first step and kept per model."""
     n = model.n_bodies
-    moving = np.flatnonzero(model.body_dynamic)
+    every_body_moves = n > 0 and bool(model.body_dynamic.all())
     has_springs = model.n_springs > 0
     if has_springs:
         lin_acc, torque, any_torque = None, None, False
@@ -76,11 +79,12 @@ def workspace(model: Model) -> Workspace:
         for array in (lin_acc, torque):
             array.flags.writeable = False
     body_row = np.where(model.body_fixed, n, np.arange(n))
+    gyroscopic = _selection(model.gyroscopic_bodies, n)
 
     return Workspace(
-        moving=moving,
-        moving_selection=_selection(moving, n),
-        gyroscopic_selection=_selection(model.gyroscopic_bodies, n),
+        moving_selection=slice(None) if every_body_moves else model.body_dynamic,
+        gyroscopic_selection=gyroscopic,
+        gyroscopic_inertia=body_inertia(model.body_inertia, model.body_inv_inertia, gyroscopic),
         has_springs=has_springs,
         constant_lin_acc=lin_acc,
         constant_torque=torque,

@@ -1,0 +1,149 @@
+"""The shortcuts of issue 14's per-step work (mini_engine) give exactly what the long way gives.
+
+Each shortcut skips or reorganises work on the promise of the same result bit for bit:
+sphere rotations are not gathered for the narrow phase, principal-axis inertia is applied
+as (g, 3) products, short sums are whole-array additions, the broad phase skips the
+admissible test for pairs it knows admissible, the pose update masks the fixed bodies, and
+per-model results live in the model (and stay out of its pickles).
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from mini_engine import Body, Plane, Settings, Sphere, build_model, step
+from mini_engine.broadphase import candidate_pairs
+from mini_engine.integrate import GYROSCOPIC_RULES, BodyInertia, body_inertia
+from mini_engine.model import PER_MODEL_PREFIX, State
+from mini_engine.narrowphase import NARROW_PHASE
+from mini_engine.rotation import last_axis_sum, quat_to_matrix, rotation_quat
+from mini_engine.scenes import tumbling_box
+from mini_engine.shapes import Box, ShapeType
+
+PAIRS = 200
+"""Random configurations per shape pair: enough to reach every branch of the sphere tests."""
+
+DT = 0.37
+"""s. A long, irregular step (with irregular boxes below): the gyroscopic increment is then
+as large as ω itself, so any reordering of its products shows in the last bits of ω."""
+
+
+def _random_rotations(rng: np.random.Generator, k: int) -> np.ndarray:
+    return quat_to_matrix(rotation_quat(rng.normal(size=(k, 3))))
+
+
+def _sizes(shape: ShapeType, rng: np.random.Generator, k: int) -> np.ndarray:
+    """``body_size`` rows: radius for spheres, (radius, half length) for capsules, half
+    extents for boxes, nothing for planes."""
+    size = rng.uniform(0.05, 0.3, size=(k, 3))
+    if shape == ShapeType.CAPSULE:
+        size[:, 2] = 0.0
+    return size
+
+
+@pytest.mark.parametrize("key", [key for key in NARROW_PHASE if ShapeType.SPHERE in key])
+def test_sphere_contacts_do_not_depend_on_the_sphere_rotation(key):
+    """Why collision.SPHERE_ROTATIONS may hand spheres identities instead of their rotations."""
+    rng = np.random.default_rng(14)
+    shape_a, shape_b = key
+    pos_a = rng.uniform(-0.3, 0.3, size=(PAIRS, 3))
+    pos_b = pos_a + rng.uniform(-0.3, 0.3, size=(PAIRS, 3))
+    pos_b[::10] = pos_a[::10]  # coincident centres: the fallback directions
+    rot_a, rot_b = _random_rotations(rng, PAIRS), _random_rotations(rng, PAIRS)
+    size_a, size_b = _sizes(shape_a, rng, PAIRS), _sizes(shape_b, rng, PAIRS)
+    identity = np.broadcast_to(np.eye(3), (PAIRS, 3, 3))
+    collide = NARROW_PHASE[key]
+    turned = collide(pos_a, rot_a, size_a, pos_b, rot_b, size_b, 0.01)
+    unturned = collide(
+        pos_a,
+        identity if shape_a == ShapeType.SPHERE else rot_a,
+        size_a,
+        pos_b,
+        identity if shape_b == ShapeType.SPHERE else rot_b,
+        size_b,
+        0.01,
+    )
+    assert turned.pair.size > 0
+    for got, expected in zip(unturned, turned, strict=True):
+        assert got.tobytes() == expected.tobytes()
+
+
+def test_principal_axis_inertia_gives_the_tensor_rule_bit_for_bit():
+    rng = np.random.default_rng(7)
+    boxes = [
+        Body(Box(tuple(rng.uniform(0.05, 0.5, 3))), mass=rng.uniform(1, 10)) for _ in range(50)
+    ]
+    model, _ = build_model(boxes)
+    bodies = model.gyroscopic_bodies
+    principal = body_inertia(model.body_inertia, model.body_inv_inertia, bodies)
+    assert principal.diagonal is not None, "solid boxes have principal body axes"
+    tensor_only = BodyInertia(principal.tensor, principal.inv_tensor, None, None)
+    rot = _random_rotations(rng, model.n_bodies)
+    ang_vel = rng.normal(scale=5.0, size=(model.n_bodies, 3))
+    ang_vel[0, 1:] = 0.0  # spinning about one axis: the zero components
+    fast, slow = ang_vel.copy(), ang_vel.copy()
+    GYROSCOPIC_RULES["explicit"](fast, rot, principal, bodies, DT)
+    GYROSCOPIC_RULES["explicit"](slow, rot, tensor_only, bodies, DT)
+    assert not np.array_equal(fast, ang_vel)
+    assert fast.tobytes() == slow.tobytes()
+
+
+def test_off_diagonal_inertia_keeps_the_tensor_path():
+    model, _ = build_model(
+        [Body(Sphere(0.1), inertia=[[1.0, 0.1, 0.0], [0.1, 2.0, 0.0], [0.0, 0.0, 3.0]])]
+    )
+    inertia = body_inertia(model.body_inertia, model.body_inv_inertia, model.gyroscopic_bodies)
+    assert inertia.diagonal is None and inertia.inv_diagonal is None
+
+
+@pytest.mark.parametrize("shape", [(1, 3), (5, 3), (3000, 3), (64, 4), (10, 8, 3)])
+def test_last_axis_sum_is_numpy_sum_bit_for_bit(shape):
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=shape) * rng.choice([1.0, 1e-9, 1e9, 0.0, -0.0], size=shape)
+    values[0] = -0.0  # all negative zeros: the sum starts from +0
+    assert last_axis_sum(values).tobytes() == values.sum(axis=-1).tobytes()
+
+
+def test_fixed_bodies_touching_each_other_are_never_candidates():
+    """The grid skips the admissible test only when no small body is fixed."""
+    bodies = [
+        Body(Sphere(0.1), fixed=True, position=(0.0, 0.0, 0.0)),
+        Body(Sphere(0.1), fixed=True, position=(0.15, 0.0, 0.0)),
+        Body(Sphere(0.1), position=(0.075, 0.1, 0.0)),
+    ]
+    model, state = build_model(bodies)
+    a, b = candidate_pairs(model, state.pos, quat_to_matrix(state.quat), 0.0)
+    assert set(zip(a.tolist(), b.tolist(), strict=True)) == {(0, 2), (1, 2)}
+
+
+def test_fixed_bodies_keep_their_pose_whatever_velocity_a_state_gives_them():
+    model, state = build_model(
+        [Body(Plane(), fixed=True), Body(Sphere(0.05), position=(0.0, 0.0, 1.0))]
+    )
+    vel, ang_vel = state.vel.copy(), state.ang_vel.copy()
+    vel[0], ang_vel[0] = (1.0, 2.0, 3.0), (0.5, 0.0, 0.0)
+    ang_vel[1] = (0.0, 0.0, 1.0)
+    moved = step(model, State(state.pos, state.quat, vel, ang_vel), Settings(dt=1e-2)).state
+    assert moved.pos[0].tobytes() == state.pos[0].tobytes()
+    assert moved.quat[0].tobytes() == state.quat[0].tobytes()
+    assert not np.array_equal(moved.pos[1], state.pos[1])
+    assert not np.array_equal(moved.quat[1], state.quat[1])
+
+
+def test_a_pickled_model_leaves_its_per_model_results_behind_and_steps_alike():
+    model, state = tumbling_box(3)
+    settings = Settings(dt=1e-3, gyroscopic="explicit")
+    after = step(model, state, settings).state
+    assert any(key.startswith(PER_MODEL_PREFIX) for key in vars(model))
+    copy = pickle.loads(pickle.dumps(model))
+    assert not any(key.startswith(PER_MODEL_PREFIX) for key in vars(copy))
+    again = step(copy, state, settings).state
+    for got, expected in zip(
+        (again.pos, again.quat, again.vel, again.ang_vel),
+        (after.pos, after.quat, after.vel, after.ang_vel),
+        strict=True,
+    ):
+        assert got.tobytes() == expected.tobytes()
