@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -71,15 +72,12 @@ COLOUR_PRIORITY_CACHE = 64
 """Contact counts whose priority permutation is kept (a settling scene's count wanders
 within a few dozen values; 64 arrays of a few thousand ints are a few MB at most)."""
 
-SIDE_SIGN = np.array([[-1.0], [1.0]])
-"""(2, 1) sign of side A and side B in a contact row ``J = [-d, -r_A×d, d, r_B×d]``."""
+SIDE_SIGN = np.array([-1.0, 1.0])[:, None, None]
+"""(2, 1, 1) sign of side A and side B in a contact row ``J = [-d, -r_A×d, d, r_B×d]``."""
 
 TWICE = np.array([0, 1, 2, 0, 1, 2])
-"""Columns x y z x y z: a vector written twice, so that the cyclic shifts of its
-components that a cross product reads (y z x, z x y) are views."""
-
-SIDES_TWICE = np.array([TWICE, TWICE])
-"""(2, 6) columns of a contact vector written twice for each side of the contact."""
+"""Components x y z x y z: a vector written twice, so that the cyclic shifts of its
+components that a cross product reads (y z x, z x y) are contiguous slices."""
 
 COLOUR_ROUNDS = 3
 """Claim rounds per colour. Measured on a 1000-sphere pile (3,700 contacts): 3 rounds give
@@ -129,7 +127,8 @@ class _Rows(NamedTuple):
     mass: np.ndarray  # (c,) effective mass 1/(J M⁻¹ Jᵀ), kg
 
 
-class _ContactGraph(NamedTuple):
+@dataclass(frozen=True, eq=False)
+class _ContactGraph:
     """What the solver derives from the contacts' bodies alone (c contacts, in colour order).
 
     It is the same for every step whose contacts join the same bodies in the same order (a
@@ -144,18 +143,20 @@ class _ContactGraph(NamedTuple):
         batches: the slices of ``[0, c)`` holding each colour.
         body_a, body_b: (c,) int, the bodies of each contact.
         side_body: (c, 2) int, ``[body_a, body_b]``.
-        side_coordinate: (c, 2, 6) int, flat indices of ``x y z x y z`` of each side's body
-            into an ``(n, 3)`` array (``_arms``).
+        pair_key: (c,) int, ``body_a * n + body_b`` (n bodies), one value per body pair.
+        side_coordinate: (2, 6, c) int, flat indices of ``x y z x y z`` (``TWICE``) of the
+            body of each side into an ``(n, 3)`` array (``_arms``).
+        contact_coordinate: (2, 6, c) int, the same of each contact into a ``(c, 3)`` array,
+            for both sides.
         pair_rows: (c, 2) int, the twist rows of A and B (``Workspace.body_row``).
         twist_index: (c, 12) int, ``_twist_index(pair_rows)``.
-        inv_mass: (c, 2, 1) 1/kg, of A and B.
+        inv_mass: (2, 1, c) 1/kg, of A and B.
         inv_mass_sum: (c,) 1/kg, ``1/m_A + 1/m_B``.
         restitution: (c,) and friction: (c,), ``pair_values``.
         negative_restitution: (c,), ``-restitution`` (``_normal_targets``).
         use_friction: some contact has μ > 0 (otherwise no tangent rows are built).
         match_distance_sq: (c,) m², the squared warm-start match distance
             (``WARM_START_MATCH_FRACTION`` of the pair's smaller bounding radius).
-        unique_pairs: no body pair has two contacts.
         no_friction_impulse: (c, 3) zeros, the friction impulses reported without friction.
     """
 
@@ -165,7 +166,9 @@ class _ContactGraph(NamedTuple):
     body_a: np.ndarray
     body_b: np.ndarray
     side_body: np.ndarray
+    pair_key: np.ndarray
     side_coordinate: np.ndarray
+    contact_coordinate: np.ndarray
     pair_rows: np.ndarray
     twist_index: np.ndarray
     inv_mass: np.ndarray
@@ -175,8 +178,12 @@ class _ContactGraph(NamedTuple):
     friction: np.ndarray
     use_friction: bool
     match_distance_sq: np.ndarray
-    unique_pairs: bool
     no_friction_impulse: np.ndarray
+
+    @functools.cached_property
+    def unique_pairs(self) -> bool:
+        """No body pair has two contacts (needed only when the graph is met again: a sort)."""
+        return np.unique(self.pair_key).size == self.pair_key.size
 
 
 def pair_values(
@@ -305,22 +312,23 @@ def _build_contact_graph(
         body_a=a,
         body_b=b,
         side_body=side_body,
-        side_coordinate=side_body[:, :, None] * 3 + TWICE,
+        pair_key=a * n + b,
+        side_coordinate=side_body.T[:, None, :] * 3 + TWICE[:, None],
+        contact_coordinate=np.tile(np.arange(a.size) * 3 + TWICE[:, None], (2, 1, 1)),
         pair_rows=pair_rows,
         twist_index=_twist_index(pair_rows),
-        inv_mass=inv_mass[:, :, None],
+        inv_mass=inv_mass.T[:, None, :],
         inv_mass_sum=inv_mass[:, 0] + inv_mass[:, 1],
         restitution=restitution,
         negative_restitution=-restitution,
         friction=friction,
         use_friction=bool(np.any(friction > 0.0)),
         match_distance_sq=(WARM_START_MATCH_FRACTION * radius) ** 2,
-        unique_pairs=np.unique(a * n + b).size == a.size,
         no_friction_impulse=np.zeros((a.size, 3)),
     )
-    for field in graph:
-        if isinstance(field, np.ndarray):
-            field.flags.writeable = False
+    for value in vars(graph).values():
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
     return graph
 
 
@@ -367,9 +375,13 @@ def _in_colour_order(contacts: Contacts, graph: _ContactGraph) -> Contacts:
 
 
 def _arms(point: np.ndarray, pos: np.ndarray, graph: _ContactGraph) -> np.ndarray:
-    """(c, 2, 6) m, world frame: the arms ``r = point - x`` of A and B, each written twice
-    (``[r, r]``) so that a cross product reads its shifted components as views (``_rows``)."""
-    return point.take(TWICE, axis=1)[:, None, :] - pos.reshape(-1).take(graph.side_coordinate)
+    """(2, 6, c) m, world frame, ``[side, component, contact]``: the arms ``r = point - x``
+    of A and B, each written twice (``TWICE``) so that a cross product reads its shifted
+    components as slices (``_rows``). Component-major, so that every operation on them runs
+    along the contacts."""
+    return point.reshape(-1).take(graph.contact_coordinate) - pos.reshape(-1).take(
+        graph.side_coordinate
+    )
 
 
 def _rows(
@@ -377,24 +389,32 @@ def _rows(
 ) -> _Rows:
     """Jacobian, response and effective mass of constraint rows along ``direction (c, 3)``.
 
-    Both sides at once, in the layout ``[contact, side A/B, linear/angular]`` that flattens
-    to the 12-vector rows: a side's row is its sign (``SIDE_SIGN``) times ``[d, r × d]``,
-    its response the sign times ``[d/m, I⁻¹ (r × d)]``. ``arms`` are ``_arms``;
-    ``inv_inertia`` is (c, 2, 3, 3), world frame, of A and B.
+    Both sides at once, component-major (``[side, component, contact]``, as ``_arms``):
+    a side's row is its sign (``SIDE_SIGN``) times ``[d, r × d]``, its response the sign
+    times ``[d/m, I⁻¹ (r × d)]``; both are built in one array and come out contact-major,
+    (c, 12), in one transposing copy. ``inv_inertia`` is (c, 2, 3, 3), world frame, of A
+    and B; ``I⁻¹ (r × d)`` is taken contact-major, in the layout of ``rotation.apply``,
+    which fixes its round-off.
     """
     count = direction.shape[0]
-    twice = direction.take(SIDES_TWICE, axis=1)  # (c, 2, 6): [d, d] for A and for B
+    twice = direction.reshape(-1).take(graph.contact_coordinate)  # (2, 6, c): [d, d]
+    blocks = np.empty((2, 2, 6, count))  # [jacobian | response, side, component, contact]
+    jacobian, response = blocks
+    jacobian[:, :3] = twice[:, :3]
+    arm_cross = jacobian[:, 3:]
     # r × d component by component, as rotation.cross: [ry dz - rz dy, rz dx - rx dz, ...]
-    arm_cross = arms[:, :, 1:4] * twice[:, :, 2:5] - arms[:, :, 2:5] * twice[:, :, 1:4]
-    turn = np.einsum("nsij,nsj->nsi", inv_inertia, arm_cross)  # I⁻¹ (r × d)
-    linear = twice[:, :, :3]
-    jacobian = SIDE_SIGN * np.concatenate([linear, arm_cross], axis=2)
-    response = SIDE_SIGN * np.concatenate([graph.inv_mass * linear, turn], axis=2)
-    rotational = np.add.reduce(arm_cross * turn, axis=2)  # (c, 2): (r×d)·I⁻¹(r×d) of A, B
-    inverse_mass = graph.inv_mass_sum + rotational[:, 0] + rotational[:, 1]
-    return _Rows(
-        jacobian.reshape(count, 12), response.reshape(count, 12), np.reciprocal(inverse_mass)
-    )
+    np.multiply(arms[:, 1:4], twice[:, 2:5], out=arm_cross)
+    arm_cross -= arms[:, 2:5] * twice[:, 1:4]
+    np.multiply(graph.inv_mass, twice[:, :3], out=response[:, :3])
+    turn = response[:, 3:]  # I⁻¹ (r × d)
+    turn[...] = np.einsum(
+        "nsij,nsj->nsi", inv_inertia, np.ascontiguousarray(arm_cross.transpose(2, 0, 1))
+    ).transpose(1, 2, 0)
+    rotational = np.add.reduce(arm_cross * turn, axis=1)  # (2, c): (r×d)·I⁻¹(r×d) of A, B
+    inverse_mass = graph.inv_mass_sum + rotational[0] + rotational[1]
+    blocks *= SIDE_SIGN
+    jacobian, response = blocks.reshape(2, 12, count).transpose(0, 2, 1).copy()
+    return _Rows(jacobian, response, np.reciprocal(inverse_mass))
 
 
 def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -636,7 +656,7 @@ def _warm_start_match(
         distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
         return source, same_pair & (distance_sq <= graph.match_distance_sq)
     old_key = old.body_a * n + old.body_b
-    key = contacts.body_a * n + contacts.body_b
+    key = graph.pair_key
     order = np.argsort(old_key, kind="stable")
     sorted_key = old_key[order]
     start = np.searchsorted(sorted_key, key, side="left")
