@@ -35,7 +35,7 @@ import numpy as np
 
 from mini_engine.contacts import Contacts
 from mini_engine.model import Model
-from mini_engine.rotation import cross
+from mini_engine.rotation import apply, cross
 from mini_engine.settings import Settings
 from mini_engine.workspace import Workspace, workspace
 
@@ -71,18 +71,6 @@ the four corners of a 10 cm box face are 14 times further apart)."""
 COLOUR_PRIORITY_CACHE = 64
 """Contact counts whose priority permutation is kept (a settling scene's count wanders
 within a few dozen values; 64 arrays of a few thousand ints are a few MB at most)."""
-
-SIDE_SIGN = np.array([-1.0, 1.0])[:, None, None]
-"""(2, 1, 1) sign of side A and side B in a contact row ``J = [-d, -r_A×d, d, r_B×d]``."""
-
-TWICE = np.array([0, 1, 2, 0, 1, 2])
-"""Components x y z x y z: a vector written twice, so that the cyclic shifts of its
-components that a cross product reads (y z x, z x y) are contiguous slices."""
-
-SCRATCH_HEADROOM = 1.25
-"""Growth of the solver's scratch arrays beyond the contact count that outgrew them: a
-settling pile's count wanders by a few percent from step to step (2,790 to 2,880 over 60
-steps of the settled 1000-sphere pile), so 25 % spare capacity makes regrowth rare."""
 
 COLOUR_ROUNDS = 3
 """Claim rounds per colour. Measured on a 1000-sphere pile (3,700 contacts): 3 rounds give
@@ -149,14 +137,9 @@ class _ContactGraph:
         body_a, body_b: (c,) int, the bodies of each contact.
         side_body: (c, 2) int, ``[body_a, body_b]``.
         pair_key: (c,) int, ``body_a * n + body_b`` (n bodies), one value per body pair.
-        side_coordinate: (2, 6, c) int, flat indices of ``x y z x y z`` (``TWICE``) of the
-            body of each side into an ``(n, 3)`` array (``_arms``).
-        contact_coordinate: (2, 6, c) int, the same of each contact into a ``(c, 3)`` array,
-            for both sides.
         pair_rows: (c, 2) int, the twist rows of A and B (``Workspace.body_row``).
         twist_index: (c, 12) int, ``_twist_index(pair_rows)``.
-        inv_mass: (2, 1, c) 1/kg, of A and B.
-        inv_mass_sum: (c,) 1/kg, ``1/m_A + 1/m_B``.
+        inv_mass_a, inv_mass_b: (c,) 1/kg, of A and B.
         restitution: (c,) and friction: (c,), ``pair_values``.
         negative_restitution: (c,), ``-restitution`` (``_normal_targets``).
         use_friction: some contact has μ > 0 (otherwise no tangent rows are built).
@@ -172,12 +155,10 @@ class _ContactGraph:
     body_b: np.ndarray
     side_body: np.ndarray
     pair_key: np.ndarray
-    side_coordinate: np.ndarray
-    contact_coordinate: np.ndarray
     pair_rows: np.ndarray
     twist_index: np.ndarray
-    inv_mass: np.ndarray
-    inv_mass_sum: np.ndarray
+    inv_mass_a: np.ndarray
+    inv_mass_b: np.ndarray
     restitution: np.ndarray
     negative_restitution: np.ndarray
     friction: np.ndarray
@@ -320,12 +301,10 @@ def _build_contact_graph(
         body_b=b,
         side_body=side_body,
         pair_key=a * n + b,
-        side_coordinate=side_body.T[:, None, :] * 3 + TWICE[:, None],
-        contact_coordinate=np.tile(np.arange(a.size) * 3 + TWICE[:, None], (2, 1, 1)),
         pair_rows=pair_rows,
         twist_index=_twist_index(pair_rows),
-        inv_mass=inv_mass.T[:, None, :],
-        inv_mass_sum=inv_mass[:, 0] + inv_mass[:, 1],
+        inv_mass_a=inv_mass[:, 0].copy(),
+        inv_mass_b=inv_mass[:, 1].copy(),
         restitution=restitution,
         negative_restitution=-restitution,
         friction=friction,
@@ -381,72 +360,64 @@ def _in_colour_order(contacts: Contacts, graph: _ContactGraph) -> Contacts:
     )
 
 
-def _arms(point: np.ndarray, pos: np.ndarray, graph: _ContactGraph) -> np.ndarray:
-    """(2, 6, c) m, world frame, ``[side, component, contact]``: the arms ``r = point - x``
-    of A and B, each written twice (``TWICE``) so that a cross product reads its shifted
-    components as slices (``_rows``). Component-major, so that every operation on them runs
-    along the contacts."""
-    return point.reshape(-1).take(graph.contact_coordinate) - pos.reshape(-1).take(
-        graph.side_coordinate
+def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b) -> _Rows:
+    """Jacobian, response and effective mass of constraint rows along ``direction (c, 3)``."""
+    rd_a, rd_b = cross(arm_a, direction), cross(arm_b, direction)
+    w_a, w_b = apply(inv_inertia_a, rd_a), apply(inv_inertia_b, rd_b)
+    jacobian = np.concatenate([-direction, -rd_a, direction, rd_b], axis=1)
+    response = np.concatenate(
+        [-inv_mass_a[:, None] * direction, -w_a, inv_mass_b[:, None] * direction, w_b], axis=1
     )
+    inverse_mass = inv_mass_a + inv_mass_b + np.sum(rd_a * w_a, axis=1) + np.sum(rd_b * w_b, axis=1)
+    return _Rows(jacobian, response, 1.0 / inverse_mass)
 
 
-def _scratch(work: Workspace, direction: str) -> dict:
-    """The workspace's scratch arrays of the rows along ``direction`` (``_rows``)."""
-    return work.solver_scratch.setdefault(direction, {})
-
-
-def _rows(
-    direction: np.ndarray,
-    arms: np.ndarray,
-    graph: _ContactGraph,
-    inv_inertia: np.ndarray,
-    scratch: dict,
+def _kept_rows(
+    kept: dict, graph: _ContactGraph, direction, arm_a, arm_b, inv_inertia_a, inv_inertia_b
 ) -> _Rows:
-    """Jacobian, response and effective mass of constraint rows along ``direction (c, 3)``.
+    """``_rows`` along ``direction (c, 3)`` with the arms ``arm_a, arm_b (c, 3)`` m and the
+    world inverse inertias ``inv_inertia_a, inv_inertia_b (c, 3, 3)`` of A and B.
 
-    Both sides at once, component-major (``[side, component, contact]``, as ``_arms``):
-    a side's row is its sign (``SIDE_SIGN``) times ``[d, r × d]``, its response the sign
-    times ``[d/m, I⁻¹ (r × d)]``; both are built in one array and come out contact-major,
-    (c, 12), in one transposing copy. ``inv_inertia`` is (c, 2, 3, 3), world frame, of A
-    and B; ``I⁻¹ (r × d)`` is taken contact-major, in the layout of ``rotation.apply``,
-    which fixes its round-off.
-
-    Both arrays live in ``scratch`` (kept by the workspace per direction, grown with the
-    contact count) and the rows returned are views of it, valid until the next solve of
-    the model: a pile's rows are a few hundred kB, and allocating them afresh every step
-    costs more in page faults than computing them (measured on the 1000-sphere pile,
-    2,833 contacts: 840 us and 265 page faults per call, against 374 us and 3).
+    Rows are a function of the graph and these arrays alone: while all are bit for bit
+    those of the last call (a body resting still on the ground), the last rows, which
+    ``kept`` holds (the workspace's, per direction), are returned.
     """
-    count = direction.shape[0]
-    twice = direction.reshape(-1).take(graph.contact_coordinate)  # (2, 6, c): [d, d]
-    if scratch.get("capacity", -1) < count:
-        capacity = int(count * SCRATCH_HEADROOM) + 1
-        scratch.update(
-            capacity=capacity,
-            blocks=np.empty((2, 2, 6, capacity)),
-            rows=np.empty((2, capacity, 12)),
-        )
-    # [jacobian | response, side, component, contact]
-    blocks = scratch["blocks"][..., :count]
-    jacobian, response = blocks
-    jacobian[:, :3] = twice[:, :3]
-    arm_cross = jacobian[:, 3:]
-    # r × d component by component, as rotation.cross: [ry dz - rz dy, rz dx - rx dz, ...]
-    np.multiply(arms[:, 1:4], twice[:, 2:5], out=arm_cross)
-    arm_cross -= arms[:, 2:5] * twice[:, 1:4]
-    np.multiply(graph.inv_mass, twice[:, :3], out=response[:, :3])
-    turn = response[:, 3:]  # I⁻¹ (r × d)
-    turn[...] = np.einsum(
-        "nsij,nsj->nsi", inv_inertia, np.ascontiguousarray(arm_cross.transpose(2, 0, 1))
-    ).transpose(1, 2, 0)
-    rotational = np.add.reduce(arm_cross * turn, axis=1)  # (2, c): (r×d)·I⁻¹(r×d) of A, B
-    inverse_mass = graph.inv_mass_sum + rotational[0] + rotational[1]
-    blocks *= SIDE_SIGN
-    rows = scratch["rows"][:, :count]
-    rows[...] = blocks.reshape(2, 12, count).transpose(0, 2, 1)
-    jacobian, response = rows
-    return _Rows(jacobian, response, np.reciprocal(inverse_mass))
+    inputs = _same_row_inputs(
+        kept.get("inputs"), graph, direction, (arm_a, arm_b, inv_inertia_a, inv_inertia_b)
+    )
+    if inputs is None:
+        return kept["rows"]
+    rows = _rows(
+        direction,
+        arm_a,
+        arm_b,
+        graph.inv_mass_a,
+        graph.inv_mass_b,
+        inv_inertia_a,
+        inv_inertia_b,
+    )
+    kept.update(inputs=inputs, rows=rows)
+    return rows
+
+
+def _kept(work: Workspace, direction: str) -> dict:
+    """What the workspace keeps of the rows along ``direction`` (``_kept_rows``)."""
+    return work.solver_rows.setdefault(direction, {})
+
+
+def _same_row_inputs(
+    last: tuple | None, graph: _ContactGraph, direction: np.ndarray, others: tuple
+) -> tuple | None:
+    """None when ``graph`` is the last call's and ``direction`` and the arrays ``others``
+    have its bytes (``last``), else the record of these inputs for the next call.
+
+    The direction is compared first: the other arrays are copied to bytes only once it
+    has repeated, so a scene whose contacts move pays for one small copy per call."""
+    direction_bytes = direction.tobytes()
+    if last is None or last[0] is not graph or last[1] != direction_bytes:
+        return (graph, direction_bytes, None)
+    inputs = (graph, direction_bytes, tuple(array.tobytes() for array in others))
+    return None if inputs[2] == last[2] else inputs
 
 
 def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -583,9 +554,12 @@ def solve_contacts(
     contacts = _in_colour_order(contacts, graph)
 
     # pre-step: arms, Jacobians, effective masses, targets from the approach speed
-    arms = _arms(contacts.point, pos, graph)
-    inv_inertia = inv_inertia_world.take(graph.side_body, axis=0)  # (c, 2, 3, 3)
-    normal_rows = _rows(contacts.normal, arms, graph, inv_inertia, _scratch(work, "normal"))
+    a, b = graph.body_a, graph.body_b
+    arm_a, arm_b = contacts.point - pos.take(a, axis=0), contacts.point - pos.take(b, axis=0)
+    inv_inertia_a = inv_inertia_world.take(a, axis=0)
+    inv_inertia_b = inv_inertia_world.take(b, axis=0)
+    geometry = (arm_a, arm_b, inv_inertia_a, inv_inertia_b)
+    normal_rows = _kept_rows(_kept(work, "normal"), graph, contacts.normal, *geometry)
     body_twist = np.zeros((n + 1, 6))
     body_twist[:n, :3], body_twist[:n, 3:] = vel, ang_vel
     before = _normal_velocity(body_twist, graph, normal_rows)
@@ -597,7 +571,7 @@ def solve_contacts(
     if graph.use_friction:
         t1, t2 = _tangents(contacts.normal)
         first, second = (
-            _rows(t, arms, graph, inv_inertia, _scratch(work, slot))
+            _kept_rows(_kept(work, slot), graph, t, *geometry)
             for t, slot in ((t1, "first tangent"), (t2, "second tangent"))
         )
         tangent_rows = _Rows(*(np.stack(pair, axis=1) for pair in zip(first, second, strict=True)))

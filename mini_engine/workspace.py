@@ -45,8 +45,8 @@ class Workspace:
             the contact graph is unchanged (see ``solver.colour_contacts``).
         rotation_cache: the last step's orientations and their rotation matrices, reused
             while the orientations are unchanged (``step._rotations``).
-        solver_scratch: the contact solver's scratch arrays, per constraint direction,
-            reused from step to step (``solver._rows``).
+        solver_rows: the contact solver's last rows per constraint direction and what they
+            were built from, reused while that is unchanged (``solver._kept_rows``).
     """
 
     moving: np.ndarray
@@ -59,7 +59,7 @@ class Workspace:
     body_row: np.ndarray
     colour_cache: dict = field(default_factory=dict)
     rotation_cache: dict = field(default_factory=dict)
-    solver_scratch: dict = field(default_factory=dict)
+    solver_rows: dict = field(default_factory=dict)
 
 
 @per_model
