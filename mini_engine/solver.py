@@ -135,7 +135,6 @@ class _ContactGraph:
             that is the identity (one contact, or already in colour order).
         batches: the slices of ``[0, c)`` holding each colour.
         body_a, body_b: (c,) int, the bodies of each contact.
-        side_body: (c, 2) int, ``[body_a, body_b]``.
         pair_key: (c,) int, ``body_a * n + body_b`` (n bodies), one value per body pair.
         pair_rows: (c, 2) int, the twist rows of A and B (``Workspace.body_row``).
         twist_index: (c, 12) int, ``_twist_index(pair_rows)``.
@@ -153,7 +152,6 @@ class _ContactGraph:
     batches: list[slice]
     body_a: np.ndarray
     body_b: np.ndarray
-    side_body: np.ndarray
     pair_key: np.ndarray
     pair_rows: np.ndarray
     twist_index: np.ndarray
@@ -291,7 +289,6 @@ def _build_contact_graph(
         side_body, restitution, friction = side_body[order], restitution[order], friction[order]
     a, b = side_body[:, 0].copy(), side_body[:, 1].copy()
     pair_rows = body_row[side_body]
-    inv_mass = model.body_inv_mass[side_body]
     radius = np.minimum(model.body_bound_radius[a], model.body_bound_radius[b])
     graph = _ContactGraph(
         key=key,
@@ -299,12 +296,11 @@ def _build_contact_graph(
         batches=batches,
         body_a=a,
         body_b=b,
-        side_body=side_body,
         pair_key=a * n + b,
         pair_rows=pair_rows,
         twist_index=_twist_index(pair_rows),
-        inv_mass_a=inv_mass[:, 0].copy(),
-        inv_mass_b=inv_mass[:, 1].copy(),
+        inv_mass_a=model.body_inv_mass[a],
+        inv_mass_b=model.body_inv_mass[b],
         restitution=restitution,
         negative_restitution=-restitution,
         friction=friction,
