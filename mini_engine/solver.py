@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -36,7 +37,7 @@ from mini_engine.contacts import Contacts
 from mini_engine.model import Model
 from mini_engine.rotation import apply, cross
 from mini_engine.settings import Settings
-from mini_engine.workspace import workspace
+from mini_engine.workspace import Workspace, workspace
 
 RESTITUTION_MIX: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
     "max": np.maximum,
@@ -117,6 +118,56 @@ class _Rows(NamedTuple):
     jacobian: np.ndarray  # (c, 12) [-d, -r_A×d, d, r_B×d]
     response: np.ndarray  # (c, 12) M⁻¹Jᵀ: twist change per unit impulse
     mass: np.ndarray  # (c,) effective mass 1/(J M⁻¹ Jᵀ), kg
+
+
+@dataclass(frozen=True, eq=False)
+class _ContactGraph:
+    """What the solver derives from the contacts' bodies alone (c contacts, in colour order).
+
+    It is the same for every step whose contacts join the same bodies in the same order (a
+    settled pile, a body at rest), so ``_contact_graph`` builds it once for them; every
+    array is read-only.
+
+    Attributes:
+        key: ``(c, body_a bytes, body_b bytes, restitution rule, friction rule)`` of the
+            detected contacts it was built for.
+        order: (c,) int, the stable sort of the detected contacts by colour, or None when
+            that is the identity (one contact, or already in colour order).
+        batches: the slices of ``[0, c)`` holding each colour.
+        body_a, body_b: (c,) int, the bodies of each contact.
+        pair_key: (c,) int, ``body_a * n + body_b`` (n bodies), one value per body pair.
+        pair_rows: (c, 2) int, the twist rows of A and B (``Workspace.body_row``).
+        twist_index: (c, 12) int, ``_twist_index(pair_rows)``.
+        inv_mass_a, inv_mass_b: (c,) 1/kg, of A and B.
+        restitution: (c,) and friction: (c,), ``pair_values``.
+        negative_restitution: (c,), ``-restitution`` (``_normal_targets``).
+        use_friction: some contact has μ > 0 (otherwise no tangent rows are built).
+        match_distance_sq: (c,) m², the squared warm-start match distance
+            (``WARM_START_MATCH_FRACTION`` of the pair's smaller bounding radius).
+        no_friction_impulse: (c, 3) zeros, the friction impulses reported without friction.
+    """
+
+    key: tuple
+    order: np.ndarray | None
+    batches: list[slice]
+    body_a: np.ndarray
+    body_b: np.ndarray
+    pair_key: np.ndarray
+    pair_rows: np.ndarray
+    twist_index: np.ndarray
+    inv_mass_a: np.ndarray
+    inv_mass_b: np.ndarray
+    restitution: np.ndarray
+    negative_restitution: np.ndarray
+    friction: np.ndarray
+    use_friction: bool
+    match_distance_sq: np.ndarray
+    no_friction_impulse: np.ndarray
+
+    @functools.cached_property
+    def unique_pairs(self) -> bool:
+        """No body pair has two contacts (needed only when the graph is met again: a sort)."""
+        return np.unique(self.pair_key).size == self.pair_key.size
 
 
 def pair_values(
@@ -201,6 +252,110 @@ def colour_contacts(row_a: np.ndarray, row_b: np.ndarray, static_row: int) -> np
     return colour
 
 
+def _contact_graph(
+    model: Model, work: Workspace, contacts: Contacts, settings: Settings
+) -> _ContactGraph:
+    """The contact graph of ``contacts``: the last step's while the contacts join the same
+    bodies in the same order (kept in the model workspace's ``colour_cache``), else built
+    afresh; either way the same values."""
+    cache = work.colour_cache
+    key = (
+        contacts.count,
+        contacts.body_a.tobytes(),
+        contacts.body_b.tobytes(),
+        settings.restitution_mix,
+        settings.friction_mix,
+    )
+    last = cache.get("graph")
+    if last is not None and last.key == key:
+        return last
+    graph = _build_contact_graph(model, contacts, settings, key)
+    cache.update(graph=graph, batches=graph.batches)
+    return graph
+
+
+def _build_contact_graph(
+    model: Model, contacts: Contacts, settings: Settings, key: tuple
+) -> _ContactGraph:
+    """Colour the contacts, order them by colour and gather what depends on their bodies."""
+    n = model.n_bodies
+    body_row = workspace(model).body_row
+    order, batches = _colour_batches(
+        body_row[contacts.body_a], body_row[contacts.body_b], static_row=n
+    )
+    restitution, friction = pair_values(model, contacts, settings)
+    side_body = np.stack([contacts.body_a, contacts.body_b], axis=1)
+    if order is not None:
+        side_body, restitution, friction = side_body[order], restitution[order], friction[order]
+    a, b = side_body[:, 0].copy(), side_body[:, 1].copy()
+    pair_rows = body_row[side_body]
+    radius = np.minimum(model.body_bound_radius[a], model.body_bound_radius[b])
+    graph = _ContactGraph(
+        key=key,
+        order=order,
+        batches=batches,
+        body_a=a,
+        body_b=b,
+        pair_key=a * n + b,
+        pair_rows=pair_rows,
+        twist_index=_twist_index(pair_rows),
+        inv_mass_a=model.body_inv_mass[a],
+        inv_mass_b=model.body_inv_mass[b],
+        restitution=restitution,
+        negative_restitution=-restitution,
+        friction=friction,
+        use_friction=bool(np.any(friction > 0.0)),
+        match_distance_sq=(WARM_START_MATCH_FRACTION * radius) ** 2,
+        no_friction_impulse=np.zeros((a.size, 3)),
+    )
+    for value in vars(graph).values():
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+    return graph
+
+
+def _colour_batches(
+    row_a: np.ndarray, row_b: np.ndarray, static_row: int
+) -> tuple[np.ndarray | None, list[slice]]:
+    """The colour order of the contacts and one slice per colour of the reordered contacts.
+
+    Returns ``(order, batches)``: ``order (c,)`` int, the stable sort of the contacts by
+    colour (``colour_contacts``), or None when that is the identity (one contact, or already
+    in colour order); ``batches`` the slices of ``[0, c)`` holding each colour.
+    """
+    count = row_a.size
+    if count == 1:
+        return None, [slice(0, 1)]
+    colour = colour_contacts(row_a, row_b, static_row)
+    order = np.argsort(colour, kind="stable")
+    bounds = np.searchsorted(colour[order], np.arange(colour.max() + 2))
+    batches = [slice(bounds[k], bounds[k + 1]) for k in range(bounds.size - 1)]
+    if np.array_equal(order, np.arange(count)):
+        order = None
+    return order, batches
+
+
+def _twist_index(pair_rows: np.ndarray) -> np.ndarray:
+    """(c, 12) int, flat indices into a ``(rows, 6)`` twist array of ``[twist_A, twist_B]``
+    of each contact: the sweeps scatter through them (a flat fancy store is about 2.4x
+    faster than a row store with a (c, 2) index; the values written are the same)."""
+    return (pair_rows[:, :, None] * 6 + np.arange(6)).reshape(-1, 12)
+
+
+def _in_colour_order(contacts: Contacts, graph: _ContactGraph) -> Contacts:
+    """``contacts`` reordered by colour (``graph.order``), with the graph's body arrays."""
+    if graph.order is None:
+        return Contacts(graph.body_a, graph.body_b, contacts.point, contacts.normal, contacts.depth)
+    order = graph.order
+    return Contacts(
+        graph.body_a,
+        graph.body_b,
+        contacts.point.take(order, axis=0),
+        contacts.normal.take(order, axis=0),
+        contacts.depth.take(order),
+    )
+
+
 def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b) -> _Rows:
     """Jacobian, response and effective mass of constraint rows along ``direction (c, 3)``."""
     rd_a, rd_b = cross(arm_a, direction), cross(arm_b, direction)
@@ -211,6 +366,54 @@ def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_in
     )
     inverse_mass = inv_mass_a + inv_mass_b + np.sum(rd_a * w_a, axis=1) + np.sum(rd_b * w_b, axis=1)
     return _Rows(jacobian, response, 1.0 / inverse_mass)
+
+
+def _kept_rows(
+    kept: dict, graph: _ContactGraph, direction, arm_a, arm_b, inv_inertia_a, inv_inertia_b
+) -> _Rows:
+    """``_rows`` along ``direction (c, 3)`` with the arms ``arm_a, arm_b (c, 3)`` m and the
+    world inverse inertias ``inv_inertia_a, inv_inertia_b (c, 3, 3)`` of A and B.
+
+    Rows are a function of the graph and these arrays alone: while all are bit for bit
+    those of the last call (a body resting still on the ground), the last rows, which
+    ``kept`` holds (the workspace's, per direction), are returned.
+    """
+    inputs = _same_row_inputs(
+        kept.get("inputs"), graph, direction, (arm_a, arm_b, inv_inertia_a, inv_inertia_b)
+    )
+    if inputs is None:
+        return kept["rows"]
+    rows = _rows(
+        direction,
+        arm_a,
+        arm_b,
+        graph.inv_mass_a,
+        graph.inv_mass_b,
+        inv_inertia_a,
+        inv_inertia_b,
+    )
+    kept.update(inputs=inputs, rows=rows)
+    return rows
+
+
+def _kept(work: Workspace, direction: str) -> dict:
+    """What the workspace keeps of the rows along ``direction`` (``_kept_rows``)."""
+    return work.solver_rows.setdefault(direction, {})
+
+
+def _same_row_inputs(
+    last: tuple | None, graph: _ContactGraph, direction: np.ndarray, others: tuple
+) -> tuple | None:
+    """None when ``graph`` is the last call's and ``direction`` and the arrays ``others``
+    have its bytes (``last``), else the record of these inputs for the next call.
+
+    The direction is compared first: the other arrays are copied to bytes only once it
+    has repeated, so a scene whose contacts move pays for one small copy per call."""
+    direction_bytes = direction.tobytes()
+    if last is None or last[0] is not graph or last[1] != direction_bytes:
+        return (graph, direction_bytes, None)
+    inputs = (graph, direction_bytes, tuple(array.tobytes() for array in others))
+    return None if inputs[2] == last[2] else inputs
 
 
 def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -225,38 +428,63 @@ def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, cross(normal, t1)
 
 
-def _twist_index(pair_rows: np.ndarray) -> np.ndarray:
-    """(c, 12) int, flat indices into a ``(rows, 6)`` twist array of ``[twist_A, twist_B]``
-    of each contact: the sweeps scatter through them (a flat fancy store is about 2.4x
-    faster than a row store with a (c, 2) index; the values written are the same)."""
-    return (pair_rows[:, :, None] * 6 + np.arange(6)).reshape(-1, 12)
+def _normal_velocity(body_twist: np.ndarray, graph: _ContactGraph, rows: _Rows) -> np.ndarray:
+    """(c,) m/s, ``J · [twist_A, twist_B]`` of each contact's normal row."""
+    twist = body_twist.take(graph.pair_rows, axis=0).reshape(-1, 12)
+    return np.einsum("ij,ij->i", rows.jacobian, twist)
+
+
+def _per_colour(batches: list[slice], *arrays: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+    """Per colour, the views ``array[s]`` of each of ``arrays``: taken once per solve instead
+    of once per sweep (one colour: the arrays themselves)."""
+    if len(batches) == 1:
+        return [arrays]
+    return [tuple(array[s] for array in arrays) for s in batches]
+
+
+def _normal_colours(
+    graph: _ContactGraph, rows: _Rows, target: np.ndarray, impulse: np.ndarray
+) -> list[tuple[np.ndarray, ...]]:
+    """Per colour, the views ``_sweep_normal`` works on: twist rows and flat twist indices,
+    Jacobian, response, effective mass, target and accumulated impulse (updated in place)."""
+    return _per_colour(
+        graph.batches,
+        graph.pair_rows,
+        graph.twist_index,
+        rows.jacobian,
+        rows.response,
+        rows.mass,
+        target,
+        impulse,
+    )
 
 
 def _sweep_normal(
-    body_twist, pair_rows, rows: _Rows, target, impulse, batches, twist_index
+    body_twist: np.ndarray, colours: list, impulse: np.ndarray, mass: np.ndarray
 ) -> float:
-    """One Gauss-Seidel sweep over the colour batches; returns the largest velocity change, m/s.
+    """One Gauss-Seidel sweep over the colours (``_normal_colours`` of ``impulse`` and the
+    rows' ``mass``); returns the largest velocity change, m/s.
 
     The change of a contact is its impulse change over its effective mass (what the sweep
-    did to its own relative normal velocity), measured once per sweep. ``twist_index`` is
-    ``_twist_index(pair_rows)``: gathers take whole rows (``take``, ~4x faster than fancy
-    indexing), stores go through the flat indices.
+    did to its own relative normal velocity), measured once per sweep. Gathers take whole
+    rows (``take``, ~4x faster than fancy indexing), stores go through the flat indices.
+    Every step makes a new array: on arrays of a few elements an in-place update costs
+    more than the allocation it saves.
     """
     start = impulse.copy()
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for s in batches:
-        twist = body_twist.take(pair_rows[s], axis=0).reshape(-1, 12)
-        velocity = np.einsum("ij,ij->i", rows.jacobian[s], twist)
-        accumulated = np.maximum(impulse[s] + rows.mass[s] * (target[s] - velocity), 0.0)
-        delta = accumulated - impulse[s]
-        impulse[s] = accumulated
-        twist += delta[:, None] * rows.response[s]
-        flat_twist[twist_index[s]] = twist
-    return float(np.max(np.abs(impulse - start) / rows.mass))
+    for rows, index, jacobian, response, rows_mass, target, rows_impulse in colours:
+        twist = body_twist.take(rows, axis=0).reshape(-1, 12)
+        velocity = np.einsum("ij,ij->i", jacobian, twist)
+        accumulated = np.maximum(rows_impulse + rows_mass * (target - velocity), 0.0)
+        delta = accumulated - rows_impulse
+        rows_impulse[...] = accumulated
+        flat_twist[index] = twist + delta[:, None] * response
+    return float((np.abs(impulse - start) / mass).max())
 
 
 def _sweep_friction(
-    body_twist, pair_rows, rows: _Rows, friction, normal_impulse, impulse, batches
+    body_twist, graph: _ContactGraph, rows: _Rows, normal_impulse, impulse
 ) -> float:
     """One sweep of the two tangent rows per contact, the impulse clamped to the disc μ λ_n.
 
@@ -264,17 +492,17 @@ def _sweep_friction(
     Returns the largest tangential velocity change, m/s.
     """
     start = impulse.copy()
-    for s in batches:
-        index = pair_rows[s]
-        twist = body_twist[index].reshape(-1, 12)
+    flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
+    for s in graph.batches:
+        twist = body_twist.take(graph.pair_rows[s], axis=0).reshape(-1, 12)
         trial = impulse[s] - rows.mass[s] * np.einsum("ikj,ij->ik", rows.jacobian[s], twist)
-        limit = friction[s] * normal_impulse[s]
+        limit = graph.friction[s] * normal_impulse[s]
         norm = np.sqrt(np.einsum("ik,ik->i", trial, trial))
         accumulated = trial * np.minimum(1.0, limit / np.maximum(norm, TINY_IMPULSE))[:, None]
         delta = accumulated - impulse[s]
         impulse[s] = accumulated
         twist += np.einsum("ik,ikj->ij", delta, rows.response[s])
-        body_twist[index] = twist.reshape(-1, 2, 6)
+        flat_twist[graph.twist_index[s]] = twist
     return float(np.max(np.abs(impulse - start) / rows.mass))
 
 
@@ -315,151 +543,91 @@ def solve_contacts(
     if contacts.count == 0:
         return ContactSolution(vel, ang_vel, ContactReport.empty(), None)
     n = model.n_bodies
-    static_row = n
-    work = workspace(model)
-    a, b = contacts.body_a, contacts.body_b
-    row_a, row_b = work.body_row[a], work.body_row[b]
 
     # colour the contact graph and put each colour in one contiguous slice
-    order, batches = _colour_batches(work.colour_cache, row_a, row_b, static_row)
-    if order is not None:
-        contacts = Contacts(*(field[order] for field in contacts))
-        a, b, row_a, row_b = a[order], b[order], row_a[order], row_b[order]
-    pair_rows = np.empty((contacts.count, 2), dtype=np.int64)  # (c, 2) twist rows of A, B
-    pair_rows[:, 0], pair_rows[:, 1] = row_a, row_b
-    twist_index = _twist_index(pair_rows)
+    work = workspace(model)
+    graph = _contact_graph(model, work, contacts, settings)
+    contacts = _in_colour_order(contacts, graph)
 
     # pre-step: arms, Jacobians, effective masses, targets from the approach speed
-    arm_a, arm_b = contacts.point - pos[a], contacts.point - pos[b]
-    inv_mass_a, inv_mass_b = model.body_inv_mass[a], model.body_inv_mass[b]
-    inv_inertia_a, inv_inertia_b = inv_inertia_world[a], inv_inertia_world[b]
-    normal_rows = _rows(
-        contacts.normal, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b
-    )
-    restitution, friction = pair_values(model, contacts, settings)
-
+    a, b = graph.body_a, graph.body_b
+    arm_a, arm_b = contacts.point - pos.take(a, axis=0), contacts.point - pos.take(b, axis=0)
+    inv_inertia_a = inv_inertia_world.take(a, axis=0)
+    inv_inertia_b = inv_inertia_world.take(b, axis=0)
+    geometry = (arm_a, arm_b, inv_inertia_a, inv_inertia_b)
+    normal_rows = _kept_rows(_kept(work, "normal"), graph, contacts.normal, *geometry)
     body_twist = np.zeros((n + 1, 6))
     body_twist[:n, :3], body_twist[:n, 3:] = vel, ang_vel
-    before = np.einsum("ij,ij->i", normal_rows.jacobian, body_twist[pair_rows].reshape(-1, 12))
-    target = _normal_targets(contacts.depth, before, restitution, settings)
+    before = _normal_velocity(body_twist, graph, normal_rows)
+    target = _normal_targets(contacts.depth, before, graph.negative_restitution, settings)
 
     # warm start: last step's impulses at the matching contacts, applied before the sweeps
-    use_friction = bool(np.any(friction > 0.0))
-    impulse, previous_friction = _warm_start_impulses(model, contacts, previous, settings)
-    _apply_impulses(body_twist, pair_rows, normal_rows.response, impulse, batches, twist_index)
-    if use_friction:
+    impulse, previous_friction = _warm_start_impulses(model, graph, contacts, previous, settings)
+    _apply_impulses(body_twist, graph, normal_rows.response, impulse)
+    if graph.use_friction:
         t1, t2 = _tangents(contacts.normal)
         first, second = (
-            _rows(t, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_inertia_b)
-            for t in (t1, t2)
+            _kept_rows(_kept(work, slot), graph, t, *geometry)
+            for t, slot in ((t1, "first tangent"), (t2, "second tangent"))
         )
         tangent_rows = _Rows(*(np.stack(pair, axis=1) for pair in zip(first, second, strict=True)))
         tangent_impulse = np.stack(
             [np.sum(previous_friction * t1, axis=1), np.sum(previous_friction * t2, axis=1)], axis=1
         )
         for k in range(2):
-            _apply_impulses(
-                body_twist,
-                pair_rows,
-                tangent_rows.response[:, k],
-                tangent_impulse[:, k],
-                batches,
-                twist_index,
-            )
+            _apply_impulses(body_twist, graph, tangent_rows.response[:, k], tangent_impulse[:, k])
 
     # sequential impulses: normal rows, then friction rows, colour by colour
+    colours = _normal_colours(graph, normal_rows, target, impulse)
     sweeps = 0
     for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
-        change = _sweep_normal(
-            body_twist, pair_rows, normal_rows, target, impulse, batches, twist_index
-        )
-        if use_friction:
-            change = max(
-                change,
-                _sweep_friction(
-                    body_twist,
-                    pair_rows,
-                    tangent_rows,
-                    friction,
-                    impulse,
-                    tangent_impulse,
-                    batches,
-                ),
+        largest = _sweep_normal(body_twist, colours, impulse, normal_rows.mass)
+        if graph.use_friction:
+            largest = max(
+                largest,
+                _sweep_friction(body_twist, graph, tangent_rows, impulse, tangent_impulse),
             )
-        if change <= settings.solver_tolerance:
+        if largest <= settings.solver_tolerance:
             break
 
-    after = np.einsum("ij,ij->i", normal_rows.jacobian, body_twist[pair_rows].reshape(-1, 12))
+    after = _normal_velocity(body_twist, graph, normal_rows)
     friction_impulse = (
         tangent_impulse[:, :1] * t1 + tangent_impulse[:, 1:] * t2
-        if use_friction
-        else np.zeros((contacts.count, 3))
+        if graph.use_friction
+        else graph.no_friction_impulse
     )
-    report = ContactReport(contacts, restitution, before, after, impulse, friction_impulse, sweeps)
+    report = ContactReport(
+        contacts, graph.restitution, before, after, impulse, friction_impulse, sweeps
+    )
     pseudo = (
-        _split_impulse(
-            body_twist.shape[0],
-            pair_rows,
-            normal_rows,
-            contacts.depth,
-            batches,
-            settings,
-            twist_index,
-        )
+        _split_impulse(n + 1, graph, normal_rows, contacts.depth, settings)
         if settings.position_correction == "split_impulse"
         else None
     )
     return ContactSolution(body_twist[:n, :3].copy(), body_twist[:n, 3:].copy(), report, pseudo)
 
 
-def _colour_batches(
-    cache: dict, row_a: np.ndarray, row_b: np.ndarray, static_row: int
-) -> tuple[np.ndarray | None, list[slice]]:
-    """The colour order of the contacts and one slice per colour of the reordered contacts.
-
-    Returns ``(order, batches)``: ``order (c,)`` int, the stable sort of the contacts by
-    colour, or None when that is the identity (one contact, or already in colour order);
-    ``batches`` the slices of ``[0, c)`` holding each colour. The colouring is a function of
-    the rows alone (``colour_contacts``), so while the contact graph is unchanged from the
-    last step (a settled pile: the same rows in the same order) the last one is reused from
-    ``cache`` (the model workspace's); the result is identical.
-    """
-    count = row_a.size
-    if count == 1:
-        return None, [slice(0, 1)]
-    last = cache.get("rows")
-    if (
-        last is not None
-        and last[0].size == count
-        and np.array_equal(last[0], row_a)
-        and np.array_equal(last[1], row_b)
-    ):
-        return cache["order"], cache["batches"]
-    colour = colour_contacts(row_a, row_b, static_row)
-    order = np.argsort(colour, kind="stable")
-    bounds = np.searchsorted(colour[order], np.arange(colour.max() + 2))
-    batches = [slice(bounds[k], bounds[k + 1]) for k in range(bounds.size - 1)]
-    if np.array_equal(order, np.arange(count)):
-        order = None
-    cache.update(rows=(row_a, row_b), order=order, batches=batches)
-    return order, batches
-
-
-def _apply_impulses(body_twist, pair_rows, response, impulse, batches, twist_index) -> None:
+def _apply_impulses(body_twist, graph: _ContactGraph, response, impulse) -> None:
     """Add the impulses ``impulse (c,)`` along rows with ``response (c, 12)`` to the twists."""
-    if not np.any(impulse):
+    if not np.count_nonzero(impulse):
         return
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for s in batches:  # contacts of one colour share no dynamic body: gather, add, store
-        twist = body_twist.take(pair_rows[s], axis=0).reshape(-1, 12)
-        twist += impulse[s, None] * response[s]
-        flat_twist[twist_index[s]] = twist
+    for rows, index, rows_response, rows_impulse in _per_colour(
+        graph.batches, graph.pair_rows, graph.twist_index, response, impulse
+    ):  # contacts of one colour share no dynamic body: gather, add, store
+        twist = body_twist.take(rows, axis=0).reshape(-1, 12)
+        flat_twist[index] = twist + rows_impulse[:, None] * rows_response
 
 
 def _warm_start_impulses(
-    model: Model, contacts: Contacts, previous: ContactReport | None, settings: Settings
-) -> tuple[np.ndarray, np.ndarray]:
-    """Initial normal impulses (c,) N·s and friction impulses (c, 3) N·s, world frame.
+    model: Model,
+    graph: _ContactGraph,
+    contacts: Contacts,
+    previous: ContactReport | None,
+    settings: Settings,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Initial normal impulses (c,) N·s and friction impulses (c, 3) N·s, world frame (None
+    when no contact has friction).
 
     Each contact takes the accumulated impulses of the nearest contact of the same body
     pair in ``previous`` if that one lies within ``WARM_START_MATCH_FRACTION`` of the
@@ -468,22 +636,33 @@ def _warm_start_impulses(
     """
     count = contacts.count
     if not settings.warm_start or previous is None or previous.contacts.count == 0:
-        return np.zeros(count), np.zeros((count, 3))
+        return np.zeros(count), np.zeros((count, 3)) if graph.use_friction else None
+    source, matched = _warm_start_match(model, graph, contacts, previous.contacts)
+    carried = previous.normal_impulse if source is None else previous.normal_impulse[source]
+    normal = np.where(matched, carried, 0.0)
+    if not graph.use_friction:
+        return normal, None
+    carried = previous.friction_impulse if source is None else previous.friction_impulse[source]
+    return normal, np.where(matched[:, None], carried, 0.0)
+
+
+def _warm_start_match(
+    model: Model, graph: _ContactGraph, contacts: Contacts, old: Contacts
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """The old contact ``source (c,)`` int each contact continues (None: contact ``i``
+    continues old contact ``i``) and whether it is a match ``matched (c,)`` bool."""
     n = model.n_bodies
-    old = previous.contacts
-    radius = np.minimum(
-        model.body_bound_radius[contacts.body_a], model.body_bound_radius[contacts.body_b]
-    )
+    if old.body_a is graph.body_a and old.body_b is graph.body_b and graph.unique_pairs:
+        # the last step's graph: each pair's one old contact has the same index
+        offset = old.point - contacts.point
+        return None, np.add.reduce(offset * offset, axis=1) <= graph.match_distance_sq
     if old.count == 1:  # one old contact (a body resting on the ground): nothing to search
-        source = np.zeros(count, dtype=np.int64)
+        source = np.zeros(contacts.count, dtype=np.int64)
         same_pair = (contacts.body_a == old.body_a[0]) & (contacts.body_b == old.body_b[0])
         distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
-        matched = same_pair & (distance_sq <= (WARM_START_MATCH_FRACTION * radius) ** 2)
-        normal = np.where(matched, previous.normal_impulse[source], 0.0)
-        friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
-        return normal, friction
+        return source, same_pair & (distance_sq <= graph.match_distance_sq)
     old_key = old.body_a * n + old.body_b
-    key = contacts.body_a * n + contacts.body_b
+    key = graph.pair_key
     order = np.argsort(old_key, kind="stable")
     sorted_key = old_key[order]
     start = np.searchsorted(sorted_key, key, side="left")
@@ -492,22 +671,16 @@ def _warm_start_impulses(
     if width == 1:  # at most one old contact per pair (spheres): no (c, width) candidates
         source = order[np.minimum(start, order.size - 1)]
         distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
-        matched = (start < end) & (distance_sq <= (WARM_START_MATCH_FRACTION * radius) ** 2)
-        normal = np.where(matched, previous.normal_impulse[source], 0.0)
-        friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
-        return normal, friction
+        return source, (start < end) & (distance_sq <= graph.match_distance_sq)
     slot = start[:, None] + np.arange(width)[None, :]
     valid = slot < end[:, None]
     candidate = order[np.minimum(slot, order.size - 1)]
     distance_sq = np.sum((old.point[candidate] - contacts.point[:, None, :]) ** 2, axis=2)
     distance_sq[~valid] = np.inf
     best = np.argmin(distance_sq, axis=1)
-    rows = np.arange(count)
-    matched = distance_sq[rows, best] <= (WARM_START_MATCH_FRACTION * radius) ** 2
-    source = candidate[rows, best]
-    normal = np.where(matched, previous.normal_impulse[source], 0.0)
-    friction = np.where(matched[:, None], previous.friction_impulse[source], 0.0)
-    return normal, friction
+    rows = np.arange(contacts.count)
+    matched = distance_sq[rows, best] <= graph.match_distance_sq
+    return candidate[rows, best], matched
 
 
 def _correction_speed(depth: np.ndarray, settings: Settings) -> np.ndarray:
@@ -518,7 +691,7 @@ def _correction_speed(depth: np.ndarray, settings: Settings) -> np.ndarray:
     )
 
 
-def _normal_targets(depth, before, restitution, settings: Settings) -> np.ndarray:
+def _normal_targets(depth, before, negative_restitution, settings: Settings) -> np.ndarray:
     """Target normal velocity (c,) m/s of each contact after the solve.
 
     Contacts approaching faster than the threshold bounce: ``-e (v_rel·n)`` (Newton's law,
@@ -527,14 +700,14 @@ def _normal_targets(depth, before, restitution, settings: Settings) -> np.ndarra
     ``Settings.contact_margin``. Baumgarte adds its bias velocity as a floor.
     """
     bounce = before < -settings.restitution_threshold
-    target = np.where(bounce, -restitution * before, 0.0)
+    target = np.where(bounce, negative_restitution * before, 0.0)
     if settings.position_correction == "baumgarte":
         target = np.maximum(target, _correction_speed(depth, settings))
     return target
 
 
 def _split_impulse(
-    rows_count, pair_rows, normal_rows: _Rows, depth, batches, settings, twist_index
+    rows_count: int, graph: _ContactGraph, normal_rows: _Rows, depth, settings: Settings
 ) -> np.ndarray:
     """Pseudo-velocities (n, 6) that remove penetration through the pose only (split impulse).
 
@@ -547,10 +720,8 @@ def _split_impulse(
     if not np.any(target > 0.0):
         return pseudo[:-1]
     impulse = np.zeros(depth.size)
+    colours = _normal_colours(graph, normal_rows, target, impulse)
     for _ in range(settings.position_iterations):
-        change = _sweep_normal(
-            pseudo, pair_rows, normal_rows, target, impulse, batches, twist_index
-        )
-        if change <= settings.solver_tolerance:
+        if _sweep_normal(pseudo, colours, impulse, normal_rows.mass) <= settings.solver_tolerance:
             break
     return pseudo[:-1]
