@@ -56,9 +56,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
 
     # 1. collision detection at the start-of-step poses (broad phase, then narrow phase)
     contacts = (
-        detect_contacts(model, state.pos, rot, settings.contact_margin, settings.broadphase_padding)
-        if model.can_touch
-        else Contacts.empty()
+        _contacts(work, model, state.pos, rot, settings) if model.can_touch else Contacts.empty()
     )
     # 2. applied loads at the start-of-step state: gravity, spring-dampers, constant loads
     #    (without springs they do not depend on the state: the workspace holds them)
@@ -119,6 +117,24 @@ def _rotations(work, quat: np.ndarray) -> np.ndarray:
     rot.flags.writeable = False
     cache.update(quat_shape=quat.shape, quat_bits=quat_bits, rot=rot)
     return rot
+
+
+def _contacts(work, model: Model, pos: np.ndarray, rot: np.ndarray, settings: Settings) -> Contacts:
+    """The contacts of ``detect_contacts`` at positions ``pos (n, 3)`` and the rotations ``rot``
+    of ``_rotations``, read-only; the last step's when ``pos`` is bit-for-bit the last step's,
+    ``rot`` the cached matrices and the margins the same (a body resting on the ground): the
+    contacts depend on nothing else, so the same contacts are not detected again."""
+    cache = work.contact_cache
+    key = (pos.shape, pos.tobytes(), settings.contact_margin, settings.broadphase_padding)
+    if cache.get("rot") is rot and cache.get("key") == key:
+        return cache["contacts"]
+    contacts = detect_contacts(
+        model, pos, rot, settings.contact_margin, settings.broadphase_padding
+    )
+    for array in contacts:
+        array.flags.writeable = False
+    cache.update(rot=rot, key=key, contacts=contacts)
+    return contacts
 
 
 def _world_inverse_inertia(work, model: Model, rot: np.ndarray) -> np.ndarray:

@@ -48,6 +48,8 @@ class Workspace:
         rotation_cache: the last step's orientations, their rotation matrices and world
             inverse inertias, reused while the orientations are unchanged (``step._rotations``,
             ``step._world_inverse_inertia``).
+        contact_cache: the last step's start-of-step positions, rotations and contacts, reused
+            while the poses are unchanged bit for bit (``step._contacts``).
         solver_rows: the contact solver's last rows per constraint direction and what they
             were built from, reused while that is unchanged (``solver._kept_rows``).
     """
@@ -62,6 +64,7 @@ class Workspace:
     body_row: np.ndarray
     colour_cache: dict = field(default_factory=dict)
     rotation_cache: dict = field(default_factory=dict)
+    contact_cache: dict = field(default_factory=dict)
     solver_rows: dict = field(default_factory=dict)
 
 

@@ -16,6 +16,7 @@ import pytest
 
 from mini_engine import Body, Plane, Settings, Sphere, build_model, step
 from mini_engine.broadphase import candidate_pairs
+from mini_engine.collision import detect_contacts
 from mini_engine.integrate import GYROSCOPIC_RULES, BodyInertia, body_inertia
 from mini_engine.model import PER_MODEL_PREFIX, State
 from mini_engine.narrowphase import NARROW_PHASE
@@ -147,3 +148,25 @@ def test_a_pickled_model_leaves_its_per_model_results_behind_and_steps_alike():
         strict=True,
     ):
         assert got.tobytes() == expected.tobytes()
+
+
+def test_contacts_are_reused_only_while_the_poses_are_unchanged():
+    """A resting sphere keeps its pose bit for bit: its contacts are the last step's
+    (read-only); a moved pose or another margin detects them again, as the long way does."""
+    model, state = build_model(
+        [Body(Plane(), fixed=True), Body(Sphere(0.05), position=(0.0, 0.0, 0.05))]
+    )
+    settings = Settings(dt=2e-3)
+    for _ in range(50):
+        state = step(model, state, settings).state
+    first = step(model, state, settings).contacts.contacts
+    again = step(model, state, settings).contacts.contacts
+    assert again.body_a is first.body_a and not again.depth.flags.writeable
+    lifted = State(state.pos + np.array([0.0, 0.0, 1e-4]), state.quat, state.vel, state.ang_vel)
+    rot = quat_to_matrix(lifted.quat)
+    margins = settings.contact_margin, settings.broadphase_padding
+    expected = detect_contacts(model, lifted.pos, rot, *margins)
+    moved = step(model, lifted, settings).contacts.contacts
+    assert moved.depth.tobytes() == expected.depth.tobytes()
+    wider = step(model, state, Settings(dt=2e-3, contact_margin=0.01)).contacts.contacts
+    assert wider.depth is not first.depth
