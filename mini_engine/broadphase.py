@@ -76,6 +76,8 @@ class BroadPhasePlan(NamedTuple):
         direct_reach: (d,) m, ``r_a + r_b`` of those pairs (the padding is added per step).
         any_finite_pairs: there are direct pairs or at least two small bodies (else
             ``finite_pairs`` has nothing to test).
+        grid_cache: the last step's grid (dims and cell keys) and its pairs, reused while every
+            small body keeps its cell (``_grid_pairs``).
     """
 
     planes: np.ndarray
@@ -90,6 +92,7 @@ class BroadPhasePlan(NamedTuple):
     direct_b: np.ndarray
     direct_reach: np.ndarray
     any_finite_pairs: bool
+    grid_cache: dict
 
 
 @per_model
@@ -130,6 +133,7 @@ def broadphase_plan(model: Model) -> BroadPhasePlan:
         direct_b=direct_b,
         direct_reach=radius[direct_a] + radius[direct_b],
         any_finite_pairs=bool(direct_a.size or small.size >= 2),
+        grid_cache={},
     )
 
 
@@ -193,7 +197,11 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
     if work.small.size >= 2:
         small = work.small
         a, b = _grid_pairs(
-            pos.take(small, axis=0), work.small_radius + padding, small, work.small_world
+            pos.take(small, axis=0),
+            work.small_radius + padding,
+            small,
+            work.small_world,
+            work.grid_cache,
         )
         if a.size:  # every test is symmetric in a and b: order the survivors only
             offset = pos.take(a, axis=0) - pos.take(b, axis=0)
@@ -265,13 +273,18 @@ def _same_world_pairs(
 
 
 def _grid_pairs(
-    centre: np.ndarray, radius: np.ndarray, body: np.ndarray, world: np.ndarray
+    centre: np.ndarray, radius: np.ndarray, body: np.ndarray, world: np.ndarray, cache: dict
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of bodies of one world whose centres lie in the same or adjacent grid cells.
+
+    The pairs are a function of the grid's dims and the bodies' cell keys alone (for the
+    fixed ``body`` and ``world`` of one plan): while both are bit-for-bit the last call's
+    (a settled pile, bodies keeping their cells), ``cache`` gives the last pairs, read-only.
 
     Args:
         centre: (m, 3) m, world frame. radius: (m,) m, padded bounding radii.
         body: (m,) int, the model indices of these bodies. world: (m,) int, their worlds (>= 0).
+        cache: the plan's ``grid_cache``, the last grid and its pairs.
     """
     m = body.size
     if m < 2:
@@ -286,18 +299,34 @@ def _grid_pairs(
     dims = cell.max(axis=0) + 2  # one empty layer of cells on each side
     strides = np.array([dims[1] * dims[2], dims[2], 1])
     per_world = int(np.prod(dims))
-    if per_world * int(world.max() - world.min() + 1) > KEY_LIMIT:  # keys would overflow
+    n_cells = per_world * int(world.max() - world.min() + 1)
+    if n_cells > KEY_LIMIT:  # keys would overflow
         first, second = np.triu_indices(m, k=1)
         same = world[first] == world[second]
         return body[first[same]], body[second[same]]
     # row-major cell index within the body's world; the empty border keeps cell + offset inside
     key = cell @ strides + (world - world.min()) * per_world
+    grid = (dims.tobytes(), key.tobytes())
+    if cache.get("grid") == grid:
+        return cache["pairs"]
+    pairs = _cell_pairs(key, strides, n_cells, body)
+    for array in pairs:
+        array.flags.writeable = False
+    cache.update(grid=grid, pairs=pairs)
+    return pairs
+
+
+def _cell_pairs(
+    key: np.ndarray, strides: np.ndarray, n_cells: int, body: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of ``_grid_pairs`` from the cell ``key (m,)`` of each of ``body (m,)``, the
+    grid's ``strides (3,)`` and its ``n_cells`` (cells of every world)."""
+    m = body.size
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     rank = np.empty(m, dtype=np.int64)
     rank[order] = np.arange(m)
 
-    n_cells = per_world * int(world.max() - world.min() + 1)
     if n_cells <= CELL_TABLE_LIMIT:  # dense table: where each cell's run starts in sorted order
         cell_start = np.searchsorted(sorted_key, np.arange(n_cells + 1))
 

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from mini_engine import Body, Plane, Settings, Sphere, build_model, step
-from mini_engine.broadphase import candidate_pairs
+from mini_engine.broadphase import _grid_pairs, broadphase_plan, candidate_pairs
 from mini_engine.collision import detect_contacts
 from mini_engine.integrate import GYROSCOPIC_RULES, BodyInertia, body_inertia
 from mini_engine.model import PER_MODEL_PREFIX, State
 from mini_engine.narrowphase import NARROW_PHASE
 from mini_engine.rotation import last_axis_sum, quat_to_matrix, rotation_quat
-from mini_engine.scenes import tumbling_box
+from mini_engine.scenes import sphere_pile, tumbling_box
 from mini_engine.shapes import Box, ShapeType
 
 PAIRS = 200
@@ -170,3 +170,22 @@ def test_contacts_are_reused_only_while_the_poses_are_unchanged():
     assert moved.depth.tobytes() == expected.depth.tobytes()
     wider = step(model, state, Settings(dt=2e-3, contact_margin=0.01)).contacts.contacts
     assert wider.depth is not first.depth
+
+
+def test_grid_pairs_of_kept_cells_are_the_pairs_found_afresh():
+    """A settling pile's small bodies mostly keep their cells: the cached grid pairs are then
+    those a fresh grid finds, and a changed cell finds them again."""
+    model, state = sphere_pile(200)
+    settings = Settings(dt=2e-3)
+    plan = broadphase_plan(model)
+    reused = 0
+    for _ in range(300):
+        state = step(model, state, settings).state
+        centre = state.pos.take(plan.small, axis=0)
+        radius = plan.small_radius + settings.contact_margin + settings.broadphase_padding
+        last = plan.grid_cache.get("pairs")
+        kept = _grid_pairs(centre, radius, plan.small, plan.small_world, plan.grid_cache)
+        fresh = _grid_pairs(centre, radius, plan.small, plan.small_world, {})
+        reused += kept is last
+        assert [kept[0].tobytes(), kept[1].tobytes()] == [fresh[0].tobytes(), fresh[1].tobytes()]
+    assert 0 < reused < 300
