@@ -238,19 +238,19 @@ def colour_contacts(row_a: np.ndarray, row_b: np.ndarray, static_row: int) -> np
     remaining = _lowest_priority_first(count).copy()  # the last write of a claim wins
     current = 0
     while remaining.size:
-        used = np.zeros(static_row + count, dtype=bool)
         candidates = remaining
         for _ in range(COLOUR_ROUNDS):
             if not candidates.size:
                 break
             rows = pair_rows.take(candidates, axis=0)
             claim[rows.ravel()] = np.repeat(candidates, 2)
-            wins = (claim[rows[:, 0]] == candidates) & (claim[rows[:, 1]] == candidates)
-            winners = candidates[wins]  # never empty: the top-priority candidate always wins
-            colour[winners] = current
-            used[rows[wins].ravel()] = True
-            rows = rows[~wins]
-            candidates = candidates[~wins][~(used[rows[:, 0]] | used[rows[:, 1]])]
+            claimant = claim[rows]  # (m, 2): the candidate each of its rows went to
+            wins = (claimant[:, 0] == candidates) & (claimant[:, 1] == candidates)
+            colour[candidates[wins]] = current  # never none: the top priority always wins
+            # every row of a candidate went to a candidate of this round, so the rows now
+            # used by the colour are those whose claimant won; the others try again
+            taken = colour[claimant] == current
+            candidates = candidates[~(taken[:, 0] | taken[:, 1])]
         remaining = remaining[colour[remaining] < 0]
         current += 1
     return colour
