@@ -35,7 +35,7 @@ import numpy as np
 
 from mini_engine.contacts import Contacts
 from mini_engine.model import Model
-from mini_engine.rotation import apply, cross
+from mini_engine.rotation import apply, cross, last_axis_sum
 from mini_engine.settings import Settings
 from mini_engine.workspace import Workspace, workspace
 
@@ -372,7 +372,7 @@ def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_in
     response = np.concatenate(
         [-inv_mass_a[:, None] * direction, -w_a, inv_mass_b[:, None] * direction, w_b], axis=1
     )
-    inverse_mass = inv_mass_a + inv_mass_b + np.sum(rd_a * w_a, axis=1) + np.sum(rd_b * w_b, axis=1)
+    inverse_mass = inv_mass_a + inv_mass_b + last_axis_sum(rd_a * w_a) + last_axis_sum(rd_b * w_b)
     return _Rows(jacobian, response, 1.0 / inverse_mass)
 
 
@@ -751,7 +751,7 @@ def _warm_start_match(
     if old.count == 1:  # one old contact (a body resting on the ground): nothing to search
         source = np.zeros(contacts.count, dtype=np.int64)
         same_pair = (contacts.body_a == old.body_a[0]) & (contacts.body_b == old.body_b[0])
-        distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
+        distance_sq = last_axis_sum((old.point[source] - contacts.point) ** 2)
         return source, same_pair & (distance_sq <= graph.match_distance_sq)
     old_key = old.body_a * n + old.body_b
     key = graph.pair_key
