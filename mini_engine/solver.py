@@ -483,22 +483,25 @@ def _sweep_normal(
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
     for rows, index, jacobian, response, rows_mass, target, rows_impulse in colours:
         twist = body_twist.take(rows, axis=0).reshape(-1, 12)
-        flat_twist[index] = _colour_update(
+        flat_twist[index], _ = _colour_update(
             twist, jacobian, response, rows_mass, target, rows_impulse
         )
     return float((np.abs(impulse - start) / mass).max())
 
 
-def _colour_update(twist, jacobian, response, mass, target, impulse) -> np.ndarray:
+def _colour_update(
+    twist, jacobian, response, mass, target, impulse
+) -> tuple[np.ndarray, np.ndarray]:
     """The twists (k, 12) ``[twist_A, twist_B]`` of k contacts sharing no dynamic body after
-    one update from ``twist (k, 12)``: each contact's impulse reaches its target velocity
-    ``target (k,)`` m/s, the accumulated ``impulse (k,)`` N·s (updated in place) kept >= 0;
-    ``jacobian, response (k, 12)`` and effective ``mass (k,)`` kg are its rows'."""
+    one update from ``twist (k, 12)``, and the impulse changes (k,) N·s: each contact's
+    impulse reaches its target velocity ``target (k,)`` m/s, the accumulated ``impulse (k,)``
+    N·s (updated in place) kept >= 0; ``jacobian, response (k, 12)`` and effective
+    ``mass (k,)`` kg are its rows'."""
     velocity = np.einsum("ij,ij->i", jacobian, twist)
     accumulated = np.maximum(impulse + mass * (target - velocity), 0.0)
     delta = accumulated - impulse
     impulse[...] = accumulated
-    return twist + delta[:, None] * response
+    return twist + delta[:, None] * response, delta
 
 
 def _sweep_friction(
@@ -684,8 +687,7 @@ def _solve_gathered(
         contact_twist = contact_twist + impulse[:, None] * normal_rows.response
     sweeps = 0
     for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
-        start = impulse.copy()
-        contact_twist = _colour_update(
+        contact_twist, delta = _colour_update(
             contact_twist,
             normal_rows.jacobian,
             normal_rows.response,
@@ -693,7 +695,8 @@ def _solve_gathered(
             target,
             impulse,
         )
-        if float((np.abs(impulse - start) / normal_rows.mass).max()) <= settings.solver_tolerance:
+        # the sweep's impulse change is the one colour's: _sweep_normal's measure
+        if float((np.abs(delta) / normal_rows.mass).max()) <= settings.solver_tolerance:
             break
     body_twist.reshape(-1)[graph.twist_index] = contact_twist
     return sweeps, np.einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
