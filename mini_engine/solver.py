@@ -35,7 +35,7 @@ import numpy as np
 
 from mini_engine.contacts import Contacts
 from mini_engine.model import Model
-from mini_engine.rotation import apply, cross
+from mini_engine.rotation import apply, cross, last_axis_sum
 from mini_engine.settings import Settings
 from mini_engine.workspace import Workspace, workspace
 
@@ -145,6 +145,9 @@ class _ContactGraph:
         match_distance_sq: (c,) m², the squared warm-start match distance
             (``WARM_START_MATCH_FRACTION`` of the pair's smaller bounding radius).
         no_friction_impulse: (c, 3) zeros, the friction impulses reported without friction.
+        gathered: one colour, no friction, and no twist row shared by two contacts (a single
+            contact): every gather of the contacts' twists would read back exactly what the
+            last update stored, so the solve keeps them gathered (``_solve_gathered``).
     """
 
     key: tuple
@@ -163,6 +166,7 @@ class _ContactGraph:
     use_friction: bool
     match_distance_sq: np.ndarray
     no_friction_impulse: np.ndarray
+    gathered: bool
 
     @functools.cached_property
     def unique_pairs(self) -> bool:
@@ -234,19 +238,19 @@ def colour_contacts(row_a: np.ndarray, row_b: np.ndarray, static_row: int) -> np
     remaining = _lowest_priority_first(count).copy()  # the last write of a claim wins
     current = 0
     while remaining.size:
-        used = np.zeros(static_row + count, dtype=bool)
         candidates = remaining
         for _ in range(COLOUR_ROUNDS):
             if not candidates.size:
                 break
             rows = pair_rows.take(candidates, axis=0)
             claim[rows.ravel()] = np.repeat(candidates, 2)
-            wins = (claim[rows[:, 0]] == candidates) & (claim[rows[:, 1]] == candidates)
-            winners = candidates[wins]  # never empty: the top-priority candidate always wins
-            colour[winners] = current
-            used[rows[wins].ravel()] = True
-            rows = rows[~wins]
-            candidates = candidates[~wins][~(used[rows[:, 0]] | used[rows[:, 1]])]
+            claimant = claim[rows]  # (m, 2): the candidate each of its rows went to
+            wins = (claimant[:, 0] == candidates) & (claimant[:, 1] == candidates)
+            colour[candidates[wins]] = current  # never none: the top priority always wins
+            # every row of a candidate went to a candidate of this round, so the rows now
+            # used by the colour are those whose claimant won; the others try again
+            taken = colour[claimant] == current
+            candidates = candidates[~(taken[:, 0] | taken[:, 1])]
         remaining = remaining[colour[remaining] < 0]
         current += 1
     return colour
@@ -290,6 +294,7 @@ def _build_contact_graph(
     a, b = side_body[:, 0].copy(), side_body[:, 1].copy()
     pair_rows = body_row[side_body]
     radius = np.minimum(model.body_bound_radius[a], model.body_bound_radius[b])
+    use_friction = bool(np.any(friction > 0.0))
     graph = _ContactGraph(
         key=key,
         order=order,
@@ -304,9 +309,12 @@ def _build_contact_graph(
         restitution=restitution,
         negative_restitution=-restitution,
         friction=friction,
-        use_friction=bool(np.any(friction > 0.0)),
+        use_friction=use_friction,
         match_distance_sq=(WARM_START_MATCH_FRACTION * radius) ** 2,
         no_friction_impulse=np.zeros((a.size, 3)),
+        gathered=len(batches) == 1
+        and not use_friction
+        and np.unique(pair_rows).size == pair_rows.size,
     )
     for value in vars(graph).values():
         if isinstance(value, np.ndarray):
@@ -364,7 +372,7 @@ def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_in
     response = np.concatenate(
         [-inv_mass_a[:, None] * direction, -w_a, inv_mass_b[:, None] * direction, w_b], axis=1
     )
-    inverse_mass = inv_mass_a + inv_mass_b + np.sum(rd_a * w_a, axis=1) + np.sum(rd_b * w_b, axis=1)
+    inverse_mass = inv_mass_a + inv_mass_b + last_axis_sum(rd_a * w_a) + last_axis_sum(rd_b * w_b)
     return _Rows(jacobian, response, 1.0 / inverse_mass)
 
 
@@ -475,12 +483,25 @@ def _sweep_normal(
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
     for rows, index, jacobian, response, rows_mass, target, rows_impulse in colours:
         twist = body_twist.take(rows, axis=0).reshape(-1, 12)
-        velocity = np.einsum("ij,ij->i", jacobian, twist)
-        accumulated = np.maximum(rows_impulse + rows_mass * (target - velocity), 0.0)
-        delta = accumulated - rows_impulse
-        rows_impulse[...] = accumulated
-        flat_twist[index] = twist + delta[:, None] * response
+        flat_twist[index], _ = _colour_update(
+            twist, jacobian, response, rows_mass, target, rows_impulse
+        )
     return float((np.abs(impulse - start) / mass).max())
+
+
+def _colour_update(
+    twist, jacobian, response, mass, target, impulse
+) -> tuple[np.ndarray, np.ndarray]:
+    """The twists (k, 12) ``[twist_A, twist_B]`` of k contacts sharing no dynamic body after
+    one update from ``twist (k, 12)``, and the impulse changes (k,) N·s: each contact's
+    impulse reaches its target velocity ``target (k,)`` m/s, the accumulated ``impulse (k,)``
+    N·s (updated in place) kept >= 0; ``jacobian, response (k, 12)`` and effective
+    ``mass (k,)`` kg are its rows'."""
+    velocity = np.einsum("ij,ij->i", jacobian, twist)
+    accumulated = np.maximum(impulse + mass * (target - velocity), 0.0)
+    delta = accumulated - impulse
+    impulse[...] = accumulated
+    return twist + delta[:, None] * response, delta
 
 
 def _sweep_friction(
@@ -558,11 +579,59 @@ def solve_contacts(
     normal_rows = _kept_rows(_kept(work, "normal"), graph, contacts.normal, *geometry)
     body_twist = np.zeros((n + 1, 6))
     body_twist[:n, :3], body_twist[:n, 3:] = vel, ang_vel
-    before = _normal_velocity(body_twist, graph, normal_rows)
+    contact_twist = body_twist.take(graph.pair_rows, axis=0).reshape(-1, 12)
+    before = np.einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
     target = _normal_targets(contacts.depth, before, graph.negative_restitution, settings)
 
-    # warm start: last step's impulses at the matching contacts, applied before the sweeps
+    # warm start (last step's impulses at the matching contacts), then sequential impulses
     impulse, previous_friction = _warm_start_impulses(model, graph, contacts, previous, settings)
+    if graph.gathered:
+        sweeps, after = _solve_gathered(
+            body_twist, contact_twist, graph, normal_rows, target, impulse, settings
+        )
+        friction_impulse = graph.no_friction_impulse
+    else:
+        sweeps, after, friction_impulse = _solve_coloured(
+            body_twist,
+            graph,
+            work,
+            contacts,
+            geometry,
+            normal_rows,
+            target,
+            impulse,
+            previous_friction,
+            settings,
+        )
+    report = ContactReport(
+        contacts, graph.restitution, before, after, impulse, friction_impulse, sweeps
+    )
+    pseudo = (
+        _split_impulse(n + 1, graph, normal_rows, contacts.depth, settings)
+        if settings.position_correction == "split_impulse"
+        else None
+    )
+    return ContactSolution(body_twist[:n, :3].copy(), body_twist[:n, 3:].copy(), report, pseudo)
+
+
+def _solve_coloured(
+    body_twist: np.ndarray,
+    graph: _ContactGraph,
+    work: Workspace,
+    contacts: Contacts,
+    geometry: tuple,
+    normal_rows: _Rows,
+    target: np.ndarray,
+    impulse: np.ndarray,
+    previous_friction: np.ndarray | None,
+    settings: Settings,
+) -> tuple[int, np.ndarray, np.ndarray]:
+    """Warm start and sweeps colour by colour, normal rows then friction rows, on
+    ``body_twist (n + 1, 6)`` in place; ``impulse (c,)`` N·s accumulates in place.
+
+    Returns the sweeps used, the normal velocities after (c,) m/s and the friction
+    impulses (c, 3) N·s, world frame.
+    """
     _apply_impulses(body_twist, graph, normal_rows.response, impulse)
     if graph.use_friction:
         t1, t2 = _tangents(contacts.normal)
@@ -577,7 +646,6 @@ def solve_contacts(
         for k in range(2):
             _apply_impulses(body_twist, graph, tangent_rows.response[:, k], tangent_impulse[:, k])
 
-    # sequential impulses: normal rows, then friction rows, colour by colour
     colours = _normal_colours(graph, normal_rows, target, impulse)
     sweeps = 0
     for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
@@ -596,15 +664,42 @@ def solve_contacts(
         if graph.use_friction
         else graph.no_friction_impulse
     )
-    report = ContactReport(
-        contacts, graph.restitution, before, after, impulse, friction_impulse, sweeps
-    )
-    pseudo = (
-        _split_impulse(n + 1, graph, normal_rows, contacts.depth, settings)
-        if settings.position_correction == "split_impulse"
-        else None
-    )
-    return ContactSolution(body_twist[:n, :3].copy(), body_twist[:n, 3:].copy(), report, pseudo)
+    return sweeps, after, friction_impulse
+
+
+def _solve_gathered(
+    body_twist: np.ndarray,
+    contact_twist: np.ndarray,
+    graph: _ContactGraph,
+    normal_rows: _Rows,
+    target: np.ndarray,
+    impulse: np.ndarray,
+    settings: Settings,
+) -> tuple[int, np.ndarray]:
+    """``_solve_coloured`` for a ``graph.gathered`` graph: the same operations on the
+    contacts' twists ``contact_twist (c, 12)`` (``[twist_A, twist_B]``, gathered from
+    ``body_twist``), stored into ``body_twist`` once at the end instead of after every
+    update (no twist row is shared, so every gather would read back the last store).
+
+    Returns the sweeps used and the normal velocities after (c,) m/s.
+    """
+    if np.count_nonzero(impulse):
+        contact_twist = contact_twist + impulse[:, None] * normal_rows.response
+    sweeps = 0
+    for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
+        contact_twist, delta = _colour_update(
+            contact_twist,
+            normal_rows.jacobian,
+            normal_rows.response,
+            normal_rows.mass,
+            target,
+            impulse,
+        )
+        # the sweep's impulse change is the one colour's: _sweep_normal's measure
+        if float((np.abs(delta) / normal_rows.mass).max()) <= settings.solver_tolerance:
+            break
+    body_twist.reshape(-1)[graph.twist_index] = contact_twist
+    return sweeps, np.einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
 
 
 def _apply_impulses(body_twist, graph: _ContactGraph, response, impulse) -> None:
@@ -659,7 +754,7 @@ def _warm_start_match(
     if old.count == 1:  # one old contact (a body resting on the ground): nothing to search
         source = np.zeros(contacts.count, dtype=np.int64)
         same_pair = (contacts.body_a == old.body_a[0]) & (contacts.body_b == old.body_b[0])
-        distance_sq = np.sum((old.point[source] - contacts.point) ** 2, axis=1)
+        distance_sq = last_axis_sum((old.point[source] - contacts.point) ** 2)
         return source, same_pair & (distance_sq <= graph.match_distance_sq)
     old_key = old.body_a * n + old.body_b
     key = graph.pair_key
