@@ -13,7 +13,7 @@ wall-clock numbers depend on the machine, and on a shared machine on who else is
 (expect close to 2x on 2 free cores).
 
     python benchmarks/dask_speedup.py [--scenes 16] [--dt 2e-3,1e-3,5e-4] [--workers 2]
-                                      [--order longest_first|plan]
+                                      [--order longest_first|plan] [--scheduler ADDRESS]
 
 Prints the figures and writes ``benchmarks/results/dask_speedup.csv``.
 """
@@ -88,18 +88,24 @@ def main() -> None:
     parser.add_argument("--dt", default="2e-3,1e-3,5e-4")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--order", choices=sorted(ORDERS), default="longest_first")
+    parser.add_argument(
+        "--scheduler",
+        default="local",
+        help="'local' (a LocalCluster started and ended inside the timing) or the address of "
+        "a running cluster (its workers already started: the steady state of a team's cluster)",
+    )
     args = parser.parse_args()
     jobs = _jobs(args.scenes, parse_dt_grid(args.dt))
     load = os.getloadavg()[0]
     serial_s, serial, each = _serial(jobs)
-    dask_s, dask = _timed(jobs, args.workers, "local", args.order)
+    dask_s, dask = _timed(jobs, args.workers, args.scheduler, args.order)
     _same(serial, dask)
     processes_s, processes = _timed(jobs, args.workers, None, args.order)
     _same(serial, processes)
     bound = serial_s / max(serial_s / args.workers, max(each))
     rows = [
         ("--jobs 1", 1, serial_s),
-        (f"--scheduler local --jobs {args.workers}", args.workers, dask_s),
+        (f"--scheduler {args.scheduler} --jobs {args.workers}", args.workers, dask_s),
         (f"--jobs {args.workers} (local processes)", args.workers, processes_s),
     ]
     table = pd.DataFrame(

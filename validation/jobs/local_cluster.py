@@ -20,6 +20,7 @@ import logging
 import sys
 
 from validation.jobs.dask_backend import quiet_dask_logs
+from validation.jobs.executor import WORKER_PRELOAD
 
 LOCAL_ALLOWED_FAILURES = 1
 """A local cluster's ``allowed-failures``: a job whose worker died is given to another
@@ -36,7 +37,9 @@ behind it."""
 
 
 def serve(workers: int) -> None:
-    """Start the cluster, print its address, hold it until stdin closes, close it."""
+    """Start the cluster (each worker imports the job modules, ``executor.WORKER_PRELOAD``,
+    as it starts, like the local pool's fork server), print its address, hold it until stdin
+    closes, close it."""
     import dask
     from distributed import LocalCluster
 
@@ -48,6 +51,7 @@ def serve(workers: int) -> None:
             processes=True,
             dashboard_address=None,
             silence_logs=logging.CRITICAL,
+            preload=WORKER_PRELOAD,  # the engines imported as each worker starts, as the pool's
         )
     try:
         print(cluster.scheduler_address, flush=True)
