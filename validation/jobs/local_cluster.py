@@ -51,7 +51,7 @@ def serve(workers: int) -> None:
             processes=True,
             dashboard_address=None,
             silence_logs=logging.CRITICAL,
-            preload=WORKER_PRELOAD,  # the engines imported as each worker starts, as the pool's
+            preload=WORKER_PRELOAD,  # imported as each worker starts (the pool's fork server)
         )
     try:
         print(cluster.scheduler_address, flush=True)
