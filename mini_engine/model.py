@@ -192,6 +192,12 @@ class Model:
         """Pickle the model's fields only: what ``per_model`` derived is rebuilt on first use."""
         return {k: v for k, v in self.__dict__.items() if not k.startswith(PER_MODEL_PREFIX)}
 
+    def forget_derived(self) -> None:
+        """Drop everything ``per_model`` derived (the workspace, the broad-phase plan and
+        every cache they hold): the next step rebuilds it from the fields, as for a new model."""
+        for key in [k for k in self.__dict__ if k.startswith(PER_MODEL_PREFIX)]:
+            del self.__dict__[key]
+
     @property
     def n_bodies(self) -> int:
         return len(self.body_name)

@@ -45,9 +45,8 @@ def _resting_sphere():
 def _trace(model, state, steps, fresh):
     trace = []
     for _ in range(steps):
-        if fresh:  # forget everything the solver keeps from the last step
-            workspace(model).colour_cache.clear()
-            workspace(model).solver_rows.clear()
+        if fresh:  # forget everything derived from the model, the solver's caches included
+            model.forget_derived()
         state, report = step(model, state, SETTINGS)
         trace.append(
             np.concatenate(

@@ -17,9 +17,8 @@ from mini_engine.workspace import workspace
 def _run(model, state, settings, steps, fresh):
     trace = []
     for _ in range(steps):
-        if fresh:  # forget everything the workspace remembers from the last step
-            workspace(model).colour_cache.clear()
-            workspace(model).rotation_cache.clear()
+        if fresh:  # forget everything derived from the model, caches included
+            model.forget_derived()
         state, report = step(model, state, settings)
         trace.append(
             np.concatenate(
