@@ -63,13 +63,15 @@ that dominates a run) steps one sphere in 0.2 ms and a 1,000-sphere pile in 8.6 
 (``benchmarks/step_cost.py``), (8.6 - 0.2) / 1000 / 0.2 = 0.04."""
 
 
-def expected_cost(scenario: Scenario, dts: list[float]) -> float:
-    """A job's expected cost in fixed step costs: its steps at each of ``dts`` times
-    (1 + ``STEP_COST_PER_BODY`` x bodies). It orders the work (the executor starts the
-    longest jobs first); no result depends on it."""
+def expected_cost(scenario: Scenario, dts: list[float] | None = None) -> float:
+    """A job's expected cost in fixed step costs: its steps at each of ``dts`` (default the
+    scene's own dt) times (1 + ``STEP_COST_PER_BODY`` x bodies). It orders the work (the
+    executor starts the longest jobs first); no result depends on it."""
     bodies = len(scenario.bodies)
     steps = sum(
-        step_ratio(scenario.duration, dt) for dt in dts if steps_in_range(scenario.duration, dt)
+        step_ratio(scenario.duration, dt)
+        for dt in (dts or [scenario.dt])
+        if steps_in_range(scenario.duration, dt)
     )
     return steps * (1.0 + STEP_COST_PER_BODY * bodies)
 

@@ -214,7 +214,7 @@ def _cost(job: tuple[str, tuple]) -> float:
     if kind == "sweep":
         return sweep_cost(payload)
     scene, _ = payload
-    return expected_cost(scene.scenario, [scene.scenario.dt])
+    return expected_cost(scene.scenario)
 
 
 def _lost(job: tuple[str, tuple], message: str) -> object:

@@ -173,7 +173,7 @@ def stability_main(
                 None,
                 scheduler,
                 _lost_limit,
-                lambda job: expected_cost(job[0], [job[0].dt]),  # the longest scenes first
+                lambda job: expected_cost(job[0]),  # the longest scenes first
             )
             rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
             write_table(rows, out)  # atomically
