@@ -26,6 +26,7 @@ WINGS: dict[str, int] = {
     "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
     "validation.contract": 1,
     "validation.files": 1,
+    "validation.reference": 1,  # the closed forms judged against: below all that reads them
     "validation.scenario": 2,
     "validation.engines": 3,
     "validation.measure": 4,
