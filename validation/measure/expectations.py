@@ -22,7 +22,7 @@ import numpy as np
 from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Trajectory
 from validation.measure.measurement import Measurement
-from validation.measure.newton_euler import rotation_angle
+from validation.reference.rotation import rotation_angle
 from validation.scenario.compiled import (
     CompiledScene,
     gravitational_energy,
