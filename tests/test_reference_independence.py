@@ -137,20 +137,26 @@ def reference_values(scenario: Scenario) -> tuple[np.ndarray, float, float]:
     return reference_motion(scene, times).pos, energy, reference_report(scene).energy
 
 
-def test_a_sabotaged_spring_law_moves_mini_but_not_the_reference(monkeypatch):
+def test_a_sabotaged_spring_law_moves_mini_but_not_the_references(monkeypatch):
+    """DOP853, the energy invariant, the gate's expected energy and PyBullet (whose springs
+    the adapter applies by the reference's law) stay bit for bit where they were."""
     scenario = load_scenario(SPRING_SCENE)
     honest_motion, honest_energy, honest_expected = reference_values(scenario)
-    honest_engines = engine_positions(scenario, ("mini",))
+    honest_engines = engine_positions(scenario, ("mini", "pybullet"))
     for law in ("spring_forces", "spring_energies"):
         sabotage_everywhere(
             monkeypatch, mini_engine.forces, law, doubled(getattr(mini_engine.forces, law))
         )
     motion, energy, expected = reference_values(scenario)
-    engines = engine_positions(scenario, ("mini",))
+    engines = engine_positions(scenario, ("mini", "pybullet"))
     moved = float(np.abs(engines["mini"] - honest_engines["mini"]).max())
     assert moved > 1e-5, f"the sabotage did not reach mini: its positions moved by {moved} m"
     shift = float(np.abs(motion - honest_motion).max())
     assert shift == 0.0, f"the DOP853 reference moved by {shift} m with mini's spring law"
+    pybullet_shift = float(np.abs(engines["pybullet"] - honest_engines["pybullet"]).max())
+    assert pybullet_shift == 0.0, (
+        f"PyBullet, driven by the reference's law, moved {pybullet_shift} m"
+    )
     assert (energy, expected) == (honest_energy, honest_expected), (
         f"energy {energy} J (honest {honest_energy}), parity expectation {expected} J "
         f"(honest {honest_expected})"
