@@ -293,10 +293,10 @@ def test_the_reference_side_imports_nothing_from_mini_engine():
     sources = [m for m in MODULES if wing(m) == REFERENCE_SIDE]
     assert f"{REFERENCE_SIDE}.newton_euler" in sources, sources
     chains = import_chains(sources, EDGES)
-    found = [
+    found = [  # each way in: the chain up to its first mini_engine module
         " ; ".join(str(e) for e in chain)
         for module, chain in sorted(chains.items())
-        if wing(module) == "mini_engine"
+        if wing(module) == "mini_engine" and wing(chain[-1].source) != "mini_engine"
     ]
     assert found == [], "the reference side reaches mini_engine:\n" + "\n".join(found)
 
