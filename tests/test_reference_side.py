@@ -168,7 +168,9 @@ def test_rotations_agree_with_mini_engine(seed):
     p, q = random_unit_quaternions(rng, 8), random_unit_quaternions(rng, 8)
     matrix_error = relative_difference(rotation.quat_to_matrix(p), mini_quat_to_matrix(p))
     product_error = relative_difference(rotation.quat_multiply(p, q), mini_quat_multiply(p, q))
-    assert matrix_error <= AGREEMENT and product_error <= AGREEMENT, (matrix_error, product_error)
+    assert matrix_error <= AGREEMENT and product_error <= AGREEMENT, (
+        f"seed {seed}: matrices differ by {matrix_error:.3g}, products by {product_error:.3g}"
+    )
 
 
 # --- (b) the reference's own formulas, checked independently --------------------------------
@@ -223,10 +225,10 @@ def test_sphere_and_box_inertia_equal_the_integral_over_the_solid():
         lambda z: np.sqrt(max(radius * radius - z * z, 0.0)), radius, ()
     )
     sphere = sphere_inertia(body_mass, radius)
-    assert relative_difference(sphere, np.eye(3) * axial * body_mass / volume) <= INTEGRAL_AGREEMENT
-    assert relative_difference(sphere, np.eye(3) * transverse * body_mass / volume) <= (
-        INTEGRAL_AGREEMENT
-    ), (np.diag(sphere).tolist(), transverse * body_mass / volume)
+    for moment in (axial, transverse):  # a ball's: equal about every axis
+        integrated = moment * body_mass / volume
+        error = relative_difference(sphere, np.eye(3) * integrated)
+        assert error <= INTEGRAL_AGREEMENT, (np.diag(sphere).tolist(), integrated, error)
     half = np.array([0.1, 0.4, 1.3])
     # ∫ x² over [-h, h] is 2h³/3; the box's second moments are products of 1D integrals
     second = np.array([quad(lambda x: x * x, -h, h, epsrel=1e-13)[0] for h in half])
@@ -240,10 +242,8 @@ def test_sphere_and_box_inertia_equal_the_integral_over_the_solid():
         ]
     ) * (body_mass / box_volume)
     box = box_inertia(body_mass, half)
-    assert relative_difference(box, integrated) <= INTEGRAL_AGREEMENT, (
-        np.diag(box).tolist(),
-        np.diag(integrated).tolist(),
-    )
+    error = relative_difference(box, integrated)
+    assert error <= INTEGRAL_AGREEMENT, (np.diag(box).tolist(), np.diag(integrated).tolist(), error)
 
 
 def test_capsule_limits_are_the_ball_and_the_thin_rod():
@@ -326,10 +326,17 @@ def test_rotations_agree_with_scipy(seed):
     p, q = random_unit_quaternions(rng, 8), random_unit_quaternions(rng, 8)
     rot_p = Rotation.from_quat(p, scalar_first=True)
     rot_q = Rotation.from_quat(q, scalar_first=True)
-    assert relative_difference(rotation.quat_to_matrix(p), rot_p.as_matrix()) <= AGREEMENT
+    matrix_error = relative_difference(rotation.quat_to_matrix(p), rot_p.as_matrix())
+    assert matrix_error <= AGREEMENT, (
+        f"seed {seed}: matrices differ from SciPy's by {matrix_error:.3g}"
+    )
     product = rotation.quat_multiply(p, q)
     expected = (rot_p * rot_q).as_quat(scalar_first=True)
     sign = np.sign(np.sum(product * expected, axis=1, keepdims=True))  # q and -q: one rotation
-    assert relative_difference(product, sign * expected) <= AGREEMENT, (product, expected)
+    product_error = relative_difference(product, sign * expected)
+    assert product_error <= AGREEMENT, (
+        f"seed {seed}: {product.tolist()} vs SciPy {expected.tolist()}"
+    )
     angle = rotation.rotation_angle(p, q)
-    assert np.allclose(angle, (rot_q.inv() * rot_p).magnitude(), rtol=0.0, atol=1e-12), angle
+    scipy_angle = (rot_q.inv() * rot_p).magnitude()
+    assert np.allclose(angle, scipy_angle, rtol=0.0, atol=1e-12), (angle, scipy_angle)
