@@ -10,7 +10,7 @@ import pytest
 from scene_rows import rows
 
 from mini_engine.rotation import quat_to_matrix
-from validation.measure.newton_euler import reference_motion
+from validation.reference.newton_euler import reference_motion
 from validation.scenario import Scenario, ScenarioError, load_scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec

@@ -23,7 +23,7 @@ from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Trajectory
 from validation.measure.interpolation import INTERPOLANTS, rotation_vector_between
 from validation.measure.measurement import Measurement
-from validation.measure.newton_euler import rotation_angle
+from validation.reference.rotation import rotation_angle
 from validation.scenario.compiled import (
     CompiledScene,
     gravitational_energy,
