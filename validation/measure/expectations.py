@@ -19,11 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Trajectory
 from validation.measure.interpolation import INTERPOLANTS, rotation_vector_between
 from validation.measure.measurement import Measurement
-from validation.reference.rotation import rotation_angle
+from validation.reference.rotation import quat_to_matrix, rotation_angle
 from validation.scenario.compiled import (
     CompiledScene,
     gravitational_energy,
