@@ -669,6 +669,8 @@ def _friction_update(
     """
     sticking = contact_impulse - np.einsum("ikl,il->ik", sticking_mass, contact_slip)
     sticks = np.sqrt(np.einsum("ik,ik->i", sticking, sticking)) <= disc_radius
+    if sticks.all():  # resting contacts: the sliding step is not needed (the same values)
+        return sticking
     sliding = contact_impulse - step_mass[:, None] * contact_slip
     sliding_norm = np.sqrt(np.einsum("ik,ik->i", sliding, sliding))
     on_disc = (
