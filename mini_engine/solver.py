@@ -667,7 +667,7 @@ def _friction_update(
     warm-started friction impulse) keeps the impulse's direction, cut to the disc; a zero
     ``λ - τ v`` gives a zero impulse for this update (``TINY_IMPULSE``).
     """
-    sticking = contact_impulse - np.einsum("ikl,il->ik", sticking_mass, contact_slip)
+    sticking = contact_impulse - (sticking_mass @ contact_slip[:, :, None])[:, :, 0]
     sticks = np.sqrt(np.einsum("ik,ik->i", sticking, sticking)) <= disc_radius
     if sticks.all():  # resting contacts: the sliding step is not needed (the same values)
         return sticking
