@@ -648,20 +648,21 @@ def _friction_update(
     ``v = 0`` and ``λ_s = λ`` would have fitted; so ``|λ - τ v| > μ λ_n``,
     ``λ = μ λ_n (λ - τ v)/|λ - τ v|`` and ``τ v = -(|λ - τ v| / (μ λ_n) - 1) λ``: at
     convergence the friction impulse has magnitude μ λ_n and is antiparallel to the
-    contact's final slip, in any tangent basis (``τ`` is a scalar and ``P`` round). It is
-    stable: near that state (the other contacts held) an error of angle ε in ``λ`` along
-    ``w ⊥ λ`` comes back as ``ε (1 - τ wᵀKw) / (1 + τ s / (μ λ_n))``, at most
-    ``(κ - 1)/(κ + 1)`` of ε with ``κ`` K's condition number (``τ = 2/tr K =
-    2/(k_min + k_max)`` is the step that makes this bound least), and far less while the
-    slip ``s`` is large. A sphere's ``K = k·1`` gives ``τ = 1/k``: ``λ - τ v = λ_s`` and one
-    update is exact, with the same operations as the rule it replaces.
+    contact's final slip, in any tangent basis (``τ`` is a scalar and ``P`` commutes with
+    rotations about the normal). It is stable: near that state (the other contacts held) an
+    error of angle ε in ``λ`` along ``w ⊥ λ`` comes back as
+    ``ε (1 - τ wᵀKw) / (1 + τ s / (μ λ_n))``, at most ``(κ - 1)/(κ + 1)`` of ε with ``κ``
+    K's condition number (``τ = 2/tr K = 2/(k_min + k_max)`` is the step that makes this
+    bound least), and far less while the slip ``s`` is large. A sphere's ``K = k·1`` gives
+    ``τ = 1/k``: ``λ - τ v = λ_s`` and one update is exact, with the same operations as the
+    rule it replaces.
 
     The rules not taken: clamping a trial built with each row's own mass (``λ - diag(m) v``,
     the rule it replaces) converges to friction along ``-diag(m) v``, not ``-v`` (the two
     row masses of a rectangular box's corner differ; measured: a 0.4 x 0.2 m box pushed
-    at 1 m/s at 30° on μ = 0.4 had moved at 37.6° after 0.2 s); stepping straight against ``v`` (``τ → ∞``) has the
-    gain ``μ λ_n wᵀKw / s``, above 1 as a contact comes to a stop (measured: that box
-    yawing at 0.023 rad/s as it stopped).
+    at 1 m/s at 30° on μ = 0.4 had moved at 37.6° after 0.2 s); stepping straight against
+    ``v`` (``τ → ∞``) has the gain ``μ λ_n wᵀKw / s``, above 1 as a contact comes to a stop
+    (measured: that box yawing at 0.023 rad/s as it stopped).
 
     A slip of zero with ``λ_s`` outside the disc (the normal impulse fell below a
     warm-started friction impulse) keeps the impulse's direction, cut to the disc; a zero
