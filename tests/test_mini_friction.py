@@ -62,17 +62,18 @@ leaves 20x for other machines' round-off. The per-row rule was up to 0.12 rad of
 SPEED_TOLERANCE = 1e-12
 """m/s. Semi-implicit Euler integrates the constant deceleration μg exactly: v_n = v0 - μg·n·dt,
 so only round-off is left: 150 increments of 3.9e-3 m/s, each rounded to 1.1e-16 m/s, about
-1.7e-14 m/s (measured at most 5.8e-15 m/s). The per-row rule was 0.013 m/s fast."""
+1.7e-14 m/s (measured at most 5.8e-15 m/s). The per-row rule was up to 0.02 m/s fast (45°)."""
 
 DISTANCE_TOLERANCE = 1e-9
 """m. x_n = dt·Σv_k = v0 t - μg t (t + dt)/2 exactly (the scheme's a·t·dt/2 offset included);
 measured at most 2.2e-12 m, round-off of the first steps settling the four normal impulses;
-1e-9 leaves 400x. The per-row rule was 1.2 mm short of the slip distance at 30°."""
+1e-9 leaves 400x. The per-row rule went 1.0 to 2.0 mm too far along the heading."""
 
 ANTIPARALLEL_TOLERANCE = 1e-9
 """rad. At convergence a sliding contact's friction impulse is antiparallel to its final slip
-(``solver._friction_update``): at 0.4 m/s the sweep's error decays by μ λ_n k / s ≈ 1e-3 per
-sweep, so 10 sweeps leave round-off (measured: 0 to double precision at every corner and
+(``solver._friction_update``): at 0.4 m/s its angular error shrinks by a factor of at least
+1 + τ s / (μ λ_n) ≈ 150 per sweep (τ = 0.35 kg, μ λ_n ≈ 1e-3 N·s per corner), so 10 sweeps
+leave round-off (measured: 0 to double precision at every corner and
 heading); the per-row rule left 0.37 rad."""
 
 RIM_TOLERANCE = 1e-12
@@ -94,7 +95,8 @@ INCLINE_SPEED_TOLERANCE = 1e-9
 """m/s. v = v0 + g(sin θ - μ cos θ)·t is exact for semi-implicit Euler once the box slides; the
 box released at rest (μ = 0.2) spends its first step going from sticking to sliding, solved
 from no warm start in 10 sweeps, and keeps that step's error: measured 7.8e-11 m/s (launched,
-μ = 0.5: 1e-15); 1e-9 leaves 10x. The per-row rule was 0.026 m/s fast (μ = 0.2, 0.5 s)."""
+μ = 0.5: 1.2e-14); 1e-9 leaves 10x. The per-row rule was 0.0094 m/s (μ = 0.2, 0.5 s) and
+0.029 m/s (μ = 0.5, 0.3 s) fast."""
 
 STICK_SPEED = 1e-10
 """m/s. A sticking box's corners are held by impulses that cancel their slip; the first step
