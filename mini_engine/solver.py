@@ -22,6 +22,14 @@ twist of every fixed body, so contacts with the ground never block a colour.
 Each contact row is a 12-vector Jacobian ``J = [-n, -rn_A, n, rn_B]`` over
 ``[twist_A, twist_B]``: ``J · twist = (v_PB - v_PA)·n``; ``M⁻¹Jᵀ`` holds the
 matching velocity change per unit impulse.
+
+Friction (not in the documented formulas; on when a pair has μ > 0) is isotropic Coulomb
+at every contact, whatever its tangent basis: the two tangent rows of a contact are solved
+as one 2x2 block ``K = J_t M⁻¹ J_tᵀ`` (``_TangentBlock``). Each update is either the
+sticking impulse ``λ - K⁻¹ v``, exact in one update, when it lies in the disc ``μ λ_n``, or
+else the current impulse stepped against the contact's current slip ``v`` with one scalar
+mass and cut to the disc, so that at convergence the friction impulse has magnitude
+``μ λ_n`` and opposes the final slip (``_friction_update`` derives the rule).
 """
 
 from __future__ import annotations
@@ -61,7 +69,8 @@ COLOUR_SEED = 20151
 fixed so that the same contacts always get the same colours)."""
 
 TINY_IMPULSE = 1e-300
-"""N·s. Guards the friction-disc scaling against 0/0 when the trial impulse is zero."""
+"""N·s. Guards the friction-disc projection against 0/0 when the sliding step is zero
+(any positive value far below a real impulse works; 1e-300 is near the smallest normal double)."""
 
 WARM_START_MATCH_FRACTION = 0.1
 """A contact inherits last step's impulse from a contact of the same pair at most this
@@ -118,6 +127,29 @@ class _Rows(NamedTuple):
     jacobian: np.ndarray  # (c, 12) [-d, -r_A×d, d, r_B×d]
     response: np.ndarray  # (c, 12) M⁻¹Jᵀ: twist change per unit impulse
     mass: np.ndarray  # (c,) effective mass 1/(J M⁻¹ Jᵀ), kg
+    inverse_mass: np.ndarray  # (c,) J M⁻¹ Jᵀ, 1/kg: velocity change per unit impulse
+
+
+class _TangentBlock(NamedTuple):
+    """The 2x2 tangent block of each contact's two friction rows (c contacts).
+
+    With ``J_t (2, 12)`` the contact's two tangent rows, ``K = J_t M⁻¹ J_tᵀ`` (2, 2), 1/kg, is
+    the change of the contact's slip ``(v_t1, v_t2)`` m/s per unit tangent impulse N·s. Its
+    off-diagonal term is ``(r × t1)·I⁻¹(r × t2)`` summed over both bodies (``t1·t2 = 0``):
+    zero for a sphere (its arm along the normal, its inertia round) but not for a box
+    corner: ``-ab/I_zz`` for a level box's corner at ``(a, b, -h)`` from its centre with
+    ``t1, t2`` along y and -x, whose diagonal terms ``1/m + h²/I_xx + a²/I_zz`` and
+    ``1/m + h²/I_yy + b²/I_zz`` also differ unless the box is square.
+
+    Attributes:
+        sticking_mass: (c, 2, 2) kg, ``K⁻¹``: ``-K⁻¹ v`` is the impulse that cancels a slip
+            ``v (2,)`` in one update.
+        step_mass: (c,) kg, ``2 / tr K``, the scalar mass of the sliding update
+            (``_friction_update``); ``1/k`` when ``K = k·1``.
+    """
+
+    sticking_mass: np.ndarray
+    step_mass: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -373,7 +405,7 @@ def _rows(direction, arm_a, arm_b, inv_mass_a, inv_mass_b, inv_inertia_a, inv_in
         [-inv_mass_a[:, None] * direction, -w_a, inv_mass_b[:, None] * direction, w_b], axis=1
     )
     inverse_mass = inv_mass_a + inv_mass_b + last_axis_sum(rd_a * w_a) + last_axis_sum(rd_b * w_b)
-    return _Rows(jacobian, response, 1.0 / inverse_mass)
+    return _Rows(jacobian, response, 1.0 / inverse_mass, inverse_mass)
 
 
 def _kept_rows(
@@ -434,6 +466,52 @@ def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t1 = cross(normal, helper)
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
     return t1, cross(normal, t1)
+
+
+def _tangent_rows(
+    work: Workspace, graph: _ContactGraph, normal: np.ndarray, geometry: tuple
+) -> tuple[np.ndarray, np.ndarray, _Rows, _TangentBlock]:
+    """The tangents ``t1, t2 (c, 3)`` of ``normal (c, 3)``, the two tangent rows of every
+    contact (jacobian and response (c, 2, 12), mass and inverse mass (c, 2)) and their
+    ``_TangentBlock``; ``geometry`` is ``(arm_a, arm_b, inv_inertia_a, inv_inertia_b)``.
+
+    Each tangent's rows are ``_kept_rows``; while both are the very objects of the last call
+    (their inputs bit for bit the same), so are the stacked rows and the block, which the
+    workspace keeps next to them."""
+    t1, t2 = _tangents(normal)
+    first = _kept_rows(_kept(work, "first tangent"), graph, t1, *geometry)
+    second = _kept_rows(_kept(work, "second tangent"), graph, t2, *geometry)
+    kept = _kept(work, "tangent block")
+    if kept.get("first") is first and kept.get("second") is second:
+        return t1, t2, kept["rows"], kept["block"]
+    rows = _Rows(*(np.stack(pair, axis=1) for pair in zip(first, second, strict=True)))
+    block = _tangent_block(rows)
+    kept.update(first=first, second=second, rows=rows, block=block)
+    return t1, t2, rows, block
+
+
+def _tangent_block(rows: _Rows) -> _TangentBlock:
+    """The ``_TangentBlock`` of the two tangent rows ``rows`` (jacobian and response
+    (c, 2, 12), mass and inverse mass (c, 2)).
+
+    ``K = [[k11, k12], [k12, k22]]`` with ``k11, k22`` the rows' inverse masses and
+    ``k12 = J_t1 · M⁻¹J_t2ᵀ``. With the rows' masses ``m_i = 1/k_ii`` and ``c² = m1 m2 k12²``
+    (< 1: K is positive definite), ``K⁻¹ = [[m1, -m1 m2 k12], [-m1 m2 k12, m2]] / (1 - c²)``,
+    which is the rows' own masses, bit for bit, when ``k12`` is zero (a sphere on a
+    level ground)."""
+    tangent_coupling = np.einsum("ij,ij->i", rows.jacobian[:, 0], rows.response[:, 1])  # k12
+    mass_1, mass_2 = rows.mass[:, 0], rows.mass[:, 1]
+    decoupling = 1.0 - mass_1 * mass_2 * tangent_coupling * tangent_coupling  # 1 - c²
+    cross_mass = -(mass_1 * mass_2 * tangent_coupling) / decoupling
+    sticking_mass = np.stack(
+        [
+            np.stack([mass_1 / decoupling, cross_mass], axis=1),
+            np.stack([cross_mass, mass_2 / decoupling], axis=1),
+        ],
+        axis=1,
+    )
+    step_mass = 2.0 / (rows.inverse_mass[:, 0] + rows.inverse_mass[:, 1])
+    return _TangentBlock(sticking_mass, step_mass)
 
 
 def _normal_velocity(body_twist: np.ndarray, graph: _ContactGraph, rows: _Rows) -> np.ndarray:
@@ -505,26 +583,101 @@ def _colour_update(
 
 
 def _sweep_friction(
-    body_twist, graph: _ContactGraph, rows: _Rows, normal_impulse, impulse
+    body_twist, graph: _ContactGraph, rows: _Rows, block: _TangentBlock, normal_impulse, impulse
 ) -> float:
-    """One sweep of the two tangent rows per contact, the impulse clamped to the disc μ λ_n.
+    """One Gauss-Seidel sweep over the colours of the two tangent rows per contact, each
+    contact's accumulated impulse ``impulse (c, 2)`` N·s (in place) updated by
+    ``_friction_update`` within its disc ``μ λ_n`` (``normal_impulse (c,)`` N·s).
 
-    ``rows`` hold both tangents: jacobian and response (c, 2, 12), mass (c, 2).
-    Returns the largest tangential velocity change, m/s.
+    ``rows`` hold both tangents: jacobian and response (c, 2, 12), mass (c, 2); ``block``
+    their ``_TangentBlock``. Returns the largest tangential velocity change, m/s (each
+    row's impulse change over its own effective mass, as ``_sweep_normal`` measures).
     """
     start = impulse.copy()
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
     for s in graph.batches:
         twist = body_twist.take(graph.pair_rows[s], axis=0).reshape(-1, 12)
-        trial = impulse[s] - rows.mass[s] * np.einsum("ikj,ij->ik", rows.jacobian[s], twist)
-        limit = graph.friction[s] * normal_impulse[s]
-        norm = np.sqrt(np.einsum("ik,ik->i", trial, trial))
-        accumulated = trial * np.minimum(1.0, limit / np.maximum(norm, TINY_IMPULSE))[:, None]
+        accumulated = _friction_update(
+            np.einsum("ikj,ij->ik", rows.jacobian[s], twist),
+            impulse[s],
+            block.sticking_mass[s],
+            block.step_mass[s],
+            graph.friction[s] * normal_impulse[s],
+        )
         delta = accumulated - impulse[s]
         impulse[s] = accumulated
         twist += np.einsum("ik,ikj->ij", delta, rows.response[s])
         flat_twist[graph.twist_index[s]] = twist
     return float(np.max(np.abs(impulse - start) / rows.mass))
+
+
+def _friction_update(
+    contact_slip: np.ndarray,
+    contact_impulse: np.ndarray,
+    sticking_mass: np.ndarray,
+    step_mass: np.ndarray,
+    disc_radius: np.ndarray,
+) -> np.ndarray:
+    """The new accumulated friction impulses (k, 2) N·s of k contacts sharing no dynamic body:
+    isotropic Coulomb friction, whatever the tangent basis.
+
+    Args:
+        contact_slip: (k, 2) m/s, each contact's slip ``v = J_t · [twist_A, twist_B]`` along
+            its tangents (t1, t2) as the sweep sees it now, the current impulse included.
+        contact_impulse: (k, 2) N·s, the accumulated friction impulses ``λ`` so far.
+        sticking_mass, step_mass: (k, 2, 2) and (k,) kg, the ``_TangentBlock``'s ``K⁻¹``
+            and ``τ = 2 / tr K``.
+        disc_radius: (k,) N·s, ``μ λ_n``.
+
+    Changing a contact's impulse from ``λ`` to ``λ'`` changes its slip to
+    ``v' = v + K (λ' - λ)`` and the bodies' kinetic energy to
+    ``E(λ') = ½ (λ' - λ_s)ᵀ K (λ' - λ_s)`` + const, where ``λ_s = λ - K⁻¹ v`` is the sticking
+    impulse (``v' = 0``) and ``∇E = v'``. Coulomb friction with maximal dissipation is the
+    ``λ'`` of the disc ``|λ'| <= μ λ_n`` with the least ``E``: ``λ_s`` when it lies in the
+    disc (sticking), else a ``λ'`` on the circle ``|λ'| = μ λ_n`` with ``v' = -s λ'/|λ'|``,
+    ``s > 0`` (the KKT conditions): friction of magnitude μ λ_n opposing the slip it
+    leaves. The update is
+
+    - sticking: ``λ_s`` if it fits (the full block: one update brings the slip to zero);
+    - sliding: ``λ' = P(λ - τ v)``, ``P`` the radial projection onto the disc: a projected
+      gradient step of ``E`` with the scalar mass ``τ``, i.e. the current impulse moved
+      against the contact's current slip, then cut to the disc.
+
+    Why this direction rule is right. A contact that no longer changes has ``λ' = λ``, so
+    ``v' = v``. Were ``|λ - τ v| <= μ λ_n``, ``P`` would keep it, ``λ = λ - τ v`` gives
+    ``v = 0`` and ``λ_s = λ`` would have fitted; so ``|λ - τ v| > μ λ_n``,
+    ``λ = μ λ_n (λ - τ v)/|λ - τ v|`` and ``τ v = -(|λ - τ v| / (μ λ_n) - 1) λ``: at
+    convergence the friction impulse has magnitude μ λ_n and is antiparallel to the
+    contact's final slip, in any tangent basis (``τ`` is a scalar and ``P`` commutes with
+    rotations about the normal). It is stable: near that state (the other contacts held) an
+    error of angle ε in ``λ`` along ``w ⊥ λ`` comes back as
+    ``ε (1 - τ wᵀKw) / (1 + τ s / (μ λ_n))``, at most ``(κ - 1)/(κ + 1)`` of ε with ``κ``
+    K's condition number (``τ = 2/tr K = 2/(k_min + k_max)`` is the step that makes this
+    bound least), and far less while the slip ``s`` is large. A sphere's ``K = k·1`` gives
+    ``τ = 1/k``: ``λ - τ v = λ_s`` and one update is exact, with the same operations as the
+    rule it replaces.
+
+    The rules not taken: clamping a trial built with each row's own mass (``λ - diag(m) v``,
+    the rule it replaces) converges to friction along ``-diag(m) v``, not ``-v`` (the two
+    row masses of a rectangular box's corner differ; measured: a 0.4 x 0.2 m box pushed
+    at 1 m/s at 30° on μ = 0.4 had moved at 37.6° after 0.2 s); stepping straight against
+    ``v`` (``τ → ∞``) has the gain ``μ λ_n wᵀKw / s``, above 1 as a contact comes to a stop
+    (measured: that box yawing at 0.023 rad/s as it stopped).
+
+    A slip of zero with ``λ_s`` outside the disc (the normal impulse fell below a
+    warm-started friction impulse) keeps the impulse's direction, cut to the disc; a zero
+    ``λ - τ v`` gives a zero impulse for this update (``TINY_IMPULSE``).
+    """
+    sticking = contact_impulse - (sticking_mass @ contact_slip[:, :, None])[:, :, 0]
+    sticks = np.sqrt(np.einsum("ik,ik->i", sticking, sticking)) <= disc_radius
+    if sticks.all():  # resting contacts: the sliding step is not needed (the same values)
+        return sticking
+    sliding = contact_impulse - step_mass[:, None] * contact_slip
+    sliding_norm = np.sqrt(np.einsum("ik,ik->i", sliding, sliding))
+    on_disc = (
+        sliding * np.minimum(1.0, disc_radius / np.maximum(sliding_norm, TINY_IMPULSE))[:, None]
+    )
+    return np.where(sticks[:, None], sticking, on_disc)
 
 
 class ContactSolution(NamedTuple):
@@ -634,12 +787,7 @@ def _solve_coloured(
     """
     _apply_impulses(body_twist, graph, normal_rows.response, impulse)
     if graph.use_friction:
-        t1, t2 = _tangents(contacts.normal)
-        first, second = (
-            _kept_rows(_kept(work, slot), graph, t, *geometry)
-            for t, slot in ((t1, "first tangent"), (t2, "second tangent"))
-        )
-        tangent_rows = _Rows(*(np.stack(pair, axis=1) for pair in zip(first, second, strict=True)))
+        t1, t2, tangent_rows, tangent_block = _tangent_rows(work, graph, contacts.normal, geometry)
         tangent_impulse = np.stack(
             [np.sum(previous_friction * t1, axis=1), np.sum(previous_friction * t2, axis=1)], axis=1
         )
@@ -653,7 +801,9 @@ def _solve_coloured(
         if graph.use_friction:
             largest = max(
                 largest,
-                _sweep_friction(body_twist, graph, tangent_rows, impulse, tangent_impulse),
+                _sweep_friction(
+                    body_twist, graph, tangent_rows, tangent_block, impulse, tangent_impulse
+                ),
             )
         if largest <= settings.solver_tolerance:
             break

@@ -52,7 +52,9 @@ class Workspace:
         contact_cache: the last step's start-of-step positions, rotations and contacts, reused
             while the poses are unchanged bit for bit (``step._contacts``).
         solver_rows: the contact solver's last rows per constraint direction and what they
-            were built from, reused while that is unchanged (``solver._kept_rows``).
+            were built from, reused while that is unchanged (``solver._kept_rows``), and the
+            friction rows' stacked tangent rows and 2x2 block, reused while both tangents'
+            rows are (``solver._tangent_rows``).
     """
 
     moving_selection: slice | np.ndarray

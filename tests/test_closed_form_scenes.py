@@ -286,3 +286,61 @@ def test_box_slide_values() -> None:
     mid = next(e for e in scenario.expect if e.metric == "position_at.box")
     assert scenario.tolerance("position_at.box", "mini") >= a * mid.time * scenario.dt / 2.0
     assert scenario.tolerance("position_at.box.stopped", "mini") >= v0 * scenario.dt / 2.0
+
+
+# --- boxes sliding in an oblique direction (isotropic friction) ---------------------------------
+
+
+def _slide(scenario, name: str):
+    """A box sliding on the scene's ground under gravity and Coulomb friction: its start, unit
+    slip direction, signed acceleration along it (m/s²) and launch speed (m/s)."""
+    body = scenario.body(name)
+    normal = np.asarray(scenario.ground.normal, dtype=float)
+    normal /= np.linalg.norm(normal)
+    gravity = np.asarray(scenario.gravity, dtype=float)
+    along_slope = gravity - (gravity @ normal) * normal
+    velocity = np.asarray(body.velocity, dtype=float)
+    speed = float(np.linalg.norm(velocity))
+    direction = velocity / speed if speed else along_slope / np.linalg.norm(along_slope)
+    # the launch and the slope's pull are one line: the slip keeps its direction
+    assert np.linalg.norm(np.cross(direction, along_slope)) <= 1e-12 * max(
+        1.0, float(np.linalg.norm(along_slope))
+    )
+    mu = _pair(scenario, name).friction
+    acceleration = float(along_slope @ direction) - mu * abs(float(gravity @ normal))
+    if speed == 0.0:
+        assert acceleration > 0.0  # released at rest, it must slide
+    return np.asarray(body.position, dtype=float), direction, acceleration, speed
+
+
+@pytest.mark.parametrize(
+    ("scene", "bodies"),
+    [("box_slide_oblique", ("box",)), ("box_incline_oblique", ("slowing", "speeding"))],
+)
+def test_oblique_slide_values(scene: str, bodies: tuple[str, ...]) -> None:
+    scenario = load_scenario(SCENES / "contact" / f"{scene}.yaml")
+    dt = scenario.dt
+    for name in bodies:
+        start, direction, a, v0 = _slide(scenario, name)
+        stop_time = v0 / -a if a < 0.0 else math.inf
+        half = scenario.body(name).shape.half_extents
+        mu = _pair(scenario, name).friction
+        assert mu * half[2] < min(half[0], half[1])  # no tipping in any direction
+        if stop_time < math.inf:  # it sticks once stopped: μ g_n holds the slope's pull
+            assert scenario.duration > stop_time
+        for item in (e for e in scenario.expect if e.body == name):
+            t = min(item.time, stop_time)
+            if item.kind == "position_at":
+                expected = start + (v0 * t + a * t * t / 2.0) * direction
+            elif item.kind == "velocity_at":
+                expected = (v0 + a * t) * direction
+            else:
+                expected = np.zeros(3)  # angular_velocity_at: it never turns
+            print(f"{item.metric} at {item.time} s: {expected} (YAML {item.value})")
+            assert np.allclose(item.value, expected, rtol=0.0, atol=VALUE_TOLERANCE)
+            if item.kind != "position_at":
+                continue
+            # mini's derived bounds: |a|·t·dt/2 while sliding, v0·dt/2 (less) at the stop
+            bound = v0 * dt / 2.0 if item.time > stop_time else abs(a) * item.time * dt / 2.0
+            assert scenario.tolerance(item.metric, "mini") >= bound * (1.0 - 1e-9)
+            assert scenario.tolerance(item.metric, "mini") <= bound * LOOSE
