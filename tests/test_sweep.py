@@ -154,7 +154,7 @@ def test_scenes_without_a_closed_form_use_restarted_segments_or_rk4():
             "springs": [{"a": "a", "b": "world", "stiffness": 100.0, "rest_length": 0.0}],
         }
     )
-    rows = run_sweep([(spring, parse_engine_spec("mini"), [2e-3, 1e-3])], workers=1)
+    rows = run_sweep([(spring, parse_engine_spec("mini"), [4e-3, 2e-3, 1e-3])], workers=1)
     kinds = {r["expected_kind"] for r in rows}
     assert kinds == {"dop853"}, kinds
     order = next(
