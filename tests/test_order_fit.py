@@ -99,7 +99,7 @@ def test_errors_at_the_references_own_accuracy_have_no_order():
         [3.41e-6, 3.13e-7, 2.89e-7, 2.88e-7, 2.89e-7],
         metric="orientation_error",
         duration=10.0,
-        state_size=1.0,
+        state_size=2.0,  # rad, as the sweep's orientation rows (``ORIENTATION_STATE_SIZE``)
         reference_floor=2.90e-7,
     )
     order = sweep.convergence_order(rows)
