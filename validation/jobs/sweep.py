@@ -181,6 +181,16 @@ MIN_FIT_POINTS = 3
 curve is straight there; three are the fewest whose local slopes can be checked against each
 other."""
 
+FIT_RULE = (
+    "Orders are fitted over each curve's asymptotic range only: from the smallest dt, the "
+    f"points whose local slopes agree (spread at most {SLOPE_SPREAD:g}), leaving out floor-bound "
+    "points (the round-off of their steps, or the reference's own error, above "
+    f"{FLOOR_SHARE:g} of the error) and saturated ones (an error above {SATURATION_SHARE:g} of "
+    "the largest it can be: pi rad, or the reference motion's extent); with fewer than "
+    f"{MIN_FIT_POINTS} points there is no order."
+)
+"""The fit in one paragraph, for the sweep page."""
+
 NOT_ASYMPTOTIC = "not in the asymptotic range"
 """The note (start of the message) of an order row with fewer than ``MIN_FIT_POINTS`` points
 in its asymptotic range: its value is NaN, its status ``unsupported``."""
@@ -636,9 +646,12 @@ def asymptotic_range(rows: list[dict], roles: list[str]) -> list[int]:
     """Indices of the points to fit: from the smallest dt whose point is usable, the
     contiguous usable points (by dt) whose local slopes are consistent; empty when fewer
     than ``MIN_FIT_POINTS``."""
+
+    def usable(i: int) -> bool:
+        return roles[i] == FITTED
+
     by_dt = sorted(range(len(rows)), key=lambda i: rows[i]["dt"])
-    unusable = list(itertools.takewhile(lambda i: roles[i] != FITTED, by_dt))
-    run = list(itertools.takewhile(lambda i: roles[i] == FITTED, by_dt[len(unusable) :]))
+    run = list(itertools.takewhile(usable, itertools.dropwhile(lambda i: not usable(i), by_dt)))
     if not run:
         return []
     log_dt, log_error = np.log([[rows[i]["dt"], rows[i]["error"]] for i in run]).T
@@ -851,7 +864,7 @@ def sweep_main(
             rows = run_sweep(work, jobs, scheduler)
             out.mkdir(parents=True, exist_ok=True)
             write_table(rows, out / "sweep.csv")  # each file written atomically
-            render_sweep(rows, out / "sweep.html")
+            render_sweep(rows, out / "sweep.html", FIT_RULE)
     except (BackendError, BadInputError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -65,15 +65,6 @@ ROLE_LABELS = {
 LEGEND_GREY = "#555555"
 """The colour of the legend's marker samples (each point is drawn in its engine's colour)."""
 
-FIT_RULE = (
-    "Orders are fitted over each curve's asymptotic range only: from the smallest dt, the "
-    "points whose local slopes agree (within half an order), leaving out floor-bound points "
-    "(the round-off of their steps, or the reference's own accuracy, above a tenth of the "
-    "error) and saturated ones (an error above half the largest it can be: pi rad, or half "
-    "the reference motion's extent); with fewer than 3 points there is no order."
-)
-"""The page's one-paragraph statement of the fit (``validation.jobs.sweep`` docstring)."""
-
 UNITS = {"position_error": "m", "orientation_error": "rad"}
 """Unit of each sweep metric, for the axis labels."""
 
@@ -165,8 +156,9 @@ def order_notes(table: pd.DataFrame, scene: str, metric: str) -> str:
     return f"<ul class='orders'>{''.join(items)}</ul>" if items else ""
 
 
-def render_sweep(rows: list[dict], path: Path) -> Path:
-    """Write sweep.html for the sweep ``rows`` (sweep.csv's rows) to ``path``."""
+def render_sweep(rows: list[dict], path: Path, fit_rule: str = "") -> Path:
+    """Write sweep.html for the sweep ``rows`` (sweep.csv's rows) to ``path``; ``fit_rule``:
+    the order fit's rule in one paragraph, printed under the definitions."""
     table = pd.DataFrame(rows)
     if "of" not in table:
         table["of"] = ""
@@ -182,7 +174,7 @@ def render_sweep(rows: list[dict], path: Path) -> Path:
             f"<dt>{html.escape(m)}</dt><dd>{html.escape(d)}</dd>" for m, d in DEFINITIONS.items()
         )
         + "</dl>",
-        f"<p>{html.escape(FIT_RULE)}</p>",
+        f"<p>{html.escape(fit_rule)}</p>" if fit_rule else "",
     ]
     points = table[table["metric"].isin(list(DEFINITIONS))]
     for scene, group in points.groupby("scenario", sort=False):
