@@ -24,6 +24,21 @@ def gravity_acceleration(model: Model) -> np.ndarray:
     return np.where(model.body_fixed[:, None], 0.0, model.gravity[None, :])
 
 
+def linear_acceleration(model: Model, force: np.ndarray) -> np.ndarray:
+    """Linear acceleration (n, 3) m/s², world frame, of every body under gravity and the forces
+    ``force (n, 3)`` N at the centres of mass: ``g + F/m`` (fixed bodies: ``F/m`` with their
+    zero inverse mass, so zero). The one place where the law of motion of a centre of mass is
+    written; every phase that needs it calls this."""
+    return gravity_acceleration(model) + force * model.body_inv_mass[:, None]
+
+
+def constant_loads(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Each body's constant applied force (n, 3) N and torque (n, 3) N·m, world frame, as new
+    arrays (zero for fixed bodies: the model stores them so)."""
+    n = model.n_bodies
+    return np.zeros((n, 3)) + model.body_force, np.zeros((n, 3)) + model.body_torque
+
+
 def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Forces (n, 3) N and torques (n, 3) N·m about each centre of mass, world frame, from springs.
 
@@ -76,7 +91,8 @@ def applied_loads(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarr
     springs' (``spring_forces``) plus each body's constant ``body_force`` and ``body_torque``
     (zero for fixed bodies). Gravity is not among them (``gravity_acceleration``)."""
     force, torque = spring_forces(model, state, rot)
-    return force + model.body_force, torque + model.body_torque
+    constant_force, constant_torque = constant_loads(model)
+    return force + constant_force, torque + constant_torque
 
 
 def spring_energies(model: Model, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 
 from mini_engine.collision import detect_contacts
 from mini_engine.contacts import Contacts
-from mini_engine.forces import applied_loads, gravity_acceleration
+from mini_engine.forces import applied_loads, linear_acceleration
 from mini_engine.integrate import (
     integrate_angular_velocity,
     integrate_linear_velocity,
@@ -62,7 +62,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
     #    (without springs they do not depend on the state: the workspace holds them)
     if work.has_springs:
         force, torque = applied_loads(model, state, rot)
-        lin_acc = gravity_acceleration(model) + force * model.body_inv_mass[:, None]
+        lin_acc = linear_acceleration(model, force)
         any_torque = bool(np.any(torque != 0.0))
     else:
         lin_acc, torque, any_torque = work.constant_lin_acc, work.constant_torque, work.any_torque

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mini_engine.forces import constant_loads, linear_acceleration
 from mini_engine.integrate import BodyInertia, body_inertia
 from mini_engine.model import Model, per_model
 
@@ -77,10 +78,8 @@ def workspace(model: Model) -> Workspace:
     if has_springs:
         lin_acc, torque, any_torque = None, None, False
     else:
-        gravity = np.where(model.body_fixed[:, None], 0.0, model.gravity[None, :])
-        force = np.zeros((n, 3)) + model.body_force  # what applied_loads returns
-        lin_acc = gravity + force * model.body_inv_mass[:, None]
-        torque = np.zeros((n, 3)) + model.body_torque
+        force, torque = constant_loads(model)  # what applied_loads returns without springs
+        lin_acc = linear_acceleration(model, force)
         any_torque = bool(np.any(torque != 0.0))
         for array in (lin_acc, torque):
             array.flags.writeable = False

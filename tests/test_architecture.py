@@ -13,6 +13,9 @@ the importer runs; an *explicit* import of one's own package still counts).
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +29,7 @@ WINGS: dict[str, int] = {
     "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
     "validation.contract": 1,
     "validation.files": 1,
+    "validation.reference": 1,  # the closed forms judged against: below all that reads them
     "validation.scenario": 2,
     "validation.engines": 3,
     "validation.measure": 4,
@@ -258,3 +262,58 @@ def test_each_engine_is_imported_only_by_its_adapter(engine):
             if name.split(".")[0].startswith(engine):
                 found.append(f"{relative}:{line}: {name}")
     assert found == [], f"{engine} imported outside {home}:\n" + "\n".join(sorted(set(found)))
+
+
+REFERENCE_SIDE = "validation.reference"
+"""The closed forms the engines are judged against: they must not depend on the engine under
+test, or a mistake in mini_engine would move its own reference."""
+
+
+def import_chains(sources: list[str], edges: list[Edge]) -> dict[str, list[Edge]]:
+    """Every module reachable from ``sources`` through ``edges``, with one shortest chain of
+    edges that reaches it (breadth first)."""
+    graph: dict[str, list[Edge]] = {}
+    for edge in edges:
+        graph.setdefault(edge.source, []).append(edge)
+    chains: dict[str, list[Edge]] = {source: [] for source in sources}
+    frontier = list(sources)
+    while frontier:
+        following = []
+        for node in frontier:
+            for edge in graph.get(node, []):
+                if edge.target not in chains:
+                    chains[edge.target] = [*chains[node], edge]
+                    following.append(edge.target)
+        frontier = following
+    return chains
+
+
+def test_the_reference_side_imports_nothing_from_mini_engine():
+    """Neither directly nor through any project module it imports."""
+    sources = [m for m in MODULES if wing(m) == REFERENCE_SIDE]
+    assert f"{REFERENCE_SIDE}.newton_euler" in sources, sources
+    chains = import_chains(sources, EDGES)
+    found = [  # each way in: the chain up to its first mini_engine module
+        " ; ".join(str(e) for e in chain)
+        for module, chain in sorted(chains.items())
+        if wing(module) == "mini_engine" and wing(chain[-1].source) != "mini_engine"
+    ]
+    assert found == [], "the reference side reaches mini_engine:\n" + "\n".join(found)
+
+
+def test_importing_the_reference_side_loads_no_mini_engine_module():
+    """The same at run time, in a fresh interpreter: every module of the reference side
+    imported, then no ``mini_engine`` module is loaded (dynamic imports included)."""
+    sources = sorted(m for m in MODULES if wing(m) == REFERENCE_SIDE)
+    program = (
+        "import importlib, sys\n"
+        f"for name in {sources!r}:\n"
+        "    importlib.import_module(name)\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'mini_engine'))\n"
+    )
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", program], capture_output=True, text=True, env=environment
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]", f"loaded with the reference side: {done.stdout.strip()}"

@@ -8,7 +8,7 @@ import numpy as np
 from scene_rows import rows
 
 from mini_engine.rotation import quat_to_matrix
-from validation.measure.newton_euler import reference_motion
+from validation.reference.newton_euler import reference_motion
 from validation.scenario import Scenario
 from validation.scenario.compiled import compile_scene
 

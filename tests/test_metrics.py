@@ -56,19 +56,32 @@ def context(scenario, pos, vel, impacts=()) -> Context:
 
 
 def test_energy_drift_by_hand():
-    """m = 2 kg, no gravity: speeds 1, 1, 1.1 m/s give E = 1, 1, 1.21 J: drift 0.21."""
+    """m = 2 kg, no gravity: speeds 1, 1, 1.1 m/s give E = 1, 1, 1.21 J: ΔE = 0.21 J over
+    E_scale = the largest kinetic energy, 1.21 J (no gravity: no weight term)."""
     ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 3, [[1, 0, 0], [0, 1, 0], [1.1, 0, 0]])
     result = METRICS["energy_drift"](ctx)
-    assert result.value == pytest.approx(0.21) and result.error == pytest.approx(0.21)
-    # finding 6 of issue 10: value the measured drift, expected its target 0, error the difference
+    assert result.value == pytest.approx(0.21 / 1.21) and result.error == result.value
+    assert result.signed == pytest.approx((0.21 / 1.21,)), "energy gained: a positive sign"
+    # value the measured drift, expected its target 0, error the difference
     assert result.expected == 0.0 and result.expected_kind == "conserved"
-    assert "1" in result.message, result.message  # the initial energy, the drift's scale
+    assert "0.21 J" in result.message and "1.21 J" in result.message, result.message
 
 
-def test_energy_drift_is_absolute_when_the_initial_energy_is_zero():
-    ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 2, [[0, 0, 0], [1, 0, 0]])
+def test_energy_drift_scale_is_kinetic_plus_weight_times_size():
+    """A 2 kg sphere of radius 0.1 m at rest under gravity, sinking 1 mm: ΔE = -m·g·0.001 over
+    E_scale = m·g·r (nothing moves): -0.01, whatever the height it rests at."""
+    for height in (0.0, 1000.0):
+        pos = [[0, 0, height], [0, 0, height - 1e-3]]
+        ctx = context(scene(), pos, [[0, 0, 0]] * 2)
+        result = METRICS["energy_drift"](ctx)
+        assert result.value == pytest.approx(0.01) and result.signed == pytest.approx((-0.01,))
+
+
+def test_energy_drift_is_absolute_when_the_scale_is_zero():
+    """No gravity, no spring, at rest throughout: E_scale = 0, the drift is in J."""
+    ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 2, [[0, 0, 0]] * 2)
     result = METRICS["energy_drift"](ctx)
-    assert result.value == pytest.approx(1.0) and "absolute" in result.message
+    assert result.value == 0.0 and "absolute" in result.message
 
 
 def test_ballistic_errors_are_zero_on_the_parabola_and_measure_an_offset():

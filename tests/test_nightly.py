@@ -143,6 +143,27 @@ def test_improvement_and_fixed(tmp_path):
     assert classes([row("mujoco", "energy_drift", 0.015, False)], before) == ["improved"]
 
 
+def test_an_error_whose_sign_flipped_at_the_same_size_regressed(tmp_path):
+    """Explicit instead of semi-implicit Euler on a projectile: |error| 4.905e-3 m both times,
+    error_z -4.905e-3 then +4.905e-3. A scalar's sign the same way; a baseline saved before
+    the signed columns existed compares the sizes alone."""
+    low = {**row("mini", "position_at.ball", 4.905e-3, True), "error_x": 0.0, "error_y": 0.0}
+    high = {**low, "error_z": 4.905e-3}
+    low["error_z"] = -4.905e-3
+    path = tmp_path / "baseline.csv"
+    baseline_of([low]).to_csv(path, index=False)
+    before = read_baseline(path)
+    assert classes([high], before) == ["regressed"]
+    assert classes([low], before) == ["unchanged"]
+    gained = {**row("mini", "energy_drift", 1.9e-3, True), "signed_error": 1.9e-3}
+    lost = {**gained, "signed_error": -1.9e-3}
+    assert classes([gained], baseline_of([lost])) == ["regressed"]
+    unsigned = baseline_of([row("mini", "position_at.ball", 4.905e-3, True)])
+    unsigned = unsigned.drop(columns=["error_x", "error_y", "error_z", "signed_error"])
+    unsigned.to_csv(path, index=False)
+    assert classes([high], read_baseline(path)) == ["unchanged"]
+
+
 def test_a_file_that_is_not_a_baseline_is_refused(tmp_path):
     path = tmp_path / "results.csv"
     path.write_text("scenario,engine\nx,y\n")

@@ -29,7 +29,12 @@ from report_fixtures import (
 )
 
 from validation import files
-from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
+from validation.measure.definitions import (
+    EXPECTATION_DEFINITIONS,
+    INTERPOLATION_BOUND,
+    METRIC_DEFINITIONS,
+    SIGNED_ERROR_DEFINITION,
+)
 from validation.report import build, render
 from validation.report.outcomes import GREEN, RED
 from validation.report.plots import thin_line
@@ -129,6 +134,9 @@ def test_the_legend_defines_every_metric(rendered):
     for kind, definition in EXPECTATION_DEFINITIONS.items():
         assert f'id="expectation-{kind}"' in legend and str(escape(definition)) in legend
     assert 'href="#expectation-bounce_heights"' in html  # the row's metric links to it
+    # how a number is read: the signed error's columns and the interpolant between steps
+    assert str(escape(SIGNED_ERROR_DEFINITION)) in legend and "error_z" in legend
+    assert str(escape(INTERPOLATION_BOUND)) in legend and "Hermite" in legend
 
 
 def test_provenance_and_summary_are_shown(rendered):

@@ -19,6 +19,14 @@ SWEEP_FILE = "sweep.csv"
 """In a run folder whose scenes declare ``sweep:``: the sweep rows (as ``physval sweep``)."""
 
 NIGHTLY_COLUMNS = ("outcome", "known", "baseline")
+
+SIGNED_ERROR_COLUMN = "signed_error"
+VECTOR_ERROR_COLUMNS = ("error_x", "error_y", "error_z")
+SIGNED_COLUMNS = (SIGNED_ERROR_COLUMN, *VECTOR_ERROR_COLUMNS)
+"""The error with its sign, ``measured - expected``: ``signed_error`` for a scalar quantity,
+``error_x, error_y, error_z`` (world frame) for a vector; empty where the quantity has none.
+``error`` is its magnitude. Opposite errors of one size (explicit and semi-implicit Euler on a
+projectile) differ here, and a baseline compares them."""
 """The columns the nightly bookkeeping adds to a measured row (``validation.nightly``)."""
 
 RESULTS_COLUMNS = (
@@ -39,13 +47,14 @@ RESULTS_COLUMNS = (
     "settings",
     "message",
     "band",
+    *SIGNED_COLUMNS,
     *NIGHTLY_COLUMNS,
 )
 """results.csv, in order: ``validation.measure.comparator`` writes these columns, and CI jobs
 and ``validation.report`` read them by name. ``outcome`` is the row's verdict with the scene's
 known findings applied (passed, failed, known, fixed, no_tolerance, or a bad status), ``known``
 the matching finding's reason, ``baseline`` its class against the run's baseline (empty
-without one)."""
+without one); ``SIGNED_COLUMNS`` the signed error."""
 
 SERIES_COLUMNS = ("scenario", "engine", "t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
 """series.csv: energy (J), linear momentum (kg·m/s), angular momentum about the system COM."""

@@ -1,8 +1,10 @@
 """What the scenario itself says the engines must build: the parity gate's expected values.
 
-Computed from the compiled scenario alone (the solid-shape formulas of ``mini_engine.shapes``
-and the invariants of ``CompiledScene``, shared by every engine's expectation), never read
-back from an engine.
+Computed from the compiled scenario alone, on the reference side only: the bodies as the
+scene states them at t = 0, the inertias of ``validation.reference.mass_properties`` (or the
+scene's own), and the invariants of ``CompiledScene`` (kinetic, gravitational, spring and
+applied-force energy and both momenta, with the reference's rotations and spring law). Never
+read back from an engine, and nothing of mini_engine, the engine under test, enters it.
 """
 
 from __future__ import annotations
@@ -35,7 +37,6 @@ def scene_report(scene: CompiledScene, pos, quat, vel, ang_vel) -> ModelReport:
 
 
 def reference_report(scene: CompiledScene) -> ModelReport:
-    """The ``ModelReport`` every engine must match: the scene at t = 0."""
-    n = scene.count
-    state = scene.initial
-    return scene_report(scene, state.pos[:n], state.quat[:n], state.vel[:n], state.ang_vel[:n])
+    """The ``ModelReport`` every engine must match: the scene at t = 0, as it states it."""
+    start = scene.start
+    return scene_report(scene, start.pos[0], start.quat[0], start.vel[0], start.ang_vel[0])

@@ -81,8 +81,9 @@ from validation.jobs.plan import (
     steps_in_range,
 )
 from validation.measure.metrics import Context, measure
-from validation.measure.newton_euler import reference_motion, rotation_angle
 from validation.measure.runner import EngineRun, run_engine
+from validation.reference.newton_euler import reference_motion
+from validation.reference.rotation import rotation_angle
 from validation.report.sweep_page import (
     FIT_ROLES,
     FITTED,

@@ -11,7 +11,12 @@ from __future__ import annotations
 import json
 import math
 
-from validation.contract import RESULTS_COLUMNS
+from validation.contract import (
+    RESULTS_COLUMNS,
+    SIGNED_COLUMNS,
+    SIGNED_ERROR_COLUMN,
+    VECTOR_ERROR_COLUMNS,
+)
 from validation.measure.metrics import Context, Measurement, divergence, measure
 from validation.measure.runner import EngineRun
 from validation.scenario.compiled import CompiledScene
@@ -35,6 +40,17 @@ def _common(scene: CompiledScene, run: EngineRun) -> dict:
     }
 
 
+def signed_columns(result: Measurement) -> dict:
+    """The row's ``SIGNED_COLUMNS``: ``signed_error`` for a scalar error with a sign, the
+    three world-frame components for a vector one, None elsewhere."""
+    columns: dict = dict.fromkeys(SIGNED_COLUMNS)
+    if len(result.signed) == 1:
+        columns[SIGNED_ERROR_COLUMN] = float(result.signed[0])
+    elif len(result.signed) == len(VECTOR_ERROR_COLUMNS):
+        columns.update(zip(VECTOR_ERROR_COLUMNS, map(float, result.signed), strict=True))
+    return columns
+
+
 def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str) -> dict:
     tolerance = scene.scenario.tolerance(result.metric, run.engine)
     passed = (
@@ -56,6 +72,7 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
         "passed": passed,
         "status": status,
         "message": result.message,
+        **signed_columns(result),
     }
 
 
@@ -72,6 +89,7 @@ def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
         "passed": False,
         "status": run.status,
         "message": run.message,
+        **dict.fromkeys(SIGNED_COLUMNS),
     }
 
 

@@ -7,9 +7,13 @@ contract, kept apart so that a report can be rendered without importing any engi
 from __future__ import annotations
 
 METRIC_DEFINITIONS: dict[str, str] = {
-    "energy_drift": "max over t of |E(t) - E(0)| / |E(0)|, E = kinetic (translational + rotational) "
-    "+ gravitational potential + spring energy + the applied forces' potential -F·x; absolute (J) "
-    "when E(0) = 0; not defined under an applied torque (its work has no potential)",
+    "energy_drift": "max over t of |E(t) - E(0)| / E_scale, E = kinetic (translational + "
+    "rotational) + gravitational potential + spring energy + the applied forces' potential -F·x; "
+    "E_scale = the largest kinetic + spring energy over the run + Σ m|g + F/m|·r (each body's "
+    "weight, with its constant force, over its bounding radius r): no choice of origin or "
+    "potential zero changes it; the message keeps max|ΔE| in J; signed_error is ΔE/E_scale at "
+    "the worst time (negative: energy lost); absolute (J) when E_scale = 0; not defined under an "
+    "applied torque (its work has no potential) or with a damped spring (it dissipates)",
     "angular_momentum_drift": "max over t of |L(t) - L(0) - Στ t| / max(|L(0)|, |Στ| t_end), L of "
     "all bodies about the system's centre of mass, world frame, τ the applied torques; absolute "
     "when both are 0; defined only while no fixed body, ground or spring to the world acts and "
@@ -33,24 +37,50 @@ METRIC_DEFINITIONS: dict[str, str] = {
 
 EXPECTATION_DEFINITIONS: dict[str, str] = {
     "velocity_after_impact": "|v(after the body's first impact) - expected| (m/s), read once the "
-    "contact has ended and carried back to the impulse with the free acceleration g + F/m",
-    "position_at": "|x(time) - expected| (m), x observed at the time (interpolated between the "
-    "two observed steps around it)",
-    "velocity_at": "|v(time) - expected| (m/s), as position_at",
-    "angular_velocity_at": "|ω(time) - expected| (rad/s, world frame), as position_at",
+    "contact has ended and carried back to the impulse centroid with the acceleration the body "
+    "was observed to have over the step before the contact (g + F/m in free flight, nothing for "
+    "a body resting on a support)",
+    "position_at": "|x(time) - expected| (m), x observed at the time, or between observed steps "
+    "the cubic Hermite of the observed positions and velocities (exact for a constant "
+    "acceleration; error <= h⁴·max|x⁗|/384)",
+    "velocity_at": "|v(time) - expected| (m/s), v observed at the time, or between observed steps "
+    "the cubic through the four observed velocities around it (error <= 9h⁴·max|v⁗|/384)",
+    "angular_velocity_at": "|ω(time) - expected| (rad/s, world frame), as velocity_at",
     "angular_velocity_after_impact": "|ω after the body's first impact - expected| (rad/s), read "
-    "once the contact has ended (carried back with an applied torque's I⁻¹τ)",
-    "orientation_at": "rotation angle (rad) between the body's orientation at the time (the "
-    "nearer observed step) and the expected one",
+    "once the contact has ended and carried back with the angular acceleration observed over "
+    "the step before the contact",
+    "orientation_at": "rotation angle (rad) between the body's orientation at the time and the "
+    "expected one; between observed steps the cubic Hermite on the rotation group with the "
+    "observed angular velocities (exact for a constant ω); signed: the world-frame rotation "
+    "vector from the expected orientation to the measured one",
     "flip_times": "max over flips of |time of a sign change of the body-axis angular velocity - "
     "expected| (s), crossings interpolated between steps",
     "impact_times": "max over the body's impacts of |impulse time - expected| (s)",
-    "energy_at": "|the body's kinetic + gravitational energy at the time - expected| (J)",
+    "energy_at": "|the body's kinetic + gravitational energy at the time - expected| (J), "
+    "between observed steps the cubic through the four observed energies around it",
     "bounce_heights": "max over bounces of |apex height of the COM - expected| (m)",
     "precession_rate": "|fitted body-frame precession rate - expected| (rad/s)",
     "flips": "|number of sign changes of the body-axis angular velocity - expected|",
 }
 """Expectation kind -> the definition of its metric (named ``<kind>.<body>``)."""
+
+INTERPOLATION_BOUND = (
+    "between observed steps: positions by the cubic Hermite of the observed positions and "
+    "velocities (error <= h⁴·max|x⁗|/384), velocities, angular velocities and energies by the "
+    "cubic through the four observed values around the time (<= 9h⁴·max|f⁗|/384), "
+    "orientations by the same Hermite on the rotation group with the observed ω; each exact "
+    "for a constant acceleration (a constant ω)"
+)
+"""The interpolants and their error bounds in one line, for the legend and the README
+(the interpolants: ``validation.measure.interpolation``)."""
+
+
+SIGNED_ERROR_DEFINITION = (
+    "signed_error (a scalar) or error_x, error_y, error_z (a vector, world frame): the error "
+    "with its sign, measured - expected, of which error is the magnitude; opposite errors of "
+    "one size (explicit and semi-implicit Euler on a projectile) differ here"
+)
+"""The legend's line for the signed-error columns."""
 
 EXPECTED_KINDS = ("analytic", "conserved", "engine")
 """What a row was compared against: a closed form, a conserved quantity (value its drift,

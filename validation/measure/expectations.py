@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import Trajectory
+from validation.measure.interpolation import INTERPOLANTS, rotation_vector_between
 from validation.measure.measurement import Measurement
-from validation.measure.newton_euler import rotation_angle
+from validation.reference.rotation import quat_to_matrix, rotation_angle
 from validation.scenario.compiled import (
     CompiledScene,
     gravitational_energy,
@@ -45,7 +45,8 @@ def _missing(expectation, message: str) -> Measurement:
 
 
 def _vector(expectation, got: np.ndarray, where: str) -> Measurement:
-    """``value`` |measured|, ``expected`` |target|, ``error`` the distance between the two."""
+    """``value`` |measured|, ``expected`` |target|, ``error`` the distance between the two,
+    ``signed`` the difference per component."""
     target = np.asarray(expectation.value, dtype=float)
     return Measurement(
         expectation.metric,
@@ -54,6 +55,21 @@ def _vector(expectation, got: np.ndarray, where: str) -> Measurement:
         "analytic",
         float(np.linalg.norm(got - target)),
         f"{where}: {np.round(got, 6).tolist()} (expected {np.round(target, 6).tolist()})",
+        signed=tuple(float(x) for x in got - target),
+    )
+
+
+def _scalar(expectation, got: float, target: float, message: str) -> Measurement:
+    """``value`` the measured number, ``expected`` the target, ``error`` |difference|,
+    ``signed`` the difference."""
+    return Measurement(
+        expectation.metric,
+        float(got),
+        float(target),
+        "analytic",
+        abs(float(got) - float(target)),
+        message,
+        signed=(float(got) - float(target),),
     )
 
 
@@ -76,44 +92,55 @@ class _Tracker:
 
 @dataclass
 class StateAt(_Tracker):
-    """Position or velocity of the body at ``time``: the observed state there, or the linear
-    interpolation between the two observed states around it."""
+    """A quantity of the body at ``time``: the observed state there, or between the observed
+    states around it the interpolant of ``validation.measure.interpolation`` (a cubic Hermite
+    of positions and velocities, a cubic through four velocities, the Hermite on the rotation
+    group). Keeps the ``side`` states before the time and the ``side`` at or after it."""
 
     quantity: str = "pos"
-    before: tuple[float, np.ndarray] | None = None
-    after: tuple[float, np.ndarray] | None = None
+    before_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    after_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    before: dict[str, np.ndarray] = field(default_factory=dict)
+    after: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.arrays, self.side, self.interpolant = INTERPOLANTS[self.quantity]
 
     def update(self, states: Trajectory, events) -> None:
-        if self.after is not None or len(states) == 0:
+        if self.after_t.size >= self.side or len(states) == 0:
             return
-        self._bracket(states.t, getattr(states, self.quantity)[:, self.body])
+        values = {name: getattr(states, name)[:, self.body] for name in self.arrays}
+        self._bracket(states.t, values)
 
-    def _bracket(self, t: np.ndarray, values: np.ndarray) -> None:
-        """Keep the observed values just before and at (or after) the expected time."""
-        reached = np.flatnonzero(t >= self.expectation.time - self._slack())
-        if reached.size:
-            k = int(reached[0])
-            self.after = (float(t[k]), values[k].copy())
-            if k > 0:
-                self.before = (float(t[k - 1]), values[k - 1].copy())
-        else:
-            self.before = (float(t[-1]), values[-1].copy())
+    def _bracket(self, t: np.ndarray, values: dict[str, np.ndarray]) -> None:
+        """Keep the last ``side`` observed states before the expected time and the first
+        ``side`` at (or after) it."""
+        reached = t >= self.expectation.time - self._slack()
+        early, late = ~reached, reached
+        self.before_t = np.concatenate([self.before_t, t[early]])[-self.side :]
+        self.after_t = np.concatenate([self.after_t, t[late]])[: self.side]
+        for name, value in values.items():
+            kept = self.before.get(name, value[:0])
+            self.before[name] = np.concatenate([kept, value[early]])[-self.side :]
+            kept = self.after.get(name, value[:0])
+            self.after[name] = np.concatenate([kept, value[late]])[: self.side]
 
     def _slack(self) -> float:
         return TIME_MATCH * max(self.expectation.time, self.scene.scenario.dt)
 
     def value_at(self) -> tuple[np.ndarray, str] | None:
-        """The value at the expected time (interpolated between the two observed states
-        around it) and where it was read; None when the run ended before."""
-        if self.after is None:
+        """The value at the expected time (the interpolant between the observed states around
+        it) and where it was read; None when the run ended before."""
+        if self.after_t.size == 0:
             return None
-        t1, v1 = self.after
-        if self.before is None or abs(t1 - self.expectation.time) <= self._slack():
-            return v1, f"{self.quantity} at t = {t1:.6g} s"
-        t0, v0 = self.before
-        weight = (self.expectation.time - t0) / (t1 - t0)
-        where = f"{self.quantity} at t = {self.expectation.time:.6g} s (between observations)"
-        return v0 + weight * (v1 - v0), where
+        time, first = self.expectation.time, float(self.after_t[0])
+        if self.before_t.size == 0 or abs(first - time) <= self._slack():
+            return self.after[self.arrays[0]][0], f"{self.quantity} at t = {first:.6g} s"
+        t = np.concatenate([self.before_t, self.after_t])  # at most ``side`` on each side
+        arrays = [np.concatenate([self.before[name], self.after[name]]) for name in self.arrays]
+        where = f"{self.quantity} at t = {time:.6g} s (interpolated between observations)"
+        return self.interpolant(time, t, *arrays), where
 
     def result(self) -> Measurement:
         found = self.value_at()
@@ -126,8 +153,10 @@ class StateAt(_Tracker):
 class VelocityAfterImpact(_Tracker):
     """Velocity of the body after its first impact, read once the contact has ended (the
     first observed state apart: soft contacts last several steps) and carried back to the
-    impulse centroid with the body's free-flight acceleration (as ``ImpactEvent`` carries the
-    relative velocities), so a one-step impulse reads exactly the velocity it left behind."""
+    impulse centroid with the acceleration the body was observed to have over the step before
+    the contact (``ImpactEvent.acceleration_of``: g + F/m in free flight, nothing for a body
+    resting on a support), as ``ImpactEvent`` carries the relative velocities; a one-step
+    impulse reads exactly the velocity it left behind."""
 
     found: Measurement | None = None
 
@@ -139,7 +168,8 @@ class VelocityAfterImpact(_Tracker):
             return
         event = first[0]
         at = np.flatnonzero(states.t == event.time_end)
-        acceleration = self.scene.acceleration[self.body]  # g + F/m: free flight
+        observed = event.acceleration_of(self.expectation.body)
+        acceleration = self.scene.acceleration[self.body] if observed is None else observed
         velocity = states.vel[int(at[0]), self.body] - acceleration * (
             event.time_end - event.time_impulse
         )
@@ -186,14 +216,8 @@ class BounceHeights(_Tracker):
             return _missing(self.expectation, message)
         misses = np.abs(np.array(self.apexes) - wanted)
         worst = int(np.argmax(misses))
-        return Measurement(
-            self.expectation.metric,
-            self.apexes[worst],
-            float(wanted[worst]),
-            "analytic",
-            float(misses[worst]),
-            f"apexes {np.round(self.apexes, 5).tolist()} m (worst: apex {worst + 1})",
-        )
+        message = f"apexes {np.round(self.apexes, 5).tolist()} m (worst: apex {worst + 1})"
+        return _scalar(self.expectation, self.apexes[worst], wanted[worst], message)
 
 
 def _body_frame(states: Trajectory, body: int) -> np.ndarray:
@@ -235,14 +259,8 @@ class PrecessionRate(_Tracker):
         if n < 2 or n * stt - st * st <= 0.0:
             return _missing(self.expectation, "fewer than two observed states")
         rate = float((n * sta - st * sa) / (n * stt - st * st))
-        return Measurement(
-            self.expectation.metric,
-            rate,
-            float(self.expectation.value),
-            "analytic",
-            abs(rate - self.expectation.value),
-            f"rate {rate:.6g} rad/s about the body's {self.axis_name} axis",
-        )
+        message = f"rate {rate:.6g} rad/s about the body's {self.axis_name} axis"
+        return _scalar(self.expectation, rate, self.expectation.value, message)
 
 
 @dataclass
@@ -266,21 +284,16 @@ class Flips(_Tracker):
         self.sign = float(signs[-1])
 
     def result(self) -> Measurement:
-        return Measurement(
-            self.expectation.metric,
-            float(self.count),
-            float(self.expectation.value),
-            "analytic",
-            float(abs(self.count - self.expectation.value)),
-            f"{self.count} flips",
-        )
+        return _scalar(self.expectation, self.count, self.expectation.value, f"{self.count} flips")
 
 
 @dataclass
 class AngularVelocityAfterImpact(_Tracker):
     """Angular velocity of the body at the first state apart after its first impact, carried
-    back to the impulse by the applied torque's ``R I⁻¹ Rᵀ τ`` (gravity and forces at the centre
-    of mass exert none; without a torque nothing is carried)."""
+    back to the impulse centroid with the angular acceleration the body was observed to have
+    over the step before the contact (``ImpactEvent.angular_acceleration_of``: an applied
+    torque's ``R I⁻¹ Rᵀ τ`` and the gyroscopic change of a tumbling body, nothing for a body at
+    rest); when no step before the contact was observed, with the applied torque's alone."""
 
     found: Measurement | None = None
 
@@ -291,12 +304,13 @@ class AngularVelocityAfterImpact(_Tracker):
         if first:
             event = first[0]
             at = int(np.flatnonzero(states.t == event.time_end)[0])
-            ang_vel = states.ang_vel[at, self.body]
-            torque = self.scene.torque[self.body]
-            if np.any(torque):
+            observed = event.angular_acceleration_of(self.expectation.body)
+            if observed is None:
                 rot = rotations(states.quat[at, self.body])
                 inverse = rot @ np.linalg.inv(self.scene.inertia[self.body]) @ rot.T
-                ang_vel = ang_vel - inverse @ torque * (event.time_end - event.time_impulse)
+                observed = inverse @ self.scene.torque[self.body]
+            elapsed = event.time_end - event.time_impulse
+            ang_vel = states.ang_vel[at, self.body] - observed * elapsed
             where = f"angular velocity after the impact at t = {event.time_impulse:.6g} s"
             self.found = _vector(self.expectation, ang_vel, where)
 
@@ -306,40 +320,42 @@ class AngularVelocityAfterImpact(_Tracker):
 
 @dataclass
 class OrientationAt(StateAt):
-    """Orientation of the body at ``time`` (the observed state there, or the nearer of the two
-    around it): ``value`` and ``expected`` the rotation angles from the identity, ``error`` the
-    angle between the two orientations."""
+    """Orientation of the body at ``time`` (the observed state there, or between the two
+    around it the Hermite on the rotation group of ``validation.measure.interpolation``):
+    ``value`` and ``expected`` the rotation angles from the identity, ``error`` the angle
+    between the two orientations, ``signed`` the world-frame rotation vector taking the
+    expected orientation to the measured one."""
 
     quantity: str = "quat"
 
     def result(self) -> Measurement:
-        if self.after is None:
+        found = self.value_at()
+        if found is None:
             return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
-        time = self.expectation.time
-        t1, q1 = self.after
-        if self.before is not None and abs(self.before[0] - time) < abs(t1 - time):
-            t1, q1 = self.before
+        quat, where = found
         target = np.asarray(self.expectation.value, dtype=float)
         identity = np.array([1.0, 0.0, 0.0, 0.0])
+        turn = rotation_vector_between(target, quat)
         return Measurement(
             self.expectation.metric,
-            float(rotation_angle(q1, identity)),
+            float(rotation_angle(quat, identity)),
             float(rotation_angle(target, identity)),
             "analytic",
-            float(rotation_angle(q1, target)),
-            f"orientation at t = {t1:.6g} s: {np.round(q1, 6).tolist()} (expected {np.round(target, 6).tolist()})",
+            float(rotation_angle(quat, target)),
+            f"{where}: {np.round(quat, 6).tolist()} (expected {np.round(target, 6).tolist()})",
+            signed=tuple(float(x) for x in turn),
         )
 
 
 @dataclass
 class EnergyAt(StateAt):
     """The body's own energy at ``time``: ½ m v² + ½ ωᵀ I_world ω - m g·x (J), from the
-    observed state there or interpolated between the two around it."""
+    observed state there or, between the states around it, the cubic through four of them."""
 
     quantity: str = "energy"
 
     def update(self, states: Trajectory, events) -> None:
-        if self.after is not None or len(states) == 0:
+        if self.after_t.size >= self.side or len(states) == 0:
             return
         b = slice(self.body, self.body + 1)
         one = Trajectory(
@@ -350,22 +366,14 @@ class EnergyAt(StateAt):
         inertia = rot @ self.scene.inertia[b][None] @ rot.swapaxes(-1, -2)
         energy = kinetic_energy(mass, inertia, one.vel, one.ang_vel)
         energy += gravitational_energy(mass, one.pos, self.scene.gravity)
-        self._bracket(states.t, energy[:, None])
+        self._bracket(states.t, {"energy": energy})
 
     def result(self) -> Measurement:
         found = self.value_at()
         if found is None:
             return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
-        energy, where = float(found[0][0]), found[1]
-        target = float(self.expectation.value)
-        return Measurement(
-            self.expectation.metric,
-            energy,
-            target,
-            "analytic",
-            abs(energy - target),
-            f"{where}: {energy:.6g} J",
-        )
+        energy, where = float(found[0]), found[1]
+        return _scalar(self.expectation, energy, self.expectation.value, f"{where}: {energy:.6g} J")
 
 
 @dataclass
@@ -383,14 +391,8 @@ class _TimesOf(_Tracker):
         got = np.array(self.times[: wanted.size])
         misses = np.abs(got - wanted)
         worst = int(np.argmax(misses))
-        return Measurement(
-            self.expectation.metric,
-            float(got[worst]),
-            float(wanted[worst]),
-            "analytic",
-            float(misses[worst]),
-            f"times {np.round(got, 5).tolist()} s",
-        )
+        message = f"times {np.round(got, 5).tolist()} s"
+        return _scalar(self.expectation, got[worst], wanted[worst], message)
 
 
 @dataclass

@@ -39,29 +39,50 @@ class Context:
         self.external_contacts = scene.external_loads
 
 
-def _drift(values: np.ndarray, name: str, scale: float | None = None) -> Measurement:
-    """max |x(t) - x(0)| / |x(0)| (or / ``scale``); absolute when the scale is zero."""
-    start = values[0]
-    change = np.linalg.norm(
-        np.atleast_2d((values - start).T).T.reshape(values.shape[0], -1), axis=1
-    )
-    reference = float(np.linalg.norm(start)) if scale is None else scale
-    relative = reference > ZERO_SCALE
-    value = float(change.max() / reference) if relative else float(change.max())
-    return _conserved(name, value, float(np.linalg.norm(start)), relative)
-
-
-def _conserved(name: str, drift: float, initial: float, relative: bool) -> Measurement:
+def _conserved(name: str, drift: float, signed: tuple[float, ...], message: str) -> Measurement:
     """A conserved quantity's row: ``value`` the measured drift, ``expected`` its target 0,
-    ``error`` the drift; the initial magnitude goes in the message (the scale of the drift)."""
-    note = f"|initial value| {initial:.6g}" if relative else "initial value is zero: absolute drift"
-    return Measurement(name, drift, 0.0, "conserved", drift, note)
+    ``error`` the drift, ``signed`` its worst excursion with its sign (per component for a
+    vector); the scale it was divided by goes in the message."""
+    return Measurement(name, drift, 0.0, "conserved", drift, message, signed=signed)
+
+
+def energy_scale(ctx: Context) -> tuple[float, float, float]:
+    """(E_scale, motion, weight) J: the scale of ``energy_drift``, the sum of ``motion``, the
+    largest kinetic plus spring energy over the samples, and ``weight``, Σ m |g + F/m| r over
+    the moving bodies (each body's weight, with its constant applied force, over its bounding
+    radius r). Neither depends on where the origin is or where a potential is zero: the
+    kinetic and spring energies have a physical zero, and a weight times a size is the energy
+    scale of a body that rests (a resting stack has no motion, but sinking by its own size
+    would release this much)."""
+    trajectory = ctx.trajectory
+    motion = ctx.scene.kinetic_energy(trajectory.quat, trajectory.vel, trajectory.ang_vel)
+    motion = motion + ctx.scene.spring_energy(trajectory.pos, trajectory.quat)
+    pull = np.linalg.norm(ctx.scene.acceleration, axis=1)  # g + F/m, zero for fixed bodies
+    radius = ctx.scene.bound_radius[: ctx.scene.count]
+    weight = float(np.sum(ctx.scene.mass * pull * radius))
+    largest = float(np.max(motion, initial=0.0))
+    return largest + weight, largest, weight
 
 
 def energy_drift(ctx: Context) -> Measurement | None:
+    """max |E(t) - E(0)| / E_scale (``energy_scale``): the energy error on a scale no choice
+    of origin or potential zero changes; the message keeps the error in J."""
     if ctx.scene.applies_torque:  # a constant world torque does work with no potential
         return None
-    return _drift(ctx.series.energy, "energy_drift")
+    if any(spring.damping > 0.0 for spring in ctx.scenario.springs):
+        return None  # a damper dissipates: energy is not an invariant then
+    change = ctx.series.energy - ctx.series.energy[0]
+    worst = int(np.argmax(np.abs(change)))
+    scale, motion, weight = energy_scale(ctx)
+    relative = scale > ZERO_SCALE
+    divisor = scale if relative else 1.0
+    drift = float(abs(change[worst]) / divisor)
+    message = f"max |ΔE| {abs(change[worst]):.6g} J at t = {ctx.series.t[worst]:.6g} s; " + (
+        f"E_scale {scale:.6g} J (kinetic + spring {motion:.6g} J, weight x size {weight:.6g} J)"
+        if relative
+        else "E_scale is zero: absolute drift (J)"
+    )
+    return _conserved("energy_drift", drift, (float(change[worst] / divisor),), message)
 
 
 def _impulse_balance(ctx: Context, values: np.ndarray, rate: np.ndarray, name: str) -> Measurement:
@@ -69,12 +90,18 @@ def _impulse_balance(ctx: Context, values: np.ndarray, rate: np.ndarray, name: s
     whose rate of change ``rate (3,)`` is constant (the external loads' sum); absolute when
     both scales are zero."""
     t = ctx.series.t
-    change = np.linalg.norm(values - values[0] - rate * t[:, None], axis=1)
+    residual = values - values[0] - rate * t[:, None]
+    change = np.linalg.norm(residual, axis=1)
+    worst = int(np.argmax(change))
     magnitude = float(np.linalg.norm(values[0]))
     scale = max(magnitude, float(np.linalg.norm(rate)) * float(t[-1]))
     relative = scale > ZERO_SCALE
-    value = float(change.max() / scale) if relative else float(change.max())
-    return _conserved(name, value, magnitude, relative)
+    divisor = scale if relative else 1.0
+    note = (
+        f"|initial value| {magnitude:.6g}" if relative else "initial value is zero: absolute drift"
+    )
+    signed = tuple(float(x) for x in residual[worst] / divisor)
+    return _conserved(name, float(change[worst] / divisor), signed, note)
 
 
 def angular_momentum_drift(ctx: Context) -> Measurement | None:
@@ -102,20 +129,28 @@ def _ballistic(ctx: Context) -> tuple[np.ndarray, np.ndarray] | None:
     return x0 + v0 * t + 0.5 * a * t**2, v0 + a * t
 
 
+def _largest_distance(name: str, difference: np.ndarray, expected_kind: str) -> Measurement:
+    """The largest norm over samples and bodies of ``difference (s, n, 3)``, with that
+    difference's components as the signed error."""
+    distance = np.linalg.norm(difference, axis=2)
+    sample, body = np.unravel_index(int(np.argmax(distance)), distance.shape)
+    value = float(distance[sample, body])
+    signed = tuple(float(x) for x in difference[sample, body])
+    return Measurement(name, value, 0.0, expected_kind, value, signed=signed)
+
+
 def position_error(ctx: Context) -> Measurement | None:
     analytic = _ballistic(ctx)
     if analytic is None:
         return None
-    value = float(np.linalg.norm(ctx.trajectory.pos - analytic[0], axis=2).max())
-    return Measurement("position_error", value, 0.0, "analytic", value)
+    return _largest_distance("position_error", ctx.trajectory.pos - analytic[0], "analytic")
 
 
 def velocity_error(ctx: Context) -> Measurement | None:
     analytic = _ballistic(ctx)
     if analytic is None:
         return None
-    value = float(np.linalg.norm(ctx.trajectory.vel - analytic[1], axis=2).max())
-    return Measurement("velocity_error", value, 0.0, "analytic", value)
+    return _largest_distance("velocity_error", ctx.trajectory.vel - analytic[1], "analytic")
 
 
 def requested_restitution(ctx: Context, body_a: str, body_b: str) -> float:
@@ -146,6 +181,7 @@ def restitution_error(ctx: Context) -> Measurement | None:
         errors[worst],
         note,
         bands[worst],
+        signed=(event.restitution - requested[worst],),
     )
 
 
@@ -153,7 +189,7 @@ def penetration_max(ctx: Context) -> Measurement | None:
     deepest = ctx.recording.penetration_max
     if deepest is None:
         return None
-    return Measurement("penetration_max", deepest, 0.0, "analytic", deepest)
+    return Measurement("penetration_max", deepest, 0.0, "analytic", deepest, signed=(deepest,))
 
 
 METRICS: dict[str, Callable[[Context], Measurement | None]] = {
@@ -174,8 +210,8 @@ def divergence(ctx: Context, reference: Context, reference_label: str) -> Measur
     common = min(mine.t.size, theirs.t.size)
     if common == 0 or not np.allclose(mine.t[:common], theirs.t[:common]):
         return None
-    value = float(np.linalg.norm(mine.pos[:common] - theirs.pos[:common], axis=2).max())
-    return Measurement("divergence", value, 0.0, f"engine:{reference_label}", value)
+    difference = mine.pos[:common] - theirs.pos[:common]
+    return _largest_distance("divergence", difference, f"engine:{reference_label}")
 
 
 def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measurement | None:

@@ -8,12 +8,18 @@ error changed by more than
     max(RELATIVE_NOISE · max(|error_a|, |error_b|), TOLERANCE_NOISE · tolerance, ABSOLUTE_NOISE)
 
 and then it is ``regressed`` when the error grew and ``improved`` when it shrank. A change of
-verdict (passed -> failed, ok -> unstable) is always a move, whatever the numbers.
+verdict (passed -> failed, ok -> unstable) is always a move, whatever the numbers. Where both
+runs recorded the signed error (``validation.contract.SIGNED_COLUMNS``), an error whose size
+held but whose sign or direction moved by more than the same floor (explicit instead of
+semi-implicit Euler on a projectile: the same |error|, the opposite sign) is ``regressed``
+too: the engine's behaviour changed, and nothing says it got better.
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 RELATIVE_NOISE = 1e-3
 """A 0.1 % change of a row's error is news: 30x below issue 12's example of news (a 3 % change of a
@@ -30,7 +36,8 @@ ABSOLUTE_NOISE = 1e-12
 NOISE_RULE = (
     f"a row moved when |Δerror| > max({RELATIVE_NOISE:g}·max(|error|), "
     f"{TOLERANCE_NOISE:g}·tolerance, {ABSOLUTE_NOISE:g}); regressed if the error grew, improved "
-    "if it shrank; a change of verdict is always a move"
+    "if it shrank, regressed also when its size held but the signed error moved by more than "
+    "that floor (its sign or direction changed); a change of verdict is always a move"
 )
 """The rule in one line, for the legend and the README."""
 
@@ -51,3 +58,20 @@ def moved(error_a: float, error_b: float, tolerance: float) -> int:
     if abs(change) <= noise_floor(error_a, error_b, tolerance):
         return 0
     return 1 if change > 0 else -1
+
+
+def moved_signed(
+    signed_a: np.ndarray | None,
+    signed_b: np.ndarray | None,
+    error_a: float,
+    error_b: float,
+    tolerance: float,
+) -> int:
+    """``moved`` of the errors, and +1 when their size held but the signed errors
+    ``signed_a, signed_b`` (scalars as (1,), vectors as (3,); None when a run lacks them) are
+    apart by more than the noise floor."""
+    direction = moved(error_a, error_b, tolerance)
+    if direction != 0 or signed_a is None or signed_b is None or signed_a.shape != signed_b.shape:
+        return direction
+    shift = float(np.linalg.norm(signed_b - signed_a))
+    return 1 if shift > noise_floor(error_a, error_b, tolerance) else 0

@@ -83,6 +83,11 @@ class ImpactEvent:
         time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
         approach_acceleration: m/s², the relative normal acceleration before contact (what
             acts besides the impulse: gravity, a support); step: s, between observations.
+        acceleration_a, acceleration_b: (3,) m/s², world frame, each body's acceleration
+            over the observed step before the contact (what acted on it then: g + F/m in free
+            flight, nothing net on a body resting on a support; zeros for the ground); None
+            when fewer than two states before the contact were observed.
+        angular_acceleration_a, angular_acceleration_b: (3,) rad/s², the same for ω.
     """
 
     body_a: str
@@ -95,6 +100,20 @@ class ImpactEvent:
     normal_velocity_after: float
     approach_acceleration: float = 0.0
     step: float = 0.0
+    acceleration_a: tuple[float, float, float] | None = None
+    acceleration_b: tuple[float, float, float] | None = None
+    angular_acceleration_a: tuple[float, float, float] | None = None
+    angular_acceleration_b: tuple[float, float, float] | None = None
+
+    def acceleration_of(self, body: str) -> np.ndarray | None:
+        """(3,) m/s², body ``body``'s observed acceleration before the contact (or None)."""
+        found = self.acceleration_a if body == self.body_a else self.acceleration_b
+        return None if found is None else np.array(found)
+
+    def angular_acceleration_of(self, body: str) -> np.ndarray | None:
+        """(3,) rad/s², body ``body``'s observed angular acceleration before the contact."""
+        found = self.angular_acceleration_a if body == self.body_a else self.angular_acceleration_b
+        return None if found is None else np.array(found)
 
     @property
     def restitution(self) -> float:
@@ -124,6 +143,9 @@ class _OpenImpact:
     """(time s, relative normal velocity m/s) from the last observation before contact on."""
     accel: float = 0.0
     """m/s², relative normal acceleration before contact (what acts besides the impulse)."""
+    body_accelerations: tuple | None = None
+    """Each body's observed (linear, angular) acceleration before contact, (3,) each, world
+    frame: ``(a_A, a_B, α_A, α_B)``; None when not observed (``ImpactEvent``)."""
 
 
 @dataclass(frozen=True)
@@ -243,6 +265,7 @@ class ImpactDetector:
         with np.errstate(divide="ignore", invalid="ignore"):
             # without two earlier observations: free flight of both bodies, (a_B - a_A)·n
             accel = np.where(measured, (before - previous) / np.where(measured, gap, 1.0), free)
+        bodies = self._observed_accelerations(ext, obs, earlier, gap, a, b)
         opens = []
         for k in approaching:
             self.opened += 1
@@ -256,9 +279,23 @@ class ImpactDetector:
                 [float(ext.t[obs[k] - 1])],
                 [float(before[k])],
                 float(accel[k]),
+                tuple(tuple(float(x) for x in v[k]) for v in bodies) if measured[k] else None,
             )
             opens.append((int(obs[k]) - offset, impact))
         return opens
+
+    @staticmethod
+    def _observed_accelerations(ext, obs, earlier, gap, a, b) -> tuple[np.ndarray, ...]:
+        """``(a_A, a_B, α_A, α_B)``, each (c, 3) world frame: the bodies' linear (m/s²) and
+        angular (rad/s²) accelerations over the observed step before contact ``c`` (from
+        ``earlier[c]`` to ``obs[c] - 1``; rows without that step are garbage, masked by the
+        caller)."""
+        step = np.where(gap > 0, gap, 1.0)[:, None]
+        return tuple(
+            (values[obs - 1, body] - values[earlier, body]) / step
+            for values in (ext.vel, ext.ang_vel)
+            for body in (a, b)
+        )
 
     def _with_ground(self, states: Trajectory) -> Trajectory:
         """``states`` with the ground appended as a body (its pose, at rest), so model body
@@ -360,7 +397,14 @@ class ImpactDetector:
             normal_velocity_after=after,
             approach_acceleration=float(accel),
             step=float(np.min(np.diff(times))),
+            **_body_accelerations(impact.body_accelerations),
         )
+
+
+def _body_accelerations(found: tuple | None) -> dict:
+    """``ImpactEvent``'s per-body acceleration fields from ``_OpenImpact.body_accelerations``."""
+    names = ("acceleration_a", "acceleration_b", "angular_acceleration_a", "angular_acceleration_b")
+    return dict.fromkeys(names) if found is None else dict(zip(names, found, strict=True))
 
 
 def _member(values: np.ndarray, sorted_codes: np.ndarray) -> np.ndarray:

@@ -8,7 +8,8 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
 - ``scene_changed``: the scene file's hash differs (the numbers may move; not a regression);
 - ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run;
 - ``regressed`` / ``improved``: the verdict got worse / better (passed -> failed, ok ->
-  unstable), or the error moved beyond noise (``validation.measure.noise``) up / down;
+  unstable), or the error moved beyond noise (``validation.measure.noise``) up / down, or
+  (regressed) its size held while its sign or direction moved beyond noise;
 - ``unchanged``: none of these.
 
 The run fails (exit 1) on a regression or a *new failure*: a failing row (bad status, not a
@@ -23,6 +24,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from validation.contract import (
@@ -31,9 +33,12 @@ from validation.contract import (
     EXIT_OK,
     PROVENANCE_FILE,
     RESULTS_FILE,
+    SIGNED_COLUMNS,
+    SIGNED_ERROR_COLUMN,
+    VECTOR_ERROR_COLUMNS,
 )
 from validation.files import write_atomically
-from validation.measure.noise import moved
+from validation.measure.noise import moved_signed
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_results
 
@@ -49,8 +54,13 @@ BASELINE_COLUMNS = (
     "outcome",
     "engine_version",
     "scene_sha256",
+    *SIGNED_COLUMNS,
 )
-"""The columns of a baseline file, in order (CI jobs and reviewers read them)."""
+"""The columns of a baseline file, in order (CI jobs and reviewers read them); the signed
+error's (``SIGNED_COLUMNS``) may be absent from a baseline saved before they existed."""
+
+REQUIRED_COLUMNS = tuple(c for c in BASELINE_COLUMNS if c not in SIGNED_COLUMNS)
+"""What a file must have to be a baseline."""
 
 CLASSES = BASELINE_CLASSES
 """Every class a row can get against a baseline, the news first (``validation.contract``)."""
@@ -95,10 +105,13 @@ def read_baseline(path: Path) -> pd.DataFrame:
         table = pd.read_csv(path, dtype={"scene_sha256": str}, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
-    absent = [c for c in BASELINE_COLUMNS if c not in table.columns]
+    absent = [c for c in REQUIRED_COLUMNS if c not in table.columns]
     if absent:
         raise ValueError(f"{path}: not a baseline: columns {', '.join(absent)} are missing")
-    for column in ("value", "error", "tolerance"):
+    for column in SIGNED_COLUMNS:  # a baseline saved before the signed error was recorded
+        if column not in table.columns:
+            table[column] = ""
+    for column in ("value", "error", "tolerance", *SIGNED_COLUMNS):
         table[column] = pd.to_numeric(table[column], errors="coerce")
     return table
 
@@ -108,6 +121,15 @@ def _number(value: object) -> float:
         return float(value)
     except (TypeError, ValueError):
         return math.nan
+
+
+def signed_error(row: dict) -> np.ndarray | None:
+    """A row's signed error: (3,) components, (1,) a scalar, or None when it has none."""
+    vector = np.array([_number(row.get(c)) for c in VECTOR_ERROR_COLUMNS])
+    if np.isfinite(vector).all():
+        return vector
+    scalar = _number(row.get(SIGNED_ERROR_COLUMN))
+    return np.array([scalar]) if math.isfinite(scalar) else None
 
 
 def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
@@ -121,7 +143,8 @@ def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
     if rank_now != rank_before:
         return "regressed" if rank_now < rank_before else "improved"
     tolerance = _number(now.get("tolerance"))
-    direction = moved(_number(before["error"]), _number(now.get("error")), tolerance)
+    errors = (_number(before["error"]), _number(now.get("error")))
+    direction = moved_signed(signed_error(before), signed_error(now), *errors, tolerance)
     return {1: "regressed", -1: "improved", 0: "unchanged"}[direction]
 
 

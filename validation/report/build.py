@@ -22,7 +22,9 @@ from validation.contract import SERIES_FILE, STATUS_DESCRIPTIONS
 from validation.measure.definitions import (
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
+    INTERPOLATION_BOUND,
     METRIC_DEFINITIONS,
+    SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
 from validation.report.news import build_news, build_sweep_cards
@@ -242,11 +244,13 @@ def build_legend(table: pd.DataFrame) -> dict[str, Any]:
         "expected_kinds": {
             "analytic": "a closed form (the expected value printed in the row)",
             "conserved": "a conserved quantity: value and error its drift, expected 0 (the "
-            "initial value is in the message)",
+            "scale it is divided by is in the message)",
             "engine": "another engine's result on the same scene, written engine:<spec>",
         },
         "kinds_known": EXPECTED_KINDS,
         "noise_rule": NOISE_RULE,
+        "signed_error": SIGNED_ERROR_DEFINITION,
+        "interpolation": INTERPOLATION_BOUND,
         "statuses": list(STATUS_DESCRIPTIONS.items()),
         "undefined": undefined,
     }

@@ -28,6 +28,7 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_COLUMNS,
     SERIES_FILE,
+    SIGNED_COLUMNS,
     SWEEP_FILE,
 )
 
@@ -37,12 +38,13 @@ NUMERIC_RESULTS_COLUMNS = (
     "error",
     "tolerance",
     "band",
+    *SIGNED_COLUMNS,
     "dt",
     "steps",
     "wall_time_s",
 )
 
-OPTIONAL_RESULTS_COLUMNS = ("band", "outcome", "known", "baseline")
+OPTIONAL_RESULTS_COLUMNS = ("band", *SIGNED_COLUMNS, "outcome", "known", "baseline")
 
 OPTIONAL_IMPACTS_COLUMNS = ("delta_e", "band")
 """impacts.csv columns added after its first version (derived again when absent)."""

@@ -4,7 +4,10 @@
 down: the parity reference, every adapter, the recording, the stability checks and the
 metrics read the mini model, the invariants and the scales from here instead of deriving
 them again. Physics formulas of the invariants are defined once, below, as functions of
-arrays (so an adapter can apply them to what its engine reads back).
+arrays (so an adapter can apply them to what its engine reads back). The invariants take
+their inertias, rotations and spring energy from the reference side (``validation.reference``),
+so a mistake in mini_engine's formulas cannot move what the engines are judged against; the
+mini model is here for mini_engine itself and for finding contacts in observed states.
 
 It lives in ``scenario/`` rather than ``measure/`` because the engine adapters (one layer
 below the measurements) consume it too.
@@ -22,10 +25,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mini_engine.collision import detect_contacts
-from mini_engine.forces import spring_energies
 from mini_engine.model import Model, State, replicate
 from mini_engine.rotation import quat_to_matrix
-from validation.scenario.physics import SHAPE_BUILDERS, body_inertia, build_mini_model, pair_value
+from validation.reference import rotation
+from validation.reference.loads import Springs, spring_energy
+from validation.reference.motion import Motion
+from validation.scenario.physics import (
+    SHAPE_BUILDERS,
+    body_inertia,
+    build_mini_model,
+    pair_value,
+    scene_springs,
+)
 from validation.scenario.schema import Scenario
 
 MEASURED_BODIES_PER_CALL = 20_000
@@ -38,8 +49,9 @@ calls per observed state far below one."""
 
 
 def rotations(quat: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) body-to-world rotations of unit quaternions ``quat (..., 4)`` w x y z."""
-    return quat_to_matrix(quat.reshape(-1, 4)).reshape(*quat.shape[:-1], 3, 3)
+    """(..., 3, 3) body-to-world rotations of unit quaternions ``quat (..., 4)`` w x y z (the
+    reference's ``rotation.quat_to_matrix``)."""
+    return rotation.quat_to_matrix(np.asarray(quat, dtype=float))
 
 
 def kinetic_energy(
@@ -129,13 +141,17 @@ class CompiledScene:
         model, initial: the mini_engine model and its state at t = 0 (scene bodies first, in
             scenario order, then the ground plane in the shared world).
         count: n, the scene's bodies. moving: (n,) bool, not fixed.
-        mass: (n,) kg, 0 for fixed bodies. inertia: (n, 3, 3) kg·m², body frame.
+        mass: (n,) kg, 0 for fixed bodies. inertia: (n, 3, 3) kg·m², body frame: the
+            scene's, or the reference's solid shape (``physics.body_inertia``).
         gravity: (3,) m/s². can_touch: whether any two bodies can meet.
         force: (n, 3) N, torque: (n, 3) N·m, world frame: each body's constant applied load
             (0 for fixed bodies). acceleration: (n, 3) m/s², what acts on each centre of mass
             besides contacts and springs: g + F/m (0 for fixed bodies).
         external_loads: a ground, fixed body or world spring can push the moving bodies (then
             momentum is not conserved).
+        springs: the scene's springs as the reference evaluates them (``physics.scene_springs``).
+        start: the scene's bodies at t = 0 as the scene states them (one state; fixed bodies
+            at rest), what the reference starts from.
         bound_radius: (n + ground,) m, each body's bounding radius (mini_engine's).
         energy_floor: J, the smallest scale energy changes are judged against (the stability
             checks): total moving mass times (1 + |g|).
@@ -156,6 +172,8 @@ class CompiledScene:
     acceleration: np.ndarray
     can_touch: bool
     external_loads: bool
+    springs: Springs
+    start: Motion
     bound_radius: np.ndarray
     energy_floor: float = 0.0
     speed_scale: float = 0.0
@@ -200,12 +218,11 @@ class CompiledScene:
         return bool(moving.size == 0 or np.allclose(moving, moving[0], rtol=1e-12, atol=0.0))
 
     def spring_energy(self, pos, quat) -> np.ndarray:
-        """(s,) J stored in the springs (mini_engine's spring law on ``s`` copies of the model)."""
-        samples = pos.shape[0]
-        if self.model.n_springs == 0:
-            return np.zeros(samples)
-        model, full_pos, full_rot = self._replica(samples, pos, quat)
-        return spring_energies(model, full_pos, full_rot).reshape(samples, -1).sum(axis=1)
+        """(s,) J stored in the springs, ``Σ ½ k (L - rest)²`` (the reference's
+        ``loads.spring_energy``) at ``pos (s, n, 3)``, ``quat (s, n, 4)``."""
+        if self.springs.count == 0:
+            return np.zeros(pos.shape[0])
+        return spring_energy(self.springs, np.asarray(pos), rotations(quat))
 
     def energy(self, pos, quat, vel, ang_vel) -> np.ndarray:
         """(s,) J, kinetic + gravitational + spring + applied-force potential."""
@@ -314,6 +331,24 @@ def _energy_floor(scene: CompiledScene) -> float:
     return weight + float(force_work + torque_work * duration)
 
 
+def scene_start(scenario: Scenario) -> Motion:
+    """The scene's bodies at t = 0 as the scene states them: one state (t = 0) of every body's
+    position, orientation, velocity and angular velocity, fixed bodies at rest."""
+    bodies = scenario.bodies
+    moving = np.array([not b.fixed for b in bodies])[:, None]
+
+    def column(field: str, size: int) -> np.ndarray:
+        return np.array([getattr(b, field) for b in bodies], dtype=float).reshape(1, -1, size)
+
+    return Motion(
+        t=np.zeros(1),
+        pos=column("position", 3),
+        quat=column("orientation", 4),
+        vel=np.where(moving, column("velocity", 3), 0.0),
+        ang_vel=np.where(moving, column("angular_velocity", 3), 0.0),
+    )
+
+
 def compile_scene(scenario: Scenario) -> CompiledScene:
     """The scene's mini model, invariants and scales, built once."""
     model, state = build_mini_model(scenario)
@@ -338,12 +373,11 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
         acceleration=np.where(moving[:, None], gravity + force / safe_mass[:, None], 0.0),
         can_touch=model.can_touch,
         external_loads=scenario.ground is not None or not moving.all() or world_springs,
+        springs=scene_springs(scenario),
+        start=scene_start(scenario),
         bound_radius=np.asarray(model.body_bound_radius),
     )
-    n = scene.count
-    initial = tuple(
-        np.asarray(a)[None, :n] for a in (state.pos, state.quat, state.vel, state.ang_vel)
-    )
-    scene.speed_scale = _speed_scale(scene, float(scene.spring_energy(*initial[:2])[0]))
+    start = scene.start
+    scene.speed_scale = _speed_scale(scene, float(scene.spring_energy(start.pos, start.quat)[0]))
     scene.energy_floor = _energy_floor(scene)
     return scene

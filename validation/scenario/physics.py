@@ -2,7 +2,11 @@
 
 The adapters must all give an engine the same physics, so the values derived from the
 scene (solid inertias, pair restitution and friction, default spring rest lengths) are
-defined here, once, and not re-derived per engine.
+defined here, once, and not re-derived per engine. The inertias, rotations and springs come
+from the reference side (``validation.reference``), never from mini_engine: MuJoCo and
+PyBullet are given the reference's solid inertia, while mini_engine, the engine under test,
+is given only the inertia a scene states and computes its own from its shapes otherwise, so
+the parity gate compares its formulas with the reference's.
 """
 
 from __future__ import annotations
@@ -15,16 +19,27 @@ import numpy as np
 from mini_engine import Body, PairProperties, Plane, Spring, build_model
 from mini_engine.collision import detect_contacts
 from mini_engine.model import SHARED_WORLD, Model, State
-from mini_engine.rotation import apply, quat_to_matrix
-from mini_engine.shapes import Box, Capsule, Sphere, solid_inertia
-from validation.scenario.schema import BodySpec, GroundSpec, Scenario, SpringSpec
+from mini_engine.rotation import quat_to_matrix
+from mini_engine.shapes import Box, Capsule, Sphere
+from validation.reference import rotation
+from validation.reference.loads import WORLD, Springs
+from validation.reference.mass_properties import box_inertia, capsule_inertia, sphere_inertia
+from validation.scenario.schema import BodySpec, GroundSpec, Scenario, ShapeSpec, SpringSpec
 
 SHAPE_BUILDERS = {
     "sphere": lambda s: Sphere(s.radius),
     "box": lambda s: Box(tuple(s.half_extents)),
     "capsule": lambda s: Capsule(s.radius, s.half_length),
 }
-"""Scenario shape type -> the mini_engine shape (whose solid inertia every engine gets)."""
+"""Scenario shape type -> the mini_engine shape: its collision geometry, and its own solid
+inertia when the scene states none (the engine under test computes that one itself)."""
+
+SOLID_INERTIA: dict[str, Callable[[ShapeSpec, float], np.ndarray]] = {
+    "sphere": lambda s, mass: sphere_inertia(mass, s.radius),
+    "box": lambda s, mass: box_inertia(mass, s.half_extents),
+    "capsule": lambda s, mass: capsule_inertia(mass, s.radius, s.half_length),
+}
+"""Scenario shape type -> the reference's solid inertia (3, 3) kg·m² of a shape and a mass."""
 
 PAIR_RULES: dict[str, Callable[[float, float], float]] = {
     "restitution": max,
@@ -35,10 +50,11 @@ rules, the same as mini_engine's defaults ``restitution_mix=max``, ``friction_mi
 
 
 def body_inertia(body: BodySpec) -> np.ndarray:
-    """(3, 3) kg·m², body frame about the centre of mass: the scene's, or the solid shape's."""
+    """(3, 3) kg·m², body frame about the centre of mass: the scene's, or the reference's
+    solid shape (``validation.reference.mass_properties``)."""
     if body.inertia_matrix is not None:
         return np.array(body.inertia_matrix, dtype=float)
-    return solid_inertia(SHAPE_BUILDERS[body.shape.type](body.shape), body.mass)
+    return SOLID_INERTIA[body.shape.type](body.shape, body.mass)
 
 
 AXISYMMETRY_TOLERANCE = 1e-9
@@ -105,13 +121,29 @@ def rest_length(scenario: Scenario, spring: SpringSpec) -> float:
         if name == "world":
             return np.asarray(anchor, dtype=float)
         body = scenario.body(name)
-        rot = quat_to_matrix(np.array([body.orientation]))
-        return np.asarray(body.position) + apply(rot, np.array([anchor]))[0]
+        rot = rotation.quat_to_matrix(np.asarray(body.orientation, dtype=float))
+        return np.asarray(body.position) + rot @ np.asarray(anchor, dtype=float)
 
     return float(
         np.linalg.norm(
             world_point(spring.b, spring.anchor_b) - world_point(spring.a, spring.anchor_a)
         )
+    )
+
+
+def scene_springs(scenario: Scenario) -> Springs:
+    """The scene's springs as the reference evaluates them: body indices in scenario order
+    (``WORLD`` for a world point), anchors as written, rest lengths by ``rest_length``."""
+    index = {body.name: i for i, body in enumerate(scenario.bodies)}
+    springs = scenario.springs
+    return Springs(
+        body_a=np.array([index[s.a] for s in springs], dtype=np.int64),
+        body_b=np.array([WORLD if s.b == "world" else index[s.b] for s in springs], dtype=np.int64),
+        anchor_a=np.array([s.anchor_a for s in springs], dtype=float).reshape(-1, 3),
+        anchor_b=np.array([s.anchor_b for s in springs], dtype=float).reshape(-1, 3),
+        stiffness=np.array([s.stiffness for s in springs], dtype=float),
+        damping=np.array([s.damping for s in springs], dtype=float),
+        rest_length=np.array([rest_length(scenario, s) for s in springs], dtype=float),
     )
 
 

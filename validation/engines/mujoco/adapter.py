@@ -14,7 +14,6 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 
-from mini_engine.rotation import quat_to_matrix
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.mujoco.mjcf import (
     DEFAULT_SETTINGS,
@@ -24,6 +23,7 @@ from validation.engines.mujoco.mjcf import (
     contact_note,
 )
 from validation.engines.reference import dynamic_bodies
+from validation.reference.rotation import quat_to_matrix
 from validation.scenario import Scenario
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec

@@ -36,12 +36,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet
 
-from mini_engine.forces import applied_loads
-from mini_engine.model import State
-from mini_engine.rotation import quat_multiply, quat_to_matrix
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
 from validation.engines.reference import dynamic_bodies
+from validation.reference.loads import applied_loads
+from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import BodySpec, Scenario
 from validation.scenario.compiled import (
     CompiledScene,
@@ -493,11 +492,12 @@ class PybulletAdapter:
             )
 
     def _set_up_loads(self, scenario: Scenario) -> None:
-        """Springs and constant applied loads are the compiled scene's mini model's (the same
-        rest lengths: the anchors' distance at t = 0 unless given); Bullet clears external
-        forces after every step, so they are applied explicitly before every step."""
+        """Springs and constant applied loads are the compiled scene's (``scene.springs``, the
+        same rest lengths as every engine's: the anchors' distance at t = 0 unless given);
+        Bullet clears external forces after every step, so they are applied explicitly before
+        every step."""
         self.fixed = np.array([b.fixed for b in scenario.bodies])
-        ends = np.concatenate([self.scene.model.spring_body_a, self.scene.model.spring_body_b])
+        ends = np.concatenate([self.scene.springs.body_a, self.scene.springs.body_b])
         constant = np.any(self.scene.force != 0.0, axis=1) | np.any(
             self.scene.torque != 0.0, axis=1
         )
@@ -511,8 +511,8 @@ class PybulletAdapter:
             self.notes.append(
                 "springs and applied loads: forces applied with applyExternalForce (at the centre "
                 "of mass) and applyExternalTorque (world frame) before every step, from the state "
-                "at the start of the step (explicit in time), by mini_engine's load law "
-                "(forces.applied_loads)"
+                "at the start of the step (explicit in time), by the reference's load law "
+                "(validation.reference.loads.applied_loads)"
             )
 
     # -- reading back ----------------------------------------------------------------------
@@ -526,19 +526,14 @@ class PybulletAdapter:
         return raw[:, 0:3].copy(), from_xyzw(raw[:, 3:7]), vel, ang_vel
 
     def _apply_loads(self) -> None:
-        """mini_engine's law (``forces.applied_loads``: springs and constant loads) on the state
-        PyBullet holds: each loaded body gets the force at its centre of mass and the torque
-        about it (world frame)."""
+        """The reference's load law (``validation.reference.loads.applied_loads``: springs and
+        constant loads) on the state PyBullet holds: each loaded body gets the force at its
+        centre of mass and the torque about it (world frame)."""
         pos, quat, vel, ang_vel = self._read_state()
-        model, rest = self.scene.model, self.scene.initial
-        n = len(self.ids)
-        state = State(
-            pos=np.concatenate([pos, rest.pos[n:]]),
-            quat=np.concatenate([self._body_quat(quat), rest.quat[n:]]),
-            vel=np.concatenate([vel, rest.vel[n:]]),
-            ang_vel=np.concatenate([ang_vel, rest.ang_vel[n:]]),
-        )
-        force, torque = applied_loads(model, state, quat_to_matrix(state.quat))
+        scene = self.scene
+        scene_loads = (scene.springs, scene.moving, scene.force, scene.torque)
+        rot = quat_to_matrix(self._body_quat(quat))
+        force, torque = applied_loads(*scene_loads, pos, rot, vel, ang_vel)
         for body in np.flatnonzero(self.loaded):
             pybullet.applyExternalForce(
                 self.ids[body],

@@ -1,0 +1,54 @@
+"""Quaternion algebra of the reference side, written from the closed forms.
+
+Conventions (the scene's): a unit quaternion ``q = (w, x, y, z)`` rotates body-frame
+vectors into the world frame, ``R(q) v_body = v_world``; products are Hamilton's. Every
+function takes any number of leading axes, so a whole recording (states x bodies) is one
+call. SciPy's ``Rotation`` checks these formulas in ``tests/test_reference_side.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CONJUGATE_SIGNS = np.array([1.0, -1.0, -1.0, -1.0])
+"""(4,) signs that turn a quaternion w x y z into its conjugate (the inverse of a unit one)."""
+
+
+def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) body-to-world rotation matrices of unit quaternions ``quat (..., 4)``
+    w x y z: the entries ``1 - 2(y² + z²)``, ``2(xy - wz)``, ... of the rotation by ``q``."""
+    w, x, y, z = (quat[..., k] for k in range(4))
+    rot = np.empty((*quat.shape[:-1], 3, 3))
+    rot[..., 0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    rot[..., 0, 1] = 2.0 * (x * y - w * z)
+    rot[..., 0, 2] = 2.0 * (x * z + w * y)
+    rot[..., 1, 0] = 2.0 * (x * y + w * z)
+    rot[..., 1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    rot[..., 1, 2] = 2.0 * (y * z - w * x)
+    rot[..., 2, 0] = 2.0 * (x * z - w * y)
+    rot[..., 2, 1] = 2.0 * (y * z + w * x)
+    rot[..., 2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    return rot
+
+
+def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(..., 4) Hamilton products ``p ⊗ q`` of quaternions ``p, q (..., 4)`` w x y z:
+    ``(p_w q_w - p_v·q_v, p_w q_v + q_w p_v + p_v × q_v)``."""
+    p_scalar, p_vector = p[..., :1], p[..., 1:]
+    q_scalar, q_vector = q[..., :1], q[..., 1:]
+    scalar = p_scalar * q_scalar - np.sum(p_vector * q_vector, axis=-1, keepdims=True)
+    vector = p_scalar * q_vector + q_scalar * p_vector + np.cross(p_vector, q_vector)
+    return np.concatenate([scalar, vector], axis=-1)
+
+
+def quat_conjugate(quat: np.ndarray) -> np.ndarray:
+    """(..., 4) conjugates of ``quat (..., 4)`` w x y z: the inverse rotations of unit ones."""
+    return quat * CONJUGATE_SIGNS
+
+
+def rotation_angle(quat: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """(...) rad, the angle of the rotation between two orientations ``(..., 4)`` w x y z,
+    |log(R_refᵀ R)|, in [0, π] whatever the quaternions' signs."""
+    relative = quat_multiply(quat_conjugate(reference), quat)
+    vector = np.linalg.norm(relative[..., 1:], axis=-1)
+    return 2.0 * np.arctan2(vector, np.abs(relative[..., 0]))
