@@ -9,7 +9,7 @@ kept, never dropped) and the scene's own metrics at that dt (one column each). R
 named in every row's ``expected_kind``:
 
 1. ``dop853``: for scenes where nothing can touch, the Newton–Euler equations integrated by
-   SciPy's DOP853 at rtol 1e-12 (``validation.measure.newton_euler``), independent of every
+   SciPy's DOP853 at rtol 1e-12 (``validation.reference.newton_euler``), independent of every
    engine. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
    ``reference_cross_check``);
 2. ``analytic:<expectation>``: scenes that can touch and state an expectation: its error
@@ -137,8 +137,8 @@ ROUND_OFF_PER_STEP = float(np.finfo(float).eps)
 """Relative rounding one step leaves on a coordinate: a double's machine epsilon, 2.2e-16. A
 point of n steps on a state of size L carries up to n x 2.2e-16 x L of round-off (the
 one-signed sum; ``ROUND_OFF_ERROR``'s 1e5 steps of a metre-size state give 2e-11). Measured:
-MuJoCo RK4 on the projectile, exact but for rounding, sits at 0.2 to 0.7 of it (5 points,
-1e-2 to 1e-4 s)."""
+MuJoCo RK4 on the projectile, exact but for rounding, sits at 0.14 to 0.26 of it (5 points,
+1e-2 to 1e-4 s, L = 5.09 m)."""
 
 METRE_SIZE_STATE = 1.0
 """m (or rad): the state size assumed for a row that does not carry ``state_size``."""
