@@ -154,7 +154,7 @@ def test_scenes_without_a_closed_form_use_restarted_segments_or_rk4():
             "springs": [{"a": "a", "b": "world", "stiffness": 100.0, "rest_length": 0.0}],
         }
     )
-    rows = run_sweep([(spring, parse_engine_spec("mini"), [2e-3, 1e-3])], workers=1)
+    rows = run_sweep([(spring, parse_engine_spec("mini"), [4e-3, 2e-3, 1e-3])], workers=1)
     kinds = {r["expected_kind"] for r in rows}
     assert kinds == {"dop853"}, kinds
     order = next(
@@ -229,3 +229,65 @@ def test_the_orientation_error_shows_the_documented_law_does_not_converge_on_a_t
         finest("mini"),
         finest("mini(gyroscopic=explicit)"),
     )
+
+
+FIRST_FLIP = """\
+description: the Dzhanibekov box of scenarios/rotation, for its first flip only (2 s)
+dt: 1.0e-3
+duration: 2.0
+gravity: [0.0, 0.0, 0.0]
+engines: [mini, "mujoco(integrator=RK4)"]
+bodies:
+  - name: box
+    shape: {type: box, half_extents: [0.3, 0.2, 0.1]}
+    mass: 1.0
+    angular_velocity: [0.05, 10.0, 0.05]
+"""
+
+RK4_ORDER_TOLERANCE = 0.05
+"""MuJoCo RK4 on the flip, measured: 8.21e-7, 8.66e-9, 8.29e-11 rad at 1e-2, 3.2e-3, 1e-3 s
+(fitted 3.996); 0.05 leaves room for the max-over-time sampling of the errors."""
+
+
+def test_a_sweep_fits_rk4_above_its_floor_and_marks_the_points_left_out(tmp_path):
+    """RK4 reaches round-off at 3.2e-4 s (8.7e-12 rad after 6,250 steps, whose round-off is
+    2.8e-12): its order is fitted over the three larger steps; the documented law (mini, no
+    gyroscopic term) never flips, 2.77 rad at every dt: saturated, no order. sweep.csv says so
+    per point and per order; the page draws and names the markers."""
+    scene = tmp_path / "first_flip.yaml"
+    scene.write_text(FIRST_FLIP)
+    out = tmp_path / "sweep"
+    engines = "mini, mujoco(integrator=RK4)"
+    argv = [
+        "sweep",
+        str(scene),
+        "--engines",
+        engines,
+        "--dt",
+        "1e-2,3.2e-3,1e-3,3.2e-4",
+        "--jobs",
+        "1",
+    ]
+    assert main([*argv, "--out", str(out)]) == 0
+    table = pd.read_csv(out / "sweep.csv")
+    orders = table[
+        (table["metric"] == "convergence_order") & (table["of"] == "orientation_error")
+    ].set_index("engine")
+    rk4 = orders.loc["mujoco(integrator=RK4)"]
+    assert abs(rk4["value"] - 4.0) < RK4_ORDER_TOLERANCE, f"fitted order {rk4['value']:.4f}"
+    assert rk4["fit_points"] == 3, rk4
+    assert (rk4["fit_dt_min"], rk4["fit_dt_max"]) == (pytest.approx(1e-3), pytest.approx(1e-2))
+    assert math.isnan(orders.loc["mini", "value"]), orders.loc["mini"]
+    assert orders.loc["mini", "message"].startswith("not in the asymptotic range"), orders
+    points = table[table["metric"] == "orientation_error"].sort_values("dt", ascending=False)
+    roles = points.groupby("engine")["fit_role"].agg(list)
+    assert roles["mujoco(integrator=RK4)"] == ["fitted"] * 3 + ["floor"], points
+    assert roles["mini"] == ["saturated"] * 4, points
+    page = (out / "sweep.html").read_text()
+    for legend in (
+        "filled: in the order fit",
+        "floor-bound: left out of the order fit",
+        "saturated: left out of the order fit",
+    ):
+        assert f"<!-- {legend} -->" in page, f"the legend lacks {legend!r}"
+    assert "fitted over 3 points, dt 0.001 to 0.01 s" in page, "the page lacks RK4's range"

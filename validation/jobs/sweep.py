@@ -9,7 +9,7 @@ kept, never dropped) and the scene's own metrics at that dt (one column each). R
 named in every row's ``expected_kind``:
 
 1. ``dop853``: for scenes where nothing can touch, the Newton–Euler equations integrated by
-   SciPy's DOP853 at rtol 1e-12 (``validation.measure.newton_euler``), independent of every
+   SciPy's DOP853 at rtol 1e-12 (``validation.reference.newton_euler``), independent of every
    engine. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
    ``reference_cross_check``);
 2. ``analytic:<expectation>``: scenes that can touch and state an expectation: its error
@@ -26,15 +26,44 @@ the note ``IDENTICALLY_ZERO`` and the page prints it instead of a curve.
 
 Stepping time: a separate pass per point: load, ``WARMUP_STEPS``, then the median of
 ``REPEATS`` blocks of ``BLOCK_STEPS`` (recording and observation excluded).
+
+The convergence order (``fit_order``) is fitted over the curve's asymptotic range only, in
+three phases:
+
+1. Each point gets a role (``fit_role`` in sweep.csv, ``FIT_ROLES``). ``unmeasured``: no
+   finite positive error (a failed point, a NaN, a zero). ``floor``: its floor exceeds
+   ``FLOOR_SHARE`` (a tenth) of its error; the floor is the larger of the round-off of its
+   n steps on a state of size L, n x ``ROUND_OFF_PER_STEP`` x L (L: the largest centre
+   distance from the origin, ``state_size``; 2 rad for the unit quaternion), and the
+   reference's own error (``reference_floor``): DOP853's cross-check difference where the
+   check's own round-off cannot explain it (the cross-check job's value, which each of the
+   scene's jobs also reads), the fine run's
+   (dt_fine / dt)^p share of the point's error for a self reference (p = 1,
+   ``SELF_REFERENCE_ORDER``), 0 for an analytic expectation. ``saturated``: its error
+   exceeds ``SATURATION_SHARE`` (half) of the largest it can be: pi for an angle, the
+   reference motion's ``motion_extent`` for a position (unknown, so never saturated, for an
+   analytic expectation's error).
+2. The asymptotic range (``asymptotic_range``): from the smallest dt with a usable point,
+   the contiguous usable points in dt order (a floor-bound, saturated or failed point ends
+   it), cut where the local slopes between neighbours stop agreeing: as long as they spread
+   by at most ``SLOPE_SPREAD`` (half an order). Its points are ``fitted``; usable points
+   beyond it are ``outside``.
+3. The order is the least-squares slope of log(error) on log(dt) over that range, reported
+   with the range (``fit_dt_min``, ``fit_dt_max``, ``fit_points`` and the message,
+   ``FITTED_OVER``). With fewer than ``MIN_FIT_POINTS`` (3) points there is no order: the
+   value is NaN, the status ``unsupported`` and the message starts ``NOT_ASYMPTOTIC``. A
+   curve zero at every dt, or at round-off at every dt, gets its note instead
+   (``IDENTICALLY_ZERO``, ``AT_ROUND_OFF``; its points are ``unmeasured``, ``floor``).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +84,15 @@ from validation.measure.metrics import Context, measure
 from validation.measure.runner import EngineRun, run_engine
 from validation.reference.newton_euler import reference_motion
 from validation.reference.rotation import rotation_angle
-from validation.report.sweep_page import render_sweep
+from validation.report.sweep_page import (
+    FIT_ROLES,
+    FITTED,
+    FLOOR,
+    OUTSIDE,
+    SATURATED,
+    UNMEASURED,
+    render_sweep,
+)
 from validation.scenario import MAX_STEPS, Scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import EngineSpec, parse_engine_spec
@@ -95,6 +132,73 @@ dt = 1e-4) is about 1e-5."""
 
 AT_ROUND_OFF = f"at round-off (<= {ROUND_OFF_ERROR:g}) at every dt: exact on this scene, no order"
 """The note of a curve at round-off (drawn: exactness is a result; no order fitted)."""
+
+ROUND_OFF_PER_STEP = float(np.finfo(float).eps)
+"""Relative rounding one step leaves on a coordinate: a double's machine epsilon, 2.2e-16. A
+point of n steps on a state of size L carries up to n x 2.2e-16 x L of round-off (the
+one-signed sum; ``ROUND_OFF_ERROR``'s 1e5 steps of a metre-size state give 2e-11). Measured:
+MuJoCo RK4 on the projectile, exact but for rounding, sits at 0.14 to 0.26 of it (5 points,
+1e-2 to 1e-4 s, L = 5.09 m)."""
+
+METRE_SIZE_STATE = 1.0
+"""m (or rad): the state size assumed for a row that does not carry ``state_size``."""
+
+ORIENTATION_STATE_SIZE = 2.0
+"""rad: the size the orientation state counts as in its round-off: a unit quaternion, rounded
+by epsilon relative to 1 per step, which turns the rotation angle (twice the quaternion's
+half-angle) by 2 epsilon."""
+
+FLOOR_SHARE = 0.1
+"""A point is floor-bound when its floor (round-off, or the reference's own error) exceeds a
+tenth of its error. Below that share the error is within 10 % of the scheme's own, so a local
+slope between two such points is within ln(1.1 / 0.9) / ln r of the scheme's order over a
+grid step of ratio r: 0.29 for a halving, 0.17 over half a decade, inside ``SLOPE_SPREAD``;
+nearer its floor a point could pass the floor's slope (0) for part of the scheme's."""
+
+SELF_REFERENCE_ORDER = 1.0
+"""The order p assumed for a self reference's own error, (dt_fine / dt)^p of the point's: 1,
+the lowest order of a consistent scheme (and every contact scheme's); at a higher order the
+fine run's share is smaller, so a point kept at p = 1 is kept at any order."""
+
+LARGEST_ANGLE = math.pi
+"""rad: the largest rotation angle |log(R_refᵀ R)| there is: an orientation error cannot grow
+past it (a Dzhanibekov flip displaced in time reads pi whatever the displacement)."""
+
+SATURATION_SHARE = 0.5
+"""A point is saturated when its error exceeds half the largest it can be (``LARGEST_ANGLE``,
+or the reference motion's extent for a position): two copies of a periodic motion of extent
+2A whose phases differ by d are 2A sin(d/2) apart, whose local order in d is (d/2)cot(d/2):
+0.91 at half the extent (d = pi/3), 0 at the full one; above half, the fit would measure
+the bound and not the scheme."""
+
+SLOPE_SPREAD = 0.5
+"""The asymptotic range's local slopes (log-error against log-dt between neighbours) may
+spread by at most this: two schemes' orders differ by at least 1 (1, 2, 4), so slopes within
+half of that of each other belong to one order; a wider spread is a change of regime
+(round-off, saturation, pre-asymptotic behaviour at large dt)."""
+
+MIN_FIT_POINTS = 3
+"""Points an order needs: two always lie on a line, so their slope cannot show that the
+curve is straight there; three are the fewest whose local slopes can be checked against each
+other."""
+
+FIT_RULE = (
+    "Orders are fitted over each curve's asymptotic range only: from the smallest dt, the "
+    f"points whose local slopes agree (spread at most {SLOPE_SPREAD:g}), leaving out floor-bound "
+    "points (the round-off of their steps, or the reference's own error, above "
+    f"{FLOOR_SHARE:g} of the error) and saturated ones (an error above {SATURATION_SHARE:g} of "
+    "the largest it can be: pi rad, or the reference motion's extent); with fewer than "
+    f"{MIN_FIT_POINTS} points there is no order."
+)
+"""The fit in one paragraph, for the sweep page."""
+
+NOT_ASYMPTOTIC = "not in the asymptotic range"
+"""The note (start of the message) of an order row with fewer than ``MIN_FIT_POINTS`` points
+in its asymptotic range: its value is NaN, its status ``unsupported``."""
+
+FITTED_OVER = "fitted over {points} points, dt {dt_min:.3g} to {dt_max:.3g} s"
+"""The message of a fitted order row: the asymptotic range it used (also in ``fit_dt_min``,
+``fit_dt_max``, ``fit_points``), then the points left out, by role."""
 
 DEFAULT_ENGINES = (
     "mini, mini(gyroscopic=explicit), mini(gyroscopic=implicit), mini(integrator=explicit_euler), "
@@ -190,6 +294,9 @@ class Reference:
     run: EngineRun | None = None
     dt: float | None = None
     """s, the reference run's step (engine and self-consistency references)."""
+    accuracy: dict[str, float] = field(default_factory=dict)
+    """Sweep metric -> the reference's own error where it is known at every dt (DOP853: its
+    cross-check difference); a self reference's depends on the point (``reference_floor``)."""
 
 
 def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
@@ -222,7 +329,7 @@ def _run(scenario: Scenario, spec: EngineSpec, sample_every: int) -> EngineRun:
 def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -> Reference:
     """The best reference this scene offers (module docstring)."""
     if not _can_touch(scenario):
-        return Reference("dop853")
+        return Reference("dop853", accuracy=cross_check_accuracy(scenario, smallest_dt))
     if scenario.expect:
         return Reference(f"analytic:{scenario.expect[0].metric}")
     dt = smallest_dt / REFINE_SELF  # within MAX_STEPS: ``reference_problems``
@@ -230,9 +337,40 @@ def choose_reference(scenario: Scenario, spec: EngineSpec, smallest_dt: float) -
     return Reference(f"self:{spec.label}@{dt!r}", fine, dt)
 
 
+_CROSS_CHECKS: dict[tuple[str, float], list[dict]] = {}
+"""The cross-checks this process has run, by (scene, smallest step). A DOP853 scene's
+cross-check is a job of its own, and each of its (scene, engine) jobs also needs it (the
+reference's accuracy bounds what the order fit can resolve): a worker runs it at most once
+per scene and grid."""
+
+
 def cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
     """The DOP853 reference against MuJoCo's RK4 at a tenth of the smallest step: the largest
-    position and orientation differences over the run (a row for each, ``of`` names it)."""
+    position and orientation differences over the run (a row for each, ``of`` names it); run
+    once per process (``_CROSS_CHECKS``), a copy of the rows returned."""
+    key = (scenario.model_dump_json(), smallest_dt)
+    if key not in _CROSS_CHECKS:
+        _CROSS_CHECKS[key] = _run_cross_check(scenario, smallest_dt)
+    return [dict(row) for row in _CROSS_CHECKS[key]]
+
+
+def cross_check_accuracy(scenario: Scenario, smallest_dt: float) -> dict[str, float]:
+    """Sweep metric -> the DOP853 reference's accuracy as its cross-check measures it: the
+    difference, where the check's own round-off (``error_floor`` of its row: ten times the
+    steps of the finest point) cannot explain it. There it is the reference's error (MuJoCo
+    RK4 at a tenth of the smallest step being the more accurate of the two, the premise of
+    the check; the 10 s Dzhanibekov box: 2.9e-7 rad, and DOP853 at rtol 1e-14 differs from
+    rtol 1e-12 by 2.8e-7). At or below it the check resolves nothing finer than its own
+    rounding and the reference is trusted: 0 (a 2 s flip: difference 4.5e-11, the check's
+    round-off 8.9e-11, DOP853's own error 7e-12). Empty when the check did not run to the end."""
+    return {
+        row["of"]: row["error"] if row["error"] > error_floor(row) else 0.0
+        for row in cross_check(scenario, smallest_dt)
+        if row["status"] == "ok"
+    }
+
+
+def _run_cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
     dt = smallest_dt / REFINE_REFERENCE  # within MAX_STEPS: ``reference_problems``
     row = {
         "scenario": scenario.name,
@@ -241,18 +379,22 @@ def cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
         "metric": "reference_cross_check",
         "expected_kind": "dop853",
     }
-    run = _run(scene_at(scenario, dt), parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt))
+    probe = scene_at(scenario, dt)
+    row["steps"] = probe.steps
+    run = _run(probe, parse_engine_spec(HIGH_ACCURACY), _every(scenario, dt))
     if run.recording is None or run.status != "ok":
         return [
             {**row, "of": m, "status": run.status, "message": run.message} for m in SWEEP_METRICS
         ]
-    errors = _against_motion(compile_scene(scenario), run.recording.trajectory)
+    errors, _ = _against_motion(compile_scene(scenario), run.recording.trajectory)
+    sizes = state_sizes(run.recording.trajectory.pos)
     return [
         {
             **row,
             "of": m,
             "value": errors[m],
             "error": errors[m],
+            "state_size": sizes[m],
             "status": "ok",
             "message": "MuJoCo RK4 against the DOP853 reference",
         }
@@ -260,12 +402,32 @@ def cross_check(scenario: Scenario, smallest_dt: float) -> list[dict]:
     ]
 
 
-def _against_motion(scene, trajectory) -> dict[str, float]:
-    """Both sweep errors of ``trajectory`` against the DOP853 motion at its own times."""
+def _against_motion(scene, trajectory) -> tuple[dict[str, float], np.ndarray]:
+    """Both sweep errors of ``trajectory`` against the DOP853 motion at its own times, and
+    that motion's centre positions (samples, bodies, 3)."""
     reference = reference_motion(scene, trajectory.t)
-    return {
+    errors = {
         "position_error": float(np.linalg.norm(trajectory.pos - reference.pos, axis=2).max()),
         "orientation_error": float(rotation_angle(trajectory.quat, reference.quat).max()),
+    }
+    return errors, reference.pos
+
+
+def motion_extent(positions: np.ndarray) -> float:
+    """m: the largest diagonal over bodies of the box a centre sweeps out over the run
+    (``positions``: samples, bodies, 3): 2A for an oscillation of amplitude A, the range of a
+    throw; the largest a position error between two runs of the motion can be while both keep
+    to its region."""
+    return float(np.linalg.norm(np.ptp(positions, axis=0), axis=-1).max())
+
+
+def state_sizes(positions: np.ndarray) -> dict[str, float]:
+    """Sweep metric -> the size of the state whose rounding its error accumulates
+    (``ROUND_OFF_PER_STEP``): for a position the largest distance of a centre from the origin
+    over the run (``positions``: samples, bodies, 3), m; ``ORIENTATION_STATE_SIZE``."""
+    return {
+        "position_error": float(np.linalg.norm(positions, axis=-1).max()),
+        "orientation_error": ORIENTATION_STATE_SIZE,
     }
 
 
@@ -339,18 +501,52 @@ def segment_error(
 
 def point_errors(
     scenario: Scenario, spec: EngineSpec, run: EngineRun, reference: Reference
-) -> dict[str, float]:
-    """Both sweep errors of one point against ``reference`` (NaN where it cannot say)."""
+) -> tuple[dict[str, float], float]:
+    """Both sweep errors of one point against ``reference`` (NaN where it cannot say), and the
+    ``motion_extent`` of the reference's motion (NaN: the reference has no trajectory)."""
     if reference.kind == "dop853":
-        return _against_motion(compile_scene(scenario), run.recording.trajectory)
+        errors, motion = _against_motion(compile_scene(scenario), run.recording.trajectory)
+        return errors, motion_extent(motion)
     if reference.kind.startswith("analytic:"):
         metric = reference.kind.split(":", 1)[1]
         found = [m for m in _scene_metrics(scenario, run) if m.metric == metric]
         position = found[0].error if found else math.nan
-        return {"position_error": position, "orientation_error": math.nan}
+        return {"position_error": position, "orientation_error": math.nan}, math.nan
     if reference.run is None or reference.run.status != "ok":
-        return dict.fromkeys(SWEEP_METRICS, math.nan)  # an unstable reference measures nothing
-    return segment_error(scenario, spec, scenario.dt, reference)
+        # an unstable reference measures nothing
+        return dict.fromkeys(SWEEP_METRICS, math.nan), math.nan
+    errors = segment_error(scenario, spec, scenario.dt, reference)
+    return errors, motion_extent(reference.run.recording.trajectory.pos)
+
+
+def reference_floor(reference: Reference, dt: float, errors: dict[str, float]) -> dict[str, float]:
+    """Sweep metric -> the reference's own error at a point of step ``dt``: for a self
+    reference the fine run's, (dt_fine / dt)^p of the point's for a scheme of order p, taken
+    at p = ``SELF_REFERENCE_ORDER``; else the reference's known accuracy (DOP853: its
+    cross-check), 0 where none is known (an analytic expectation is exact)."""
+    if reference.kind.startswith("self:") and reference.dt:
+        share = (reference.dt / dt) ** SELF_REFERENCE_ORDER
+        return {m: errors[m] * share for m in SWEEP_METRICS}
+    return {m: reference.accuracy.get(m, 0.0) for m in SWEEP_METRICS}
+
+
+def fit_facts(
+    run: EngineRun, reference: Reference, dt: float, errors: dict[str, float], extent: float
+) -> dict[str, dict]:
+    """Sweep metric -> what the order fit needs to know of one point beyond its error
+    (``fit_order``): ``state_size`` (the size whose rounding it accumulates), ``motion_extent``
+    (position only: how large the error can grow) and ``reference_floor``."""
+    floors = reference_floor(reference, dt, errors)
+    sizes = (
+        state_sizes(run.recording.trajectory.pos)
+        if run.recording is not None
+        else dict.fromkeys(SWEEP_METRICS, math.nan)
+    )
+    extents = {"position_error": extent, "orientation_error": math.nan}  # an angle's is pi
+    return {
+        m: {"state_size": sizes[m], "motion_extent": extents[m], "reference_floor": floors[m]}
+        for m in SWEEP_METRICS
+    }
 
 
 def _scene_metrics(scenario: Scenario, run: EngineRun) -> list:
@@ -379,11 +575,12 @@ def sweep_point(
     common["steps"] = probe.steps
     run = _run(probe, spec, _every(probe, dt))
     seconds = stepping_seconds(probe, spec) if run.status == "ok" else math.nan
-    errors = (
+    errors, extent = (
         point_errors(probe, spec, run, reference)
         if run.recording is not None
-        else dict.fromkeys(SWEEP_METRICS, math.nan)
+        else (dict.fromkeys(SWEEP_METRICS, math.nan), math.nan)
     )
+    facts = fit_facts(run, reference, dt, errors, extent)
     own = (
         {f"{SCENE_METRIC_PREFIX}{m.metric}": m.value for m in _scene_metrics(probe, run)}
         if run.recording is not None
@@ -398,54 +595,180 @@ def sweep_point(
         "message": run.message,
     }
     return [
-        {**common, "metric": m, "value": errors[m], "error": errors[m], **timing, **own}
+        {**common, "metric": m, "value": errors[m], "error": errors[m], **timing, **facts[m], **own}
         for m in SWEEP_METRICS
     ]
 
 
-def convergence_order(rows: list[dict]) -> float:
-    """Least-squares slope of log(error) against log(dt) over the stable, non-zero points."""
-    points = [
-        (r["dt"], r["error"])
-        for r in rows
-        if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan)) and r["error"] > 0
+def error_floor(row: dict) -> float:
+    """The error below which one point cannot resolve the scheme's (module docstring): the
+    round-off its ``steps`` accumulate on a state of ``state_size`` (1 m or 1 rad when the row
+    does not say, ``ROUND_OFF_ERROR``'s metre-size state), or its ``reference_floor``, the
+    larger."""
+    size = row.get("state_size", METRE_SIZE_STATE)
+    round_off = row.get("steps", 0.0) * ROUND_OFF_PER_STEP * size
+    return float(np.nanmax([round_off, row.get("reference_floor", 0.0), 0.0]))
+
+
+def saturation_error(row: dict) -> float:
+    """The error above which one point is saturated: ``SATURATION_SHARE`` of the largest its
+    metric can be (an angle: pi; a position: the reference motion's ``motion_extent``);
+    infinite where that is not known (an analytic expectation's error)."""
+    largest = (
+        LARGEST_ANGLE if row.get("metric") == "orientation_error" else row.get("motion_extent")
+    )
+    if largest is None or not np.isfinite(largest):
+        return math.inf
+    return SATURATION_SHARE * largest
+
+
+def point_role(row: dict) -> str:
+    """``UNMEASURED``, ``FLOOR``, ``SATURATED``, or ``FITTED`` for a point the fit may use."""
+    error = row.get("error", math.nan)
+    if row.get("status") != "ok" or not (np.isfinite(error) and error > 0):
+        return UNMEASURED
+    if error_floor(row) > FLOOR_SHARE * error:
+        return FLOOR
+    if error > saturation_error(row):
+        return SATURATED
+    return FITTED
+
+
+def consistent_points(log_dt: np.ndarray, log_error: np.ndarray) -> int:
+    """How many points, from the first, have local slopes (between neighbours) that spread by
+    at most ``SLOPE_SPREAD``."""
+    slopes = np.diff(log_error) / np.diff(log_dt)
+    spread = np.fmax.accumulate(slopes) - np.fmin.accumulate(slopes)
+    consistent = np.isfinite(slopes) & (spread <= SLOPE_SPREAD)
+    return 1 + (consistent.size if consistent.all() else int(np.argmin(consistent)))
+
+
+def asymptotic_range(rows: list[dict], roles: list[str]) -> list[int]:
+    """Indices of the points to fit: from the smallest dt whose point is usable, the
+    contiguous usable points (by dt) whose local slopes are consistent; empty when fewer
+    than ``MIN_FIT_POINTS``."""
+
+    def usable(i: int) -> bool:
+        return roles[i] == FITTED
+
+    by_dt = sorted(range(len(rows)), key=lambda i: rows[i]["dt"])
+    run = list(itertools.takewhile(usable, itertools.dropwhile(lambda i: not usable(i), by_dt)))
+    if not run:
+        return []
+    log_dt, log_error = np.log([[rows[i]["dt"], rows[i]["error"]] for i in run]).T
+    fitted = run[: consistent_points(log_dt, log_error)]
+    return fitted if len(fitted) >= MIN_FIT_POINTS else []
+
+
+@dataclass(frozen=True)
+class OrderFit:
+    """One curve's fitted order and the points it rests on.
+
+    Attributes:
+        order: the least-squares slope of log(error) on log(dt) over the asymptotic range;
+            NaN when there is none (``note`` says why).
+        roles: each row's ``FIT_ROLES`` entry, in the rows' order.
+        dt_min, dt_max: s, the fitted range (NaN without a fit). points: how many it holds.
+        note: the order row's message: the range, or why there is no order.
+    """
+
+    order: float
+    roles: list[str]
+    dt_min: float = math.nan
+    dt_max: float = math.nan
+    points: int = 0
+    note: str = ""
+
+
+def _left_out(roles: list[str]) -> str:
+    """``"2 floor, 1 saturated"``: the points not fitted, by role (``FIT_ROLES`` order)."""
+    return ", ".join(f"{roles.count(r)} {r}" for r in FIT_ROLES if r != FITTED and r in roles)
+
+
+def _whole_curve_note(rows: list[dict]) -> str:
+    """``IDENTICALLY_ZERO`` or ``AT_ROUND_OFF`` when every measured point says so, else ""."""
+    measured = [
+        r["error"] for r in rows if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan))
     ]
-    if len(points) < 2:
-        return math.nan
-    dts, errors = np.log(np.array(points)).T
-    return float(np.polyfit(dts, errors, 1)[0])
+    if measured and all(error == 0.0 for error in measured):
+        return IDENTICALLY_ZERO
+    if measured and all(error <= ROUND_OFF_ERROR for error in measured):
+        return AT_ROUND_OFF
+    return ""
+
+
+def fit_order(rows: list[dict]) -> OrderFit:
+    """The convergence order of one curve (the rows of one scene, engine and sweep metric)
+    over its asymptotic range (module docstring), with each point's role in the fit."""
+    roles = [point_role(r) for r in rows]
+    whole = _whole_curve_note(rows)
+    if whole:  # at round-off every measured point is floor-bound; zero ones are unmeasured
+        return OrderFit(math.nan, [FLOOR if r == FITTED else r for r in roles], note=whole)
+    fitted = asymptotic_range(rows, roles)
+    roles = [FITTED if i in fitted else OUTSIDE if r == FITTED else r for i, r in enumerate(roles)]
+    left_out = _left_out(roles)
+    if not fitted:
+        detail = f"fewer than {MIN_FIT_POINTS} points" + (f"; {left_out}" if left_out else "")
+        return OrderFit(math.nan, roles, note=f"{NOT_ASYMPTOTIC} ({detail})")
+    dts, errors = np.array([[rows[i]["dt"], rows[i]["error"]] for i in fitted]).T
+    order = float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    note = FITTED_OVER.format(points=len(fitted), dt_min=dts.min(), dt_max=dts.max())
+    return OrderFit(
+        order,
+        roles,
+        float(dts.min()),
+        float(dts.max()),
+        len(fitted),
+        note + (f" ({left_out} left out)" if left_out else ""),
+    )
+
+
+def convergence_order(rows: list[dict]) -> float:
+    """The fitted convergence order of one curve (``fit_order``); NaN outside the asymptotic
+    range."""
+    return fit_order(rows).order
+
+
+def order_row(scenario: Scenario, spec: EngineSpec, reference: Reference, metric: str) -> dict:
+    """The ``convergence_order`` row of one curve without its fit (``fit_row`` adds it)."""
+    return {
+        "scenario": scenario.name,
+        "engine": spec.label,
+        "metric": "convergence_order",
+        "of": metric,
+        "expected_kind": reference.kind,
+    }
+
+
+def fit_row(fit: OrderFit) -> dict:
+    """The fit's columns of a ``convergence_order`` row: the order (status ``unsupported``
+    without one, as for a curve out of range), the range and the note."""
+    return {
+        "value": fit.order,
+        "status": "ok" if np.isfinite(fit.order) else "unsupported",
+        "message": fit.note,
+        "fit_dt_min": fit.dt_min,
+        "fit_dt_max": fit.dt_max,
+        "fit_points": fit.points,
+    }
 
 
 def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
-    """Every dt of one (scene, engine) pair, plus each sweep metric's fitted convergence
-    order (or the note that the curve is identically zero)."""
+    """Every dt of one (scene, engine) pair, each point marked with its role in the fit
+    (``fit_role``), plus each sweep metric's fitted convergence order (or the note saying why
+    there is none)."""
     scenario, spec, dts = job
     steps = runnable(scenario, dts)
     reference = choose_reference(scenario, spec, min(steps)) if steps else Reference(NO_REFERENCE)
     rows = [row for dt in dts for row in sweep_point(scenario, spec, dt, reference)]
     for metric in SWEEP_METRICS:
         mine = [r for r in rows if r["metric"] == metric]
-        measured = [
-            r for r in mine if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan))
-        ]
-        zero = bool(measured) and all(r["error"] == 0.0 for r in measured)
-        exact = bool(measured) and not zero and all(r["error"] <= ROUND_OFF_ERROR for r in measured)
-        for r in mine if zero else ():
-            r["message"] = IDENTICALLY_ZERO
-        order = math.nan if exact else convergence_order(mine)
-        note = IDENTICALLY_ZERO if zero else AT_ROUND_OFF if exact else ""
-        rows.append(
-            {
-                "scenario": scenario.name,
-                "engine": spec.label,
-                "metric": "convergence_order",
-                "of": metric,
-                "value": order,
-                "expected_kind": reference.kind,
-                "status": "ok" if np.isfinite(order) else "unsupported",
-                "message": note,
-            }
-        )
+        fit = fit_order(mine)
+        for row, role in zip(mine, fit.roles, strict=True):
+            row["fit_role"] = role
+            if fit.note == IDENTICALLY_ZERO:
+                row["message"] = IDENTICALLY_ZERO
+        rows.append({**order_row(scenario, spec, reference, metric), **fit_row(fit)})
     return rows
 
 
@@ -542,7 +865,7 @@ def sweep_main(
             rows = run_sweep(work, jobs, scheduler)
             out.mkdir(parents=True, exist_ok=True)
             write_table(rows, out / "sweep.csv")  # each file written atomically
-            render_sweep(rows, out / "sweep.html")
+            render_sweep(rows, out / "sweep.html", FIT_RULE)
     except (BackendError, BadInputError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
