@@ -9,7 +9,7 @@ kept, never dropped) and the scene's own metrics at that dt (one column each). R
 named in every row's ``expected_kind``:
 
 1. ``dop853``: for scenes where nothing can touch, the Newton–Euler equations integrated by
-   SciPy's DOP853 at rtol 1e-12 (``validation.reference.newton_euler``), independent of every
+   SciPy's DOP853 at rtol 3e-14 (``validation.reference.newton_euler``), independent of every
    engine. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
    ``reference_cross_check``);
 2. ``analytic:<expectation>``: scenes that can touch and state an expectation: its error
@@ -359,8 +359,8 @@ def cross_check_accuracy(scenario: Scenario, smallest_dt: float) -> dict[str, fl
     difference, where the check's own round-off (``error_floor`` of its row: ten times the
     steps of the finest point) cannot explain it. There it is the reference's error (MuJoCo
     RK4 at a tenth of the smallest step being the more accurate of the two, the premise of
-    the check; the 10 s Dzhanibekov box: 2.9e-7 rad, and DOP853 at rtol 1e-14 differs from
-    rtol 1e-12 by 2.8e-7). At or below it the check resolves nothing finer than its own
+    the check; the 10 s Dzhanibekov box at DOP853's former rtol 1e-12: 2.9e-7 rad, and rtol
+    1e-14 differed from it by 2.8e-7, hence today's rtol 3e-14). At or below it the check resolves nothing finer than its own
     rounding and the reference is trusted: 0 (a 2 s flip: difference 4.5e-11, the check's
     round-off 8.9e-11, DOP853's own error 7e-12). Empty when the check did not run to the end."""
     return {
