@@ -275,3 +275,58 @@ def test_sweep_and_stability_refuse_a_bad_out_before_any_work(tmp_path, capsys, 
     assert seconds < BAD_INPUT_SECONDS, f"refused after {seconds:.1f} s: after the work"
     assert (tmp_path / "precious.txt").read_text() == "precious"
     assert (tmp_path / "link").is_symlink()
+
+
+SELF_REFERENCE = "a: &a [*a]\n"
+"""Ten bytes: an alias inside its own anchor. It was a RecursionError traceback in check,
+run and ``pytest --physval``."""
+
+
+def _laughs(levels: int = 9) -> str:
+    """A billion-laughs document: each level lists the previous one nine times (9¹⁰ values
+    once expanded, from 0.5 kB)."""
+    lines = ['l0: &l0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (SELF_REFERENCE, "refers to the value that contains it"),
+        (_laughs(), "more than 1000000 values"),
+        ("a: " + "[" * 100 + "]" * 100 + "\n", "deeper than 32 levels"),
+    ],
+    ids=["self-reference", "billion laughs", "deep nesting"],
+)
+def test_documents_that_expand_without_end_are_refused_before_they_are_built(
+    tmp_path, capsys, monkeypatch, text, expected
+):
+    """One line naming the place and exit 2 in ``run`` and ``check``, and not a value built:
+    the refusal is decided on the composed node graph (a bomb expanded took 6 s)."""
+    built = []
+    real_build = yaml_source._Builder.build
+    monkeypatch.setattr(
+        yaml_source._Builder, "build", lambda self, *a: built.append(1) or real_build(self, *a)
+    )
+    path = scene(tmp_path, text)
+    line = refused(["run", str(path), "--out", str(tmp_path / "out")], capsys)
+    assert (expected in line and f"{path}:1:" in line) or f"{path}:" in line, line
+    assert not built, f"{len(built)} values were built before the refusal"
+    assert exit_code(["check", str(path)]) == 2
+    output = capsys.readouterr()
+    assert expected in output.out + output.err and "Traceback" not in output.out + output.err
+
+
+def test_the_pytest_plugin_reports_a_self_referencing_scene_in_one_line(tmp_path):
+    path = scene(tmp_path, SELF_REFERENCE)
+    result = subprocess.run(
+        [sys.executable, "-m", "pytest", "--physval", str(path), "-q", "-p", "no:cacheprovider"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    output = result.stdout + result.stderr
+    assert result.returncode != 0 and "refers to the value that contains it" in output, output
+    assert "RecursionError" not in output and "Traceback" not in output, output[-2000:]

@@ -6,9 +6,11 @@
   (``("bodies", 1, "shape", "radius")``), so an error can point at the source;
 - duplicate keys are errors (PyYAML silently keeps the last one, which would let a
   typo change the physics);
-- the document may expand to at most ``MAX_VALUES`` values, so an alias bomb
-  ("billion laughs") is refused instead of exhausting memory, and only the plain
-  YAML tags are accepted (no ``!!python/...`` or custom tags);
+- the document may expand to at most ``MAX_VALUES`` values and nest at most ``MAX_DEPTH``
+  deep, and may not refer to itself through an alias (``a: &a [*a]``): all three are judged
+  on the composed node graph, each shared node once, before a single value is built, so an
+  alias bomb ("billion laughs") is refused in milliseconds instead of being expanded, and
+  only the plain YAML tags are accepted (no ``!!python/...`` or custom tags);
 - the file is opened without blocking and must be a regular file of at most ``MAX_BYTES``
   (judged from ``fstat`` before a byte is read): a FIFO, a device (``/dev/zero``) or a socket
   named ``*.yaml`` is refused by its type, never read.
@@ -37,6 +39,12 @@ pass it: a billion-laughs bomb has 10⁹ values."""
 
 MAX_VALUES = MAX_BYTES // BYTES_PER_VALUE
 """Values a scenario document may expand to (aliases counted at every use): 1,000,000."""
+
+MAX_DEPTH = 32
+"""Nesting a scenario document may have. A scene is at most 5 levels deep
+(``known[0].engine`` is 2, ``bodies[0].shape.half_extents[2]`` 4); a document nested deeper is
+a mistake or an attack, and building it would exhaust Python's recursion (an alias that
+refers to itself nests without end)."""
 
 PLAIN_TAGS = {
     "tag:yaml.org,2002:str",
@@ -120,6 +128,7 @@ def read_yaml(path: Path) -> tuple[object, SourceMap]:
     source = SourceMap()
     if node is None:
         return None, source
+    check_graph(node)
     builder = _Builder(source)
     return builder.build(node, ()), source
 
@@ -160,6 +169,54 @@ def read_bounded(path: Path) -> bytes:
     if len(raw) > MAX_BYTES:
         raise YamlSourceError(f"the file has more than {MAX_BYTES} bytes (MAX_BYTES)")
     return raw
+
+
+def _children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.MappingNode):
+        return [part for pair in node.value for part in pair]
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    return []
+
+
+def _refused(message: str, node: yaml.Node) -> YamlSourceError:
+    return YamlSourceError(message, node.start_mark.line + 1, node.start_mark.column + 1)
+
+
+def check_graph(root: yaml.Node) -> None:
+    """Refuse a composed document that refers to itself through an alias, nests deeper than
+    ``MAX_DEPTH`` or would expand to more than ``MAX_VALUES`` values (aliases counted at every
+    use), judged on the node graph before anything is built: one pass, each shared node
+    sized once (a depth-first walk with an explicit stack, so no recursion either)."""
+    size: dict[int, int] = {}
+    open_nodes: set[int] = set()
+    stack: list[tuple[yaml.Node, int, bool]] = [(root, 1, False)]
+    while stack:
+        node, depth, closing = stack.pop()
+        if closing:
+            open_nodes.discard(id(node))
+            size[id(node)] = 1 + sum(size[id(child)] for child in _children(node))
+            if size[id(node)] > MAX_VALUES:
+                raise _refused(
+                    f"the document expands to more than {MAX_VALUES} values, the cap on a "
+                    "scenario's size (MAX_VALUES; aliases count at every use)",
+                    node,
+                )
+            continue
+        if id(node) in size:
+            continue
+        if depth > MAX_DEPTH:
+            raise _refused(f"the document nests deeper than {MAX_DEPTH} levels (MAX_DEPTH)", node)
+        open_nodes.add(id(node))
+        stack.append((node, depth, True))
+        for child in _children(node):
+            if id(child) in open_nodes:
+                raise _refused(
+                    "an alias refers to the value that contains it (a document that refers "
+                    "to itself has no end); write the value out instead",
+                    child,
+                )
+            stack.append((child, depth + 1, False))
 
 
 class _Builder:
