@@ -29,6 +29,7 @@ WINGS: dict[str, int] = {
     "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
     "validation.contract": 1,
     "validation.files": 1,
+    "validation.signals": 2,  # imports contract; imported by jobs, cli and entry
     "validation.reference": 1,  # the closed forms judged against: below all that reads them
     "validation.scenario": 2,
     "validation.engines": 3,

@@ -14,7 +14,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, INTERRUPTED_MESSAGE
+from validation import signals
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.jobs.check import check_main
 from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
@@ -283,6 +284,7 @@ ARGUMENTS = {
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    signals.install()  # SIGTERM and SIGHUP stop a command as Ctrl-C does
     args = parser().parse_args(argv)
     args.argv = argv
     try:
@@ -290,9 +292,10 @@ def main(argv: list[str] | None = None) -> int:
             print(distributed_missing(), file=sys.stderr)
             return EXIT_BAD_INPUT
         return COMMANDS[args.command][0](args)
-    except (Interrupted, KeyboardInterrupt):
-        print(INTERRUPTED_MESSAGE, file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except (Interrupted, KeyboardInterrupt) as stop:
+        signum = signals.signal_number(stop)
+        print(signals.stop_message(signum), file=sys.stderr)
+        return signals.exit_code(signum)
 
 
 if __name__ == "__main__":

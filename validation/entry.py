@@ -1,23 +1,26 @@
 """The ``physval`` command's entry point (``[project.scripts]``).
 
-It imports the harness inside the Ctrl-C handling, so a Ctrl-C while Python is still
-importing it (NumPy, MuJoCo, PyBullet, pandas: about a second) ends like one at any later
-moment: ``contract.INTERRUPTED_MESSAGE`` and exit 130, no traceback.
+It imports the harness inside the stop handling, so a Ctrl-C (or SIGTERM, SIGHUP:
+``validation.signals``) while Python is still importing it (NumPy, MuJoCo, PyBullet, pandas:
+about a second) ends like one at any later moment: one line and exit 128 + the signal's
+number, no traceback.
 """
 
 from __future__ import annotations
 
 import sys
 
-from validation.contract import EXIT_INTERRUPTED, INTERRUPTED_MESSAGE
+from validation import signals
 
 
 def main() -> int:
+    signals.install()
     try:
         from validation.cli import main as physval
-    except KeyboardInterrupt:
-        print(INTERRUPTED_MESSAGE, file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as stop:  # Ctrl-C, or signals.Stopped
+        signum = signals.signal_number(stop)
+        print(signals.stop_message(signum), file=sys.stderr)
+        return signals.exit_code(signum)
     return physval()
 
 

@@ -12,8 +12,9 @@ A job whose worker was lost (a distributed backend only: Dask retries it first) 
 the command's ``lost(job, message)``, which returns the result the command records for it
 (an ``error`` row), so the run completes.
 
-Ctrl-C: workers ignore SIGINT (the main process owns the terminal); the main process stops
-every worker and raises ``Interrupted``, which the command turns into one line and exit 130.
+Ctrl-C, SIGTERM, SIGHUP (``validation.signals``): workers ignore them (the main process owns
+the terminal and the run); the main process stops every worker and raises ``Interrupted``
+with the signal, which the command turns into one line and exit 128 + the signal's number.
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ import os
 import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from multiprocessing import forkserver, resource_tracker
 from typing import Any
 
 from validation.jobs.dask_backend import (  # BackendError: the commands catch it from here
     BackendError,  # noqa: F401
     dask_executor,
 )
+from validation.signals import ignore_in_worker, ignored_while_starting_helpers, signal_number
 
 WORKER_PRELOAD = [
     "validation.jobs.run",
@@ -39,7 +42,11 @@ WORKER_PRELOAD = [
 
 
 class Interrupted(Exception):  # noqa: N818 (a user action, not an error)
-    """The user pressed Ctrl-C; every worker has been stopped."""
+    """Ctrl-C, or a stop signal (``signum``); every worker has been stopped."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 class SerialExecutor(Executor):
@@ -57,17 +64,16 @@ class SerialExecutor(Executor):
         return future
 
 
-def _ignore_interrupt() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def process_pool(workers: int) -> Executor:
     """Worker processes forked from a clean fork server (no threads of the main process are
-    inherited), each ignoring Ctrl-C."""
+    inherited), each ignoring the stop signals (``signals.ignore_in_worker``)."""
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(WORKER_PRELOAD)
+    with ignored_while_starting_helpers():  # they outlive a stop signal to the group
+        resource_tracker.ensure_running()
+        forkserver.ensure_running()
     return ProcessPoolExecutor(
-        max_workers=workers, mp_context=context, initializer=_ignore_interrupt
+        max_workers=workers, mp_context=context, initializer=ignore_in_worker
     )
 
 
@@ -152,9 +158,9 @@ def run_jobs(
             results[index] = result
             if on_result is not None:
                 on_result(index, result)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM / SIGHUP (signals.Stopped)
         _stop(executor)
-        raise Interrupted from None
+        raise Interrupted(signal_number(stop)) from None
     except BaseException:
         _stop(executor)
         raise
@@ -175,8 +181,9 @@ def submission_order(jobs: list[Any], cost: Callable[[Any], float] | None) -> li
 
 
 def _stop(executor: Executor) -> None:
-    """Cancel what has not started and end the workers now."""
+    """Cancel what has not started and end the workers now (SIGKILL: they ignore the stop
+    signals, and hold nothing to save: results are journaled by this process)."""
     processes = getattr(executor, "_processes", None) or {}
     for process in list(processes.values()):
-        process.terminate()
+        process.kill()
     executor.shutdown(wait=False, cancel_futures=True)
