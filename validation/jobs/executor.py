@@ -24,6 +24,7 @@ import os
 import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from contextlib import nullcontext
 from multiprocessing import forkserver, resource_tracker
 from typing import Any
 
@@ -31,7 +32,12 @@ from validation.jobs.dask_backend import (  # BackendError: the commands catch i
     BackendError,  # noqa: F401
     dask_executor,
 )
-from validation.signals import ignore_in_worker, ignored_while_starting_helpers, signal_number
+from validation.signals import (
+    deferred,
+    ignore_in_worker,
+    ignored_while_starting_helpers,
+    signal_number,
+)
 
 WORKER_PRELOAD = [
     "validation.jobs.run",
@@ -150,10 +156,13 @@ def run_jobs(
     results: list[Any] = [None] * len(jobs)
     parallel = scheduler is not None or workers > 1
     try:
-        futures = {
-            executor.submit(fn, jobs[index]): index
-            for index in submission_order(jobs, cost if parallel else None)
-        }
+        # a pool spawns its workers while jobs are submitted: a stop comes after they exist
+        # (the serial backend runs each job inside submit: it must stay interruptible)
+        with deferred() if parallel else nullcontext():
+            futures = {
+                executor.submit(fn, jobs[index]): index
+                for index in submission_order(jobs, cost if parallel else None)
+            }
         for index, result in _completed(executor, futures, jobs, lost):
             results[index] = result
             if on_result is not None:
