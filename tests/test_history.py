@@ -215,6 +215,33 @@ def test_step_detection_finds_none_on_constant_or_noisy_series():
     assert [i for i, found in enumerate(steps) if found] == []
 
 
+def test_a_step_is_placed_at_a_run_that_measured_the_series():
+    # runs 4 and 5 did not measure the series (another selection, NaN): the level changes
+    # between run 3 and run 6, and the run that measured the new level first is run 6
+    values = np.array([[1e-3] * 4 + [np.nan] * 2 + [1.2e-3] * 4])
+    steps = detect_steps(values, np.array([0.01]))
+    assert [(s.at, s.direction) for s in steps[0]] == [(6, 1)], steps[0]
+    three_runs = detect_steps(np.array([[1e-3, np.nan, 1.1e-3]]), np.array([0.01]))[0]
+    assert [(s.at, s.direction) for s in three_runs] == [(2, 1)], three_runs
+    assert steps[0][0].before == pytest.approx(1e-3) and steps[0][0].after == pytest.approx(1.2e-3)
+
+
+def test_an_infinite_error_is_a_step_there_and_back():
+    finite = 2e-3
+    values = np.array(
+        [
+            [finite] * 4 + [np.inf] + [np.nan] + [finite] * 3,  # overflowed at run 4, back at 6
+            [finite] * 6 + [np.inf] * 3,  # a regression to an infinite error, held
+            [np.inf] * 9,  # never finite: no step to place
+        ]
+    )
+    steps = detect_steps(values, np.array([0.01, 0.01, 0.01]))
+    assert [(s.at, s.direction, s.after) for s in steps[0]] == [(4, 1, np.inf), (6, -1, finite)]
+    assert steps[0][0].before == pytest.approx(finite)
+    assert [(s.at, s.direction) for s in steps[1]] == [(6, 1)]
+    assert steps[2] == []
+
+
 # --- the pages ----------------------------------------------------------------------------
 
 
