@@ -24,6 +24,10 @@ NIGHTLY = {"paths": ["scenarios"], "only": None, "engines": None, "dt": None, "s
 """The selection of a bare ``physval run`` in a checkout (the nightly's)."""
 
 AD_HOC = {**NIGHTLY, "only": "*bounce*"}
+
+UNRECORDED = "unrecorded"
+"""The key of a run without a (valid) selection (``history.UNRECORDED``, spelled out so that
+this file loads, and fails test by test, on a version without selections)."""
 """A scene author's run of one scene into the same history."""
 
 SCHEMA_BEFORE_SELECTIONS = """
@@ -158,10 +162,10 @@ def test_the_selection_is_recorded_and_its_key_ignores_spelling(tmp_path):
 @pytest.mark.parametrize(
     ("column", "stored", "read_as"),
     [
-        ("selection", '{"paths": 5}', ("selection_key", history.UNRECORDED)),
-        ("selection", "not json {", ("selection_key", history.UNRECORDED)),
-        ("selection", '{"dt": 1e999}', ("selection_key", history.UNRECORDED)),
-        ("selection", "[1, 2]", ("selection_key", history.UNRECORDED)),
+        ("selection", '{"paths": 5}', ("selection_key", UNRECORDED)),
+        ("selection", "not json {", ("selection_key", UNRECORDED)),
+        ("selection", '{"dt": 1e999}', ("selection_key", UNRECORDED)),
+        ("selection", "[1, 2]", ("selection_key", UNRECORDED)),
         ("engine_versions", "[1, 2]", ("engine_versions", {})),
         ("engine_versions", "nonsense", ("engine_versions", {})),
         ("created", "the day after tomorrow", ("created", None)),
@@ -175,10 +179,58 @@ def test_a_malformed_run_row_is_read_as_unknown_not_a_crash(tmp_path, column, st
     with sqlite3.connect(tmp_path / "h.sqlite") as connection:
         connection.execute(f'UPDATE runs SET "{column}" = ?', (stored,))  # a foreign writer
         connection.execute("UPDATE results SET error = 'many' WHERE id = 2")
-    found = history.load_history(url, selection="all")
+    found = history.load_history(url)
     name, expected = read_as
-    assert found.runs[name].iloc[0] == expected or (
-        expected is None and found.runs[name].iloc[0] is None
-    )
+    assert found.runs[name].iloc[0] == expected
     assert np.isnan(found.trend["error"].iloc[1]) and found.trend["error"].iloc[0] == 1e-4
-    assert main(["history", "--db", url, "--selection", "all"]) == EXIT_OK
+    assert main(["history", "--db", url]) == EXIT_OK
+
+
+SPIN = """\
+description: a free box spinning about its major axis, no gravity (a 50-step run)
+dt: 0.001
+duration: 0.05
+gravity: [0, 0, 0]
+engines: [mini]
+bodies:
+  - {name: spinner, shape: {type: box, half_extents: [0.2, 0.1, 0.05]}, mass: 1.0,
+     angular_velocity: [0, 0, 5.0]}
+checks:
+  energy_drift: 0.05
+"""
+
+
+def test_physval_run_records_its_selection_and_history_draws_the_latest(tmp_path, capsys):
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "spin.yaml").write_text(SPIN)
+    (scenes / "spin_fast.yaml").write_text(SPIN.replace("[0, 0, 5.0]", "[0, 0, 9.0]"))
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    common = ["--baseline", "none", "--history", url, "--jobs", "1"]
+    for out, flags in (("r1", []), ("r2", ["--only", "spin_fast"]), ("r3", ["--dt", "0.0005"])):
+        argv = ["run", str(scenes), "--out", str(tmp_path / out), *common, *flags]
+        assert main(argv) == EXIT_OK, capsys.readouterr()
+    recorded = [
+        json.loads((tmp_path / o / PROVENANCE_FILE).read_text()) for o in ("r1", "r2", "r3")
+    ]
+    selections = [p["selection"] for p in recorded]
+    path = scenes.resolve().as_posix()
+    assert selections[0] == {
+        "paths": [path],
+        "only": None,
+        "engines": None,
+        "dt": None,
+        "sweeps": False,
+    }
+    assert selections[1] == {**selections[0], "only": "spin_fast"}
+    assert selections[2] == {**selections[0], "dt": 0.0005}
+    capsys.readouterr()
+
+    assert main(["history", "--db", url]) == EXIT_OK  # the latest run's selection: run 3
+    printed = capsys.readouterr().out.splitlines()
+    key = history.selection_key(selections[2])
+    assert printed[0] == f"drew runs 3 (selection {key}: {path} --dt 0.0005 no sweeps)"
+    others = [history.selection_key(s) for s in selections[1::-1]]
+    assert printed[1].startswith(f"not drawn: {others[0]} (1 runs: 2), {others[1]} (1 runs: 1)")
+    every = history.load_history(url, selection="all")
+    assert list(every.runs["selection_key"]) == [history.selection_key(s) for s in selections]
