@@ -86,6 +86,14 @@ SPARK_MARKER_MAX = 40
 """A sparkline marks each of its points when it has at most this many: 154 px / 40 = 3.9 px
 apart, so dots of radius 1.2 stay apart; longer sparklines are lines (their points touch)."""
 
+PLOT_MARKER_MAX = 150
+"""A trend plot marks each point (3 pt dots) when the series has at most this many: its axes
+span 0.9 x 9 in = 583 pt, so 150 points are 3.9 pt apart; more would touch and only thicken
+the line."""
+
+MARKER_PT = 3.0
+"""A trend plot's point marker (points, its diameter)."""
+
 GAP_MARK = "x"
 """matplotlib's marker for a run without a number for the series (the sparkline draws a ×)."""
 
@@ -286,63 +294,57 @@ def sparkline(view: SeriesView, runs: pd.DataFrame) -> dict[str, Any]:
     no finite number but ran the scene; runs that did not measure the series are passed
     over), the points' dots when there are few (``SPARK_MARKER_MAX``), the marks of infinite
     values (at the top edge, -inf at the bottom) and of gaps (a × at the bottom), the version
-    marks, the step dots and the last point; the template draws them."""
-    n = view.values.size
-    finite = view.values[view.kinds == POINT]
+    marks, the step dots and the last point; the template draws them. Every run's x and y are
+    computed at once (a year of 1,000 series is 365,000 of them)."""
+    n, kinds = view.values.size, view.kinds
+    point = kinds == POINT
+    finite = view.values[point]
     low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
-    span = high - low if high > low else 1.0
     width, height = SPARK_WIDTH - 2 * SPARK_PAD, SPARK_HEIGHT - 2 * SPARK_PAD
     top, bottom = SPARK_PAD, SPARK_HEIGHT - SPARK_PAD
-
-    def x(position: float) -> float:
-        return round(SPARK_PAD + width * (position / (n - 1) if n > 1 else 0.5), 1)
-
-    def y(position: int) -> float:
-        value = view.values[position]
-        if view.kinds[position] != POINT:
-            return top if view.kinds[position] == INFINITE else bottom
-        fraction = (value - low) / span if high > low else 0.5
-        return round(SPARK_PAD + height * (1.0 - fraction), 1)
+    at = np.arange(n) / (n - 1) if n > 1 else np.full(n, 0.5)
+    x = np.round(SPARK_PAD + width * at, 1).tolist()
+    with np.errstate(invalid="ignore"):
+        fraction = (view.values - low) / (high - low) if high > low else np.full(n, 0.5)
+    y = np.where(point, SPARK_PAD + height * (1.0 - fraction), bottom)
+    y = np.round(np.where(kinds == INFINITE, top, y), 1).tolist()
+    kind = kinds.tolist()
 
     lines, current = [], []
-    for position in view.spark_at:
-        kind = view.kinds[position]
-        if kind == UNMEASURED:
+    for position in view.spark_at.tolist():
+        if kind[position] == UNMEASURED:
             continue  # not a point of this series: the line goes on to its next point
-        if kind != POINT:
+        if kind[position] != POINT:
             lines, current = ([*lines, current] if current else lines), []
             continue
-        current.append(f"{x(position):.1f},{y(position):.1f}")
+        current.append(f"{x[position]:.1f},{y[position]:.1f}")
     lines = [" ".join(line) for line in ([*lines, current] if current else lines)]
-    points = np.nonzero(view.kinds == POINT)[0]
-    measured = np.nonzero(view.kinds != UNMEASURED)[0]
+    points = np.nonzero(point)[0].tolist()
+    measured = np.nonzero(kinds != UNMEASURED)[0]
 
-    def marks(*kinds: int) -> list[dict[str, Any]]:
+    def marks(*shown: int) -> list[dict[str, Any]]:
         found: dict[float, dict[str, Any]] = {}
-        for position in np.nonzero(np.isin(view.kinds, kinds))[0]:
+        for position in np.nonzero(np.isin(kinds, shown))[0].tolist():
             found.setdefault(
-                x(position),
+                x[position],
                 {
-                    "x": x(position),
-                    "y": y(position),
-                    "down": view.kinds[position] == MINUS_INFINITE,
-                    "title": f"run {runs['id'].iloc[position]}: "
-                    + KIND_WORDS[int(view.kinds[position])],
+                    "x": x[position],
+                    "y": y[position],
+                    "down": kind[position] == MINUS_INFINITE,
+                    "title": f"run {runs['id'].iloc[position]}: {KIND_WORDS[kind[position]]}",
                 },
             )
         return list(found.values())
 
-    last = measured[-1] if measured.size else None
+    last = int(measured[-1]) if measured.size else None
     return {
         "lines": lines,
-        "dots": [(x(p), y(p)) for p in points] if 0 < points.size <= SPARK_MARKER_MAX else [],
+        "dots": [(x[p], y[p]) for p in points] if len(points) <= SPARK_MARKER_MAX else [],
         "infinite": marks(INFINITE, MINUS_INFINITE),
         "gaps": marks(NO_VALUE, MISSING),
-        "top": top,
-        "bottom": bottom,
-        "marks": [x(p) for p, _, _ in view.version_changes],
-        "steps": [(x(s.at), y(s.at)) for s in view.steps if view.kinds[s.at] != NO_VALUE],
-        "last": None if last is None or view.kinds[last] > MINUS_INFINITE else (x(last), y(last)),
+        "marks": [x[p] for p, _, _ in view.version_changes],
+        "steps": [(x[s.at], y[s.at]) for s in view.steps],
+        "last": None if last is None or kind[last] > MINUS_INFINITE else (x[last], y[last]),
     }
 
 
@@ -382,8 +384,11 @@ def trend_plot(view: SeriesView, runs: pd.DataFrame) -> str:
     figure = Figure(figsize=TREND_FIGURE_IN)
     axis = figure.subplots()
     at = np.arange(view.values.size)
+    marker = "o" if (view.kinds == POINT).sum() <= PLOT_MARKER_MAX else None
     for segment in _segments(view.kinds):
-        axis.plot(segment, view.values[segment], color=LINE_COLOUR, linewidth=1.2, marker="o", ms=3)
+        axis.plot(
+            segment, view.values[segment], color=LINE_COLOUR, lw=1.2, marker=marker, ms=MARKER_PT
+        )
     finite_row = np.where(view.kinds == POINT, view.values, np.nan)
     starts = [0, *(s.at for s in view.steps)]
     stops = [*starts[1:], view.values.size]
