@@ -589,6 +589,8 @@ def _series_names(connection: sa.Connection, only: str | None) -> pd.DataFrame:
         connection.execute(sa.select(SERIES.c.id, *(SERIES.c[k] for k in KEY_COLUMNS))).all(),
         columns=["series_id", *KEY_COLUMNS],
     )
+    for column in KEY_COLUMNS:  # text, whatever a foreign writer stored
+        names[column] = names[column].astype(str)
     if only:
         names = names[[fnmatch(name, only) for name in names["scenario"]]]
     return names
