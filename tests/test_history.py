@@ -8,6 +8,7 @@ implementation is in the commit note.
 from __future__ import annotations
 
 import json
+import re
 import signal
 import sqlite3
 import subprocess
@@ -55,8 +56,16 @@ def row(scenario, engine, metric, error, tolerance=0.01, **extra) -> dict:
     }
 
 
-def write_run(folder: Path, rows: list[dict], created: str, versions=None) -> Path:
-    """A run folder as ``physval run`` writes it (the columns the tests need)."""
+def write_run(
+    folder: Path,
+    rows: list[dict],
+    created: str,
+    versions=None,
+    selection=None,
+    command="physval run",
+) -> Path:
+    """A run folder as ``physval run`` writes it (the columns the tests need); ``selection``
+    provenance.json's (none: as a run of an earlier version wrote it)."""
     folder.mkdir(parents=True)
     versions = versions or ENGINE_VERSIONS
     table = pd.DataFrame(rows)
@@ -65,12 +74,14 @@ def write_run(folder: Path, rows: list[dict], created: str, versions=None) -> Pa
     table.to_csv(folder / "results.csv", index=False)
     engines = {label: {"engine": label, "version": v} for label, v in versions.items()}
     provenance = {
-        "command": "physval run",
+        "command": command,
         "git_commit": f"c0ffee{created[:10]}",
         "created": created,
         "machine": {"platform": "test", "cpus": 2},
         "engines": engines,
     }
+    if selection is not None:
+        provenance["selection"] = selection
     (folder / PROVENANCE_FILE).write_text(json.dumps(provenance))
     return folder
 
@@ -215,6 +226,33 @@ def test_step_detection_finds_none_on_constant_or_noisy_series():
     assert [i for i, found in enumerate(steps) if found] == []
 
 
+def test_a_step_is_placed_at_a_run_that_measured_the_series():
+    # runs 4 and 5 did not measure the series (another selection, NaN): the level changes
+    # between run 3 and run 6, and the run that measured the new level first is run 6
+    values = np.array([[1e-3] * 4 + [np.nan] * 2 + [1.2e-3] * 4])
+    steps = detect_steps(values, np.array([0.01]))
+    assert [(s.at, s.direction) for s in steps[0]] == [(6, 1)], steps[0]
+    three_runs = detect_steps(np.array([[1e-3, np.nan, 1.1e-3]]), np.array([0.01]))[0]
+    assert [(s.at, s.direction) for s in three_runs] == [(2, 1)], three_runs
+    assert steps[0][0].before == pytest.approx(1e-3) and steps[0][0].after == pytest.approx(1.2e-3)
+
+
+def test_an_infinite_error_is_a_step_there_and_back():
+    finite = 2e-3
+    values = np.array(
+        [
+            [finite] * 4 + [np.inf] + [np.nan] + [finite] * 3,  # overflowed at run 4, back at 6
+            [finite] * 6 + [np.inf] * 3,  # a regression to an infinite error, held
+            [np.inf] * 9,  # never finite: no step to place
+        ]
+    )
+    steps = detect_steps(values, np.array([0.01, 0.01, 0.01]))
+    assert [(s.at, s.direction, s.after) for s in steps[0]] == [(4, 1, np.inf), (6, -1, finite)]
+    assert steps[0][0].before == pytest.approx(finite)
+    assert [(s.at, s.direction) for s in steps[1]] == [(6, 1)]
+    assert steps[2] == []
+
+
 # --- the pages ----------------------------------------------------------------------------
 
 
@@ -241,7 +279,9 @@ def test_history_page_shows_the_step_the_version_change_and_the_regression(tmp_p
     url = recorded_history(tmp_path)
     assert main(["history", "--db", url]) == EXIT_OK
     page = tmp_path / "reports" / "history.html"  # next to the database
-    assert capsys.readouterr().out.strip() == str(page)
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[-1] == str(page)
+    assert printed[0].startswith("drew runs 1-5 (selection unrecorded: ")
     html = page.read_text()
     moved = html[html.index('id="moved"') : html.index('id="scenes"')]
     assert moved.count("<tr><td><a href=") == 1 and "mujoco" in moved
@@ -253,6 +293,103 @@ def test_history_page_shows_the_step_the_version_change_and_the_regression(tmp_p
     assert "<script" not in html and "http" not in html.replace("http://www.w3.org", "")
     main(["history", "--db", url])
     assert page.read_text() == html  # deterministic
+
+
+NIGHTLY = {"paths": ["scenarios"], "only": None, "engines": None, "dt": None, "sweeps": True}
+"""The selection of a bare ``physval run`` in a checkout (the nightly's)."""
+
+BOUNCE_ONLY = {**NIGHTLY, "only": "*bounce*"}
+"""A scene author's ``physval run --only "*bounce*"`` into the same history."""
+
+
+def moved_at(html: str) -> dict[str, str]:
+    """Scene -> the "moved at run" cell of its (one) moved series, tags stripped."""
+    moved = html[html.index('id="moved"') : html.index('id="scenes"')]
+    found = {}
+    for line in moved.split("<tr><td><a href=")[1:]:
+        scene = line.split(">", 1)[1].split("<", 1)[0]
+        cells = re.findall(r"<td[^>]*>(.*?)</td>", line, re.DOTALL)  # engine, metric, trend, ..
+        found[scene] = re.sub(r"<[^>]+>", " ", cells[3]).split()
+    return found
+
+
+def test_the_step_is_at_the_run_that_measured_the_series(tmp_path, capsys):
+    """Run 1 ran everything, run 2 only the bounce, run 3 everything with the projectile's
+    error grown: the projectile moved at run 3, and run 2 (which never ran it) is not blamed."""
+    url = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    nights = [
+        (NIGHTLY, {"projectile": 1e-3, "bounce": 5e-4}),
+        (BOUNCE_ONLY, {"bounce": 5e-4}),
+        (NIGHTLY, {"projectile": 1.5e-3, "bounce": 5e-4}),
+    ]
+    for day, (selection, errors) in enumerate(nights, start=1):
+        rows = [row(scene, "mini", "energy_drift", error) for scene, error in errors.items()]
+        command = f"physval run --history postgresql://ci:hunter2@db/physval --only {day}"
+        folder = write_run(tmp_path / f"r{day}", rows, night(day), None, selection, command)
+        history.record_run(folder, url)
+
+    assert main(["history", "--db", url, "--out", str(tmp_path / "default.html")]) == EXIT_OK
+    html = (tmp_path / "default.html").read_text()
+    assert moved_at(html) == {"projectile": ["3", "·", "2025-01-03", "02:00:00", "·", "c0ffee2025"]}
+    printed = capsys.readouterr().out.splitlines()
+    nightly = history.selection_key(NIGHTLY)
+    assert printed[0] == f"drew runs 1, 3 (selection {nightly}: scenarios with sweeps)"
+    assert printed[1].startswith(f"not drawn: {history.selection_key(BOUNCE_ONLY)} (1 runs: 2)")
+
+    every = tmp_path / "all.html"
+    assert main(["history", "--db", url, "--selection", "all", "--out", str(every)]) == EXIT_OK
+    cell = moved_at(every.read_text())["projectile"]
+    assert cell[:2] == ["3", nightly], cell  # the run id and, with two selections drawn, its key
+    assert cell[-5:] == ["last", "measured", "before:", "run", "1"], cell
+    assert "postgresql://ci:***@db/physval --only 2" in every.read_text()
+    assert "hunter2" not in every.read_text() + html  # a password is never shown
+    assert "drew runs 2 (selection" in capsys.readouterr().out
+
+
+def spark_of(html: str, anchor: str) -> str:
+    """The scene table row of one series (its sparkline) and its plot row, if any."""
+    start = html.index(f'<tr id="{anchor}">')
+    stop = html.find("<tr id=", start + 1)
+    return html[start : stop if stop > 0 else len(html)]
+
+
+def test_infinite_and_missing_values_are_drawn_as_marks(tmp_path):
+    """The mujoco drift overflows at night 4 (a regression to an infinite error), the
+    pybullet drift was never finite, mini's position has no value at night 2 (a row without
+    a number) and mini's velocity no row at night 3 (the scene ran without it)."""
+    url = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    for day in range(1, 5):
+        rows = [
+            row("fall", "mujoco", "energy_drift", 2e-3 if day < 4 else np.inf),
+            row("fall", "pybullet", "energy_drift", np.inf),
+            row("fall", "mini", "position", np.nan if day == 2 else 1e-3, value=np.nan),
+        ]
+        if day != 3:
+            rows.append(row("fall", "mini", "velocity", 4e-3))
+        rows[0]["baseline"] = "regressed" if day == 4 else "unchanged"
+        history.record_run(write_run(tmp_path / f"r{day}", rows, night(day), None, NIGHTLY), url)
+    assert main(["history", "--db", url]) == EXIT_OK
+    html = (tmp_path / "history.html").read_text()
+
+    mujoco = spark_of(html, "scene-fall-mujoco-energy_drift")
+    assert mujoco.count('<g class="mark inf"><title>run 4: inf</title>') == 1
+    assert mujoco.count('class="mark') == 1  # the finite nights are points, not marks
+    assert mujoco.count("<polyline") == 1 and "<circle" in mujoco  # line and dots of nights 1-3
+    plot = mujoco[mujoco.index('<tr class="plot">') :]
+    assert ">inf<" in plot or ">inf (1 runs)<" in plot  # the plot's mark is labelled
+    assert "2025-01-04" in plot and "c0ffee2" in plot  # the axis names dates and commits
+    assert moved_at(html)["fall"][:3] == ["4", "·", "2025-01-04"]
+    assert "error 0.002 → inf (grew)" in html
+
+    pybullet = spark_of(html, "scene-fall-pybullet-energy_drift")
+    assert pybullet.count('class="mark inf"') == 4  # never finite: still drawn, not empty
+    assert ">inf</span>" in pybullet
+
+    position = spark_of(html, "scene-fall-mini-position")
+    assert position.count('<g class="mark gap"><title>run 2: no value</title>') == 1
+    assert position.count("<polyline") == 2  # the line breaks at the gap
+    velocity = spark_of(html, "scene-fall-mini-velocity")
+    assert "<title>run 3: missing (the scene ran without this row)</title>" in velocity
 
 
 def test_compare_lists_exactly_the_moved_rows(tmp_path, capsys):
@@ -305,6 +442,39 @@ def test_compare_lists_exactly_the_moved_rows(tmp_path, capsys):
     pd.testing.assert_frame_equal(pd.read_csv(by_id / "compare.csv"), table)
 
 
+def test_compare_of_two_selections_compares_what_both_ran(tmp_path, capsys):
+    """The nightly (projectile and bounce) against a run of the bounce alone: the bounce is
+    compared, the projectile is not reported missing; against a nightly that lost the
+    projectile it is."""
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    nightly = [row("projectile", "mini", "energy_drift", 1e-3), row("bounce", "mini", "e", 1e-3)]
+    ad_hoc = [row("bounce", "mini", "e", 2e-3)]
+    runs = ((nightly, NIGHTLY), (ad_hoc, BOUNCE_ONLY), (ad_hoc, NIGHTLY))
+    for day, (rows, selection) in enumerate(runs, start=1):
+        history.record_run(write_run(tmp_path / f"r{day}", rows, night(day), None, selection), url)
+
+    def changes(*flags: str) -> dict[str, str]:
+        out = tmp_path / "cmp"
+        assert main(["compare", *flags, "--db", url, "--out", str(out)]) == EXIT_OK
+        table = pd.read_csv(out / "compare.csv")
+        return dict(zip(table["scenario"], table["change"], strict=True))
+
+    assert changes("1", "2") == {"bounce": "regressed"}
+    printed = capsys.readouterr().out
+    assert "1 rows of 1 (scene, engine) pairs only one run ran left out" in printed
+    page = (tmp_path / "cmp" / "compare.html").read_text()
+    assert (
+        history.selection_key(BOUNCE_ONLY) in page and "projectile · mini (run A, 1 rows)" in page
+    )
+    assert changes("1", "2", "--selection", "all") == {
+        "bounce": "regressed",
+        "projectile": "missing",
+    }
+    assert changes("1", "3") == {"bounce": "regressed", "projectile": "missing"}  # one selection
+    assert changes(str(tmp_path / "r1"), str(tmp_path / "r2")) == {"bounce": "regressed"}
+    assert "left out" in capsys.readouterr().out  # folders carry their selection too
+
+
 @pytest.mark.parametrize(
     ("arguments", "says"),
     [
@@ -320,6 +490,14 @@ def test_compare_lists_exactly_the_moved_rows(tmp_path, capsys):
         (["compare", "{tmp}/empty", "{tmp}/run"], "results.csv: cannot be read"),
         (["history", "--db", "{tmp}/missing.sqlite"], "missing.sqlite: no history database"),
         (["history", "--db", "nosuchdialect://x"], "not a usable database URL"),
+        (
+            ["history", "--db", "{url}", "--selection", "nightly"],
+            "expected latest, all, unrecorded",
+        ),
+        (["history", "--db", "{url}", "--selection", "0123abcd"], "no recorded run has it"),
+        (["compare", "1", "1", "--db", "{url}", "--selection", "latest"], "expected shared or all"),
+        (["history", "--db", "postgresql+nosuchdriver://u:hunter2@h/d"], "u:***@h/d"),
+        (["history", "--db", "{tmp}/run/results.csv"], "cannot open (file is not a database)"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, arguments, says):
@@ -333,4 +511,5 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, arguments, says):
     assert captured.out == ""
     assert len(captured.err.strip().splitlines()) == 1, captured.err
     assert says in captured.err and "Traceback" not in captured.err
+    assert "hunter2" not in captured.err  # a password is never printed
     assert not (tmp_path / "missing.sqlite").exists()  # reading never creates a database

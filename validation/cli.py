@@ -95,12 +95,12 @@ def command_sweep(args: argparse.Namespace) -> int:
 
 def command_history(args: argparse.Namespace) -> int:
     """Trend, steps and regressions of every recorded series; writes history.html."""
-    return history_main(args.db, args.last, args.only, args.out)
+    return history_main(args.db, args.last, args.only, args.out, args.selection)
 
 
 def command_compare(args: argparse.Namespace) -> int:
     """The rows that moved beyond noise between two runs; writes compare.csv and compare.html."""
-    return compare_main(args.run_a, args.run_b, args.db, args.out)
+    return compare_main(args.run_a, args.run_b, args.db, args.out, args.selection)
 
 
 def command_baseline(args: argparse.Namespace) -> int:
@@ -252,6 +252,13 @@ def _history_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--last", type=_positive_count, metavar="N", help="only the last N runs")
     command.add_argument("--only", metavar="GLOB", help="only scenes whose name matches")
     command.add_argument(
+        "--selection",
+        metavar="KEY",
+        help="the runs of one selection (what a run was asked to run: paths, --only, --engines, "
+        "--dt, sweeps): 'latest' the latest run's (default), 'all' every run, 'unrecorded' the "
+        "runs recorded before selections were, or a key as this command prints them",
+    )
+    command.add_argument(
         "--out", type=Path, metavar="FILE", help="page (default history.html next to the database)"
     )
 
@@ -260,6 +267,12 @@ def _compare_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("run_a", metavar="RUN_A", help="run folder or history run id (before)")
     command.add_argument("run_b", metavar="RUN_B", help="run folder or history run id (after)")
     _db_argument(command)
+    command.add_argument(
+        "--selection",
+        metavar="RULE",
+        help="'shared' (default): every row when both runs have one selection, else only the "
+        "(scene, engine) pairs both ran; 'all': every row of both runs",
+    )
     command.add_argument("--out", type=Path, metavar="DIR", help="folder (default reports/compare)")
 
 

@@ -27,6 +27,8 @@ from validation.nightly.baseline import (
 from validation.nightly.history import record_run
 from validation.nightly.junit import write_junit
 from validation.nightly.known import outcome_of
+from validation.scenario import BUNDLED_SCENARIOS
+from validation.scenario.engine_spec import parse_engine_spec, split_engine_list
 
 DEFAULT_BASELINE = Path("baselines") / "default.csv"
 """The baseline a run compares against when the repository (the working folder) has one."""
@@ -92,6 +94,41 @@ def _baseline_path(baseline: str | None) -> Path | None:
     if not path.is_file():
         raise BadInputError(f"--baseline: {path}: no such file")
     return path
+
+
+PROJECT_ROOT = BUNDLED_SCENARIOS.parent
+"""Paths inside the project are recorded relative to it (``scenarios``, whatever the checkout's
+folder), so the nightly of two checkouts or CI workspaces has one selection."""
+
+
+def selection_path(path: str, cwd: str) -> str:
+    """One PATH of a run as its selection records it: relative to the project when inside it,
+    else absolute; POSIX separators, no trailing slash (``scenarios/`` is ``scenarios``)."""
+    resolved = (Path(cwd) / path).resolve()
+    try:
+        return resolved.relative_to(PROJECT_ROOT).as_posix() or "."
+    except ValueError:
+        return resolved.as_posix()
+
+
+def run_selection(
+    paths: list[str], cwd: str, only: str | None, engines: str | None, dt: float | None, plan: Plan
+) -> dict:
+    """What a run selected, normalised, for provenance.json and the history (its key tells
+    the nightly's runs from a scene author's): the paths (sorted, ``selection_path``), the
+    ``--only`` glob, the ``--engines`` labels (sorted; None: each scene's own), ``--dt`` (None:
+    each scene's) and whether the scenes' sweeps ran. Spelling does not count: ``--engines
+    "mujoco( integrator = RK4 ), mini"`` and ``"mini,mujoco(integrator=RK4)"`` are one."""
+    labels = None
+    if engines is not None:
+        labels = sorted({parse_engine_spec(text).label for text in split_engine_list(engines)})
+    return {
+        "paths": sorted({selection_path(path, cwd) for path in paths}),
+        "only": only,
+        "engines": labels,
+        "dt": None if dt is None else float(dt),
+        "sweeps": bool(plan.sweeps),
+    }
 
 
 def scene_hashes(plan: Plan) -> dict[str, dict[str, str]]:

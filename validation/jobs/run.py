@@ -46,6 +46,7 @@ from validation.jobs.nightly_run import (
     nightly_options,
     outcome_summary,
     record_history,
+    run_selection,
     scene_hashes,
     sweep_result_rows,
     write_ci_files,
@@ -424,6 +425,9 @@ def _finish(
     rows = executed.rows + _sweep_rows(plan, executed)
     provenance = _provenance(executed.runs, request.argv)
     provenance["scenes"] = hashes = scene_hashes(plan)
+    provenance["selection"] = run_selection(
+        request.paths, request.cwd, request.only, request.engines, request.dt, plan
+    )
     if resumed:
         total = len(plan.jobs) + len(_sweep_work(plan))
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}

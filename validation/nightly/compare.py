@@ -10,6 +10,13 @@ metric) and classified by the noise rule (``validation.measure.noise``, defined 
   or a verdict that changed within one rank (failed -> unstable) while the error did not move;
 - ``new`` / ``missing``: the row is only in run B / only in run A.
 
+Runs of different selections (``history.selection_key``: what each run was asked to run) are
+compared on what both ran (``--selection shared``, the default): every row when the two runs
+have one selection, else only the rows of the (scene, engine) pairs both runs ran, so that a
+nightly against a scene author's run of one scene is not a list of ``missing`` rows; the rows
+left out are counted on the page and in the summary line. ``--selection all`` compares every
+row of both runs.
+
 Unchanged rows are left out. Writes ``compare.csv`` and ``compare.html`` (self-contained, like
 report.html) into ``--out`` (default ``reports/compare/``, beside the other generated pages and
 git-ignored); exit 0 whatever moved (it is a report), 2 on bad input with one line.
@@ -17,6 +24,7 @@ git-ignored); exit 0 whatever moved (it is a report), 2 on bad input with one li
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from dataclasses import dataclass
@@ -30,10 +38,14 @@ from validation.files import write_atomically
 from validation.measure.noise import NOISE_RULE, moved, noise_floor
 from validation.nightly.history import (
     KEY_COLUMNS,
+    UNRECORDED,
     HistoryInputError,
     database_url,
+    describe_selection,
     load_run,
     read_run_folder,
+    selection_key,
+    valid_selection,
 )
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.nightly.pages import render_page
@@ -89,6 +101,16 @@ class RunSide:
     engine_versions: dict[str, str]
     rows: pd.DataFrame
     """scenario, engine, metric, value, error, tolerance, verdict, engine_version."""
+    selection: dict | None = None
+    """What the run was asked to run (``history.valid_selection``), None when unrecorded."""
+
+    @property
+    def selection_key(self) -> str:
+        return selection_key(self.selection)
+
+
+COMPARE_SELECTIONS = ("shared", "all")
+"""``--selection``: the rows both runs' selections ran (default), or every row."""
 
 
 def _verdicts(rows: pd.DataFrame) -> list[str]:
@@ -97,14 +119,24 @@ def _verdicts(rows: pd.DataFrame) -> list[str]:
     return [outcome_of(row) for row in rows.to_dict("records")]
 
 
-def _side(label: str, created: Any, commit: Any, versions: dict, rows: pd.DataFrame) -> RunSide:
+def _side(
+    label: str,
+    created: Any,
+    commit: Any,
+    versions: Any,
+    rows: pd.DataFrame,
+    selection: dict | None = None,
+) -> RunSide:
     rows = rows.assign(verdict=_verdicts(rows))
     return RunSide(
         label=label,
         created="" if created is None or pd.isna(created) else str(created)[:19],
         commit=str(commit or ""),
-        engine_versions={str(k): str(v) for k, v in (versions or {}).items()},
+        engine_versions={
+            str(k): str(v) for k, v in (versions if isinstance(versions, dict) else {}).items()
+        },
         rows=rows[[*KEY_COLUMNS, *ROW_FIELDS]].reset_index(drop=True),
+        selection=valid_selection(selection),
     )
 
 
@@ -113,19 +145,73 @@ def resolve_run(text: str, url: str) -> RunSide:
     folder = Path(text)
     if folder.is_dir():
         results, provenance = read_run_folder(folder)
+        engines = provenance.get("engines")
         versions = {
-            label: info.get("version", "") for label, info in provenance.get("engines", {}).items()
+            label: info.get("version", "") if isinstance(info, dict) else ""
+            for label, info in (engines if isinstance(engines, dict) else {}).items()
         }
         return _side(
-            str(folder), provenance.get("created"), provenance.get("git_commit"), versions, results
+            str(folder),
+            provenance.get("created"),
+            provenance.get("git_commit"),
+            versions,
+            results,
+            provenance.get("selection"),
         )
-    if not text.isdigit():
+    if not (text.isascii() and text.isdigit()):
         raise HistoryInputError(f"{text}: no such run folder, and not a run id")
     history = load_run(url, int(text))
     run = history.runs.iloc[0]
     return _side(
-        f"run {text}", run["created"], run["commit"], run["engine_versions"], history.latest
+        f"run {int(text)}",
+        run["created"],
+        run["commit"],
+        run["engine_versions"],
+        history.latest,
+        run["selection"],
     )
+
+
+@dataclass(frozen=True)
+class Shared:
+    """The rows ``compare`` matches (``shared_rows``) and what it left out."""
+
+    a: RunSide
+    b: RunSide
+    rule: str
+    same_selection: bool
+    left_out: pd.DataFrame
+    """run (A or B), scenario, engine, rows: the (scene, engine) pairs only that run ran."""
+
+
+def compare_rule(text: str | None) -> str:
+    """``--selection`` of ``compare``, checked: ``shared`` (None, the default) or ``all``."""
+    rule = COMPARE_SELECTIONS[0] if text is None else text
+    if rule not in COMPARE_SELECTIONS:
+        raise HistoryInputError(
+            f"--selection {rule[:40]!r}: expected {' or '.join(COMPARE_SELECTIONS)}"
+        )
+    return rule
+
+
+def shared_rows(a: RunSide, b: RunSide, rule: str | None = None) -> Shared:
+    """The two runs' rows to compare: ``shared`` (None, the default) every row when both runs
+    recorded one selection, else only the rows of the (scene, engine) pairs both runs ran;
+    ``all`` every row (``compare_rule``)."""
+    rule = compare_rule(rule)
+    same = a.selection_key == b.selection_key != UNRECORDED
+    empty = pd.DataFrame(columns=["run", "scenario", "engine", "rows"])
+    if rule == "all" or same:
+        return Shared(a, b, rule, same, empty)
+    pairs = [pd.MultiIndex.from_frame(side.rows[["scenario", "engine"]]) for side in (a, b)]
+    both = pairs[0].intersection(pairs[1])
+    kept, left_out = [], []
+    for name, side, pair in zip("AB", (a, b), pairs, strict=True):
+        inside = pair.isin(both)
+        kept.append(dataclasses.replace(side, rows=side.rows[inside].reset_index(drop=True)))
+        counts = side.rows[~inside].groupby(["scenario", "engine"], sort=True).size()
+        left_out += [(name, scene, engine, int(n)) for (scene, engine), n in counts.items()]
+    return Shared(*kept, rule, same, pd.DataFrame(left_out, columns=empty.columns))
 
 
 def judged(row: dict[str, Any]) -> tuple[float, float]:
@@ -176,7 +262,35 @@ def _side_context(side: RunSide) -> dict[str, Any]:
         "commit": side.commit,
         "versions": side.engine_versions,
         "rows": len(side.rows),
+        "key": side.selection_key,
+        "selection": describe_selection(side.selection),
     }
+
+
+def selection_context(shared: Shared) -> dict[str, Any]:
+    """What compare.html says about the two selections and the rows it left out."""
+    left = shared.left_out
+    return {
+        "rule": shared.rule,
+        "same": shared.same_selection,
+        "left_out_rows": int(left["rows"].sum()) if len(left) else 0,
+        "left_out": [
+            {"run": r.run, "scenario": r.scenario, "engine": r.engine, "rows": r.rows}
+            for r in left.itertuples(index=False)
+        ],
+    }
+
+
+def selection_note(shared: Shared) -> str:
+    """The summary line's words on the selections (empty when nothing was left out)."""
+    if shared.left_out.empty:
+        return ""
+    pairs = len(shared.left_out)
+    rows = int(shared.left_out["rows"].sum())
+    return (
+        f"; {rows} rows of {pairs} (scene, engine) pairs only one run ran left out (selections "
+        f"{shared.a.selection_key} and {shared.b.selection_key}; --selection all compares them)"
+    )
 
 
 def _versions(row: dict[str, Any]) -> str:
@@ -211,20 +325,27 @@ def build_context(a: RunSide, b: RunSide, moved_rows: pd.DataFrame) -> dict[str,
     }
 
 
-def compare_main(run_a: str, run_b: str, db: str | None, out: Path | None) -> int:
+def compare_main(
+    run_a: str, run_b: str, db: str | None, out: Path | None, selection: str | None = None
+) -> int:
     """``physval compare``: writes compare.csv and compare.html; 0, or 2 and one line."""
     try:
         url = database_url(db)
-        a, b = resolve_run(run_a, url), resolve_run(run_b, url)
+        rule = compare_rule(selection)  # the flag checked before any run is read
+        shared = shared_rows(resolve_run(run_a, url), resolve_run(run_b, url), rule)
     except HistoryInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
+    a, b = shared.a, shared.b
     moved_rows = compare_runs(a, b)
     folder = out or DEFAULT_OUT
     folder.mkdir(parents=True, exist_ok=True)
     write_atomically(folder / COMPARE_CSV, moved_rows.to_csv(index=False))
-    context = build_context(a, b, moved_rows)
+    context = {**build_context(a, b, moved_rows), "selection": selection_context(shared)}
     write_atomically(folder / COMPARE_HTML, render_page(TEMPLATE, context))
     counts = ", ".join(f"{n} {change}" for change, n in context["counts"] if n)
-    print(f"{len(moved_rows)} rows moved ({counts or 'none'}) -> {folder / COMPARE_HTML}")
+    print(
+        f"{len(moved_rows)} rows moved ({counts or 'none'}){selection_note(shared)} "
+        f"-> {folder / COMPARE_HTML}"
+    )
     return EXIT_OK

@@ -8,7 +8,9 @@ the queries are SQLAlchemy Core, nothing dialect-specific.
 Tables (``METADATA``):
 
 - ``runs``: one per recorded run folder: time (the run's ``created``), git commit, engine
-  versions (label -> version), machine, command line, run folder, and ``complete``;
+  versions (label -> version), machine, command line, run folder, ``complete``, and the run's
+  selection (what it was asked to run: paths, ``--only``, ``--engines``, ``--dt``, whether
+  sweeps ran; provenance.json's ``selection``) with its key (``selection_key``);
 - ``series``: one per (scenario, engine spec, metric) ever recorded, so that the long names are
   stored once and not once per run (365 runs x 1,000 rows stay ~20 MB, see
   ``benchmarks/history_scale.py``);
@@ -21,12 +23,23 @@ in ONE transaction: a writer killed at any point leaves no trace of its run (the
 own journal rolls the transaction back). Readers see only ``complete`` runs, so per-job writes
 (one transaction per ``add_rows``, as a kill-safe journal may want) can be added later without
 changing any reader: an interrupted run then stays incomplete and invisible.
+
+Migration: a column added to ``runs`` after its first version (``ADDED_RUN_COLUMNS``) is added
+to an existing database by its next writer (``ALTER TABLE runs ADD COLUMN``, NULL for the runs
+recorded before); a reader never writes, and reads a missing column as NULL. A run without a
+(readable) selection has the key ``unrecorded``.
+
+Everything read back is checked, as any input is: numbers that are not numbers read as NaN,
+JSON that is not the expected object reads as empty, a time that is not a time as none.
 """
 
 from __future__ import annotations
 
 import datetime as dt_module
+import hashlib
+import json
 import math
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fnmatch import fnmatch
@@ -53,6 +66,18 @@ WORD_LENGTH = 32
 VERSION_LENGTH = 64
 """Longest engine version or git commit (a SHA-256 commit is 64 hex digits)."""
 
+SELECTION_KEY_DIGITS = 8
+"""Hex digits of a selection key (the sha256 of the canonical selection): 32 bits, so that even
+1,000 distinct selections in one history collide with probability 1e-4 (n² / 2³³)."""
+
+UNRECORDED = "unrecorded"
+"""The selection key of a run recorded without a selection (by an earlier version), or whose
+recorded selection is not a valid one."""
+
+MAX_SELECTION_CHARS = 65536
+"""Longest selection read back (its canonical JSON): a hundred paths are a few kilobytes; a
+longer text is not a selection physval wrote."""
+
 OPTIONAL_COLUMNS = ("outcome", "baseline")
 """results.csv columns a run may carry (known findings, baseline classes): NULL when absent."""
 
@@ -69,7 +94,13 @@ RUNS = sa.Table(
     sa.Column("command", sa.Text, nullable=False),
     sa.Column("folder", sa.Text, nullable=False),
     sa.Column("complete", sa.Boolean, nullable=False, default=False),
+    sa.Column("selection", sa.JSON, nullable=True),
+    sa.Column("selection_key", sa.String(SELECTION_KEY_DIGITS), nullable=True),
 )
+
+ADDED_RUN_COLUMNS = ("selection", "selection_key")
+"""``runs`` columns added after the table's first version (databases written before them lack
+them): added by the next writer, read as NULL until then."""
 
 SERIES = sa.Table(
     "series",
@@ -114,11 +145,145 @@ class History:
     """Recorded runs, oldest first: every run's trend columns and the latest run's full rows."""
 
     runs: pd.DataFrame
-    """id, created, commit, engine_versions (dict), machine (dict), command, folder."""
+    """id, created, commit, engine_versions (dict), machine (dict), command, folder, selection
+    (dict or None), selection_key (``UNRECORDED`` for None): the runs drawn."""
     trend: pd.DataFrame
     """Every row of every run: run_id, scenario, engine, metric, value, error, tolerance."""
     latest: pd.DataFrame
     """The latest run's rows: run_id, names and every ``results`` column; NULL numbers NaN."""
+    recorded: pd.DataFrame | None = None
+    """Every complete run of the history, drawn or not (the columns of ``runs``)."""
+    selection: str = "all"
+    """The selection drawn: its key, or ``all``."""
+
+
+# --- selections ------------------------------------------------------------------------
+
+
+def canonical_selection(selection: dict) -> str:
+    """The selection as canonical JSON (sorted keys, no spaces): what its key hashes."""
+    return json.dumps(selection, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def selection_key(selection: dict | None) -> str:
+    """A short hash of the selection (``SELECTION_KEY_DIGITS`` hex digits), ``UNRECORDED`` for
+    None: equal for two runs that selected the same work, however it was spelled."""
+    if selection is None:
+        return UNRECORDED
+    digest = hashlib.sha256(canonical_selection(selection).encode("utf-8"))
+    return digest.hexdigest()[:SELECTION_KEY_DIGITS]
+
+
+def _selection_value(value: object) -> bool:
+    """A value a selection may hold: None, a bool, a finite number, text, a list of text."""
+    if value is None or isinstance(value, (bool, str)):
+        return True
+    if isinstance(value, (int, float)):
+        return math.isfinite(value)
+    return isinstance(value, list) and all(isinstance(item, str) for item in value)
+
+
+SELECTION_TYPES = {
+    "paths": (list,),
+    "only": (str, type(None)),
+    "engines": (list, type(None)),
+    "dt": (int, float, type(None)),
+    "sweeps": (bool,),
+}
+"""The entries ``physval run`` writes (``nightly_run.run_selection``) and their types; a
+later version's other entries are kept as long as they are ``_selection_value``s."""
+
+
+def _selection_entry(name: object, value: object) -> bool:
+    if not isinstance(name, str) or not _selection_value(value):
+        return False
+    types = SELECTION_TYPES.get(name)
+    if types is None:
+        return True
+    return isinstance(value, types) and not (name == "dt" and isinstance(value, bool))
+
+
+def valid_selection(raw: object) -> dict | None:
+    """A selection read back (a dict, or its JSON text), checked: an object of text keys whose
+    values are ``_selection_value``s of the types of ``SELECTION_TYPES``, at most
+    ``MAX_SELECTION_CHARS`` long; None otherwise."""
+    if isinstance(raw, (str, bytes)):
+        if len(raw) > MAX_SELECTION_CHARS:
+            return None
+        try:
+            raw = json.loads(raw)
+        except (ValueError, RecursionError):
+            return None
+    if not isinstance(raw, dict) or not all(_selection_entry(k, v) for k, v in raw.items()):
+        return None
+    try:
+        text = canonical_selection(raw)
+    except ValueError:
+        return None
+    return raw if len(text) <= MAX_SELECTION_CHARS else None
+
+
+SELECTION_FLAGS = {"only": "--only", "engines": "--engines", "dt": "--dt"}
+"""Selection entries shown as the ``physval run`` flag that sets them."""
+
+
+def describe_selection(selection: dict | None) -> str:
+    """One line for people: the paths and flags as ``physval run`` takes them, and whether the
+    scenes' sweeps ran (``unrecorded`` when the run recorded no selection)."""
+    if selection is None:
+        return "selection not recorded (a run recorded before selections were)"
+    words = [" ".join(selection.get("paths") or []) or "default scenes"]
+    for name, flag in SELECTION_FLAGS.items():
+        value = selection.get(name)
+        if value is not None:
+            words.append(f"{flag} {', '.join(value) if isinstance(value, list) else value}")
+    if "sweeps" in selection:
+        words.append("with sweeps" if selection["sweeps"] else "no sweeps")
+    known = {"paths", "sweeps", *SELECTION_FLAGS}
+    words += [f"{name}={value}" for name, value in sorted(selection.items()) if name not in known]
+    return " ".join(words)
+
+
+SELECTION_RULES = ("latest", "all")
+"""``--selection``: the selection of the latest run (default), every run, or a key."""
+
+KEY_PATTERN = re.compile(rf"[0-9a-f]{{{SELECTION_KEY_DIGITS}}}")
+
+
+def chosen_selection(runs: pd.DataFrame, rule: str | None) -> str:
+    """The key ``--selection`` names among ``runs`` (every complete run, oldest first):
+    ``latest`` (None: the default) the latest run's, ``all``, ``unrecorded`` or a key given;
+    ``HistoryInputError`` for anything else or a key no run has."""
+    rule = "latest" if rule is None else rule
+    if rule == "all":
+        return "all"
+    if rule == "latest":
+        return str(runs["selection_key"].iloc[-1]) if len(runs) else "all"
+    if rule != UNRECORDED and not KEY_PATTERN.fullmatch(rule):
+        raise HistoryInputError(
+            f"--selection {rule[:40]!r}: expected latest, all, {UNRECORDED} or a selection key "
+            f"({SELECTION_KEY_DIGITS} hex digits, as physval history lists them)"
+        )
+    counts = runs["selection_key"].value_counts()
+    if rule not in counts:
+        known = ", ".join(f"{key} ({n} runs)" for key, n in counts.items()) or "none"
+        raise HistoryInputError(f"--selection {rule}: no recorded run has it (selections: {known})")
+    return rule
+
+
+# --- URLs --------------------------------------------------------------------------------
+
+PASSWORD_IN_URL = re.compile(r"(://[^/@:\s]*:)[^/\s]*@")
+"""``scheme://user:password@host``: the password part of a URL (that may not even parse)."""
+
+PASSWORD_IN_QUERY = re.compile(r"([?&](?:password|passwd|pwd)=)[^&\s]*", re.IGNORECASE)
+"""``...?password=...``: a password given as a URL's query parameter."""
+
+
+def shown_url(text: str) -> str:
+    """``text`` (a URL, or a message or command line holding one) as it may be printed: every
+    password in it replaced by ``***``."""
+    return PASSWORD_IN_QUERY.sub(r"\1***", PASSWORD_IN_URL.sub(r"\1***@", str(text)))
 
 
 def database_url(text: str | Path | None) -> str:
@@ -134,7 +299,9 @@ def sqlite_file(url: str) -> Path | None:
     try:
         parsed = sa.engine.make_url(url)
     except sa.exc.ArgumentError as error:
-        raise HistoryInputError(f"--db {url}: not a database URL ({error})") from None
+        raise HistoryInputError(
+            f"--db {shown_url(url)}: not a database URL ({shown_url(str(error))})"
+        ) from None
     if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
         return None
     return Path(parsed.database)
@@ -154,13 +321,45 @@ def open_database(url: str, create: bool) -> sa.Engine:
         engine = sa.create_engine(url)
         if create:
             METADATA.create_all(engine)
+            add_missing_columns(engine)
         elif not sa.inspect(engine).has_table(RUNS.name):
-            raise HistoryInputError(f"{url}: not a physval history database (no runs table)")
+            raise HistoryInputError(
+                f"{shown_url(url)}: not a physval history database (no runs table)"
+            )
     except (sa.exc.ArgumentError, sa.exc.NoSuchModuleError, ModuleNotFoundError) as error:
-        raise HistoryInputError(f"--db {url}: not a usable database URL ({error})") from None
-    except sa.exc.OperationalError as error:
-        raise HistoryInputError(f"--db {url}: cannot open ({error.orig})") from None
+        raise HistoryInputError(
+            f"--db {shown_url(url)}: not a usable database URL ({shown_url(str(error))})"
+        ) from None
+    except (sa.exc.OperationalError, sa.exc.DatabaseError) as error:
+        first = shown_url(str(error.orig)).splitlines()[0] if error.orig else "?"
+        raise HistoryInputError(f"--db {shown_url(url)}: cannot open ({first})") from None
     return engine
+
+
+def run_columns(connection: sa.Connection | sa.Engine) -> set[str]:
+    """The columns the database's ``runs`` table has (an older one lacks ADDED_RUN_COLUMNS)."""
+    return {column["name"] for column in sa.inspect(connection).get_columns(RUNS.name)}
+
+
+def add_missing_columns(engine: sa.Engine) -> None:
+    """Bring an older database's ``runs`` table up to ``RUNS``: each of ``ADDED_RUN_COLUMNS``
+    it lacks is added (NULL for the runs already recorded). Two writers migrating at once:
+    the second one's ALTER fails, and the column it wanted is there."""
+    for name in ADDED_RUN_COLUMNS:
+        if name in run_columns(engine):
+            continue
+        column = RUNS.c[name]
+        quote = engine.dialect.identifier_preparer.quote
+        ddl = (
+            f"ALTER TABLE {quote(RUNS.name)} ADD COLUMN {quote(name)} "
+            f"{column.type.compile(dialect=engine.dialect)}"
+        )
+        try:
+            with engine.begin() as connection:
+                connection.execute(sa.text(ddl))
+        except sa.exc.DBAPIError:
+            if name not in run_columns(engine):
+                raise
 
 
 # --- writing -----------------------------------------------------------------------------
@@ -189,16 +388,25 @@ def _created(provenance: dict, folder: Path) -> dt_module.datetime:
 
 
 def run_record(folder: Path, provenance: dict) -> dict:
-    """The ``runs`` row of a run folder (incomplete until ``finish_run``)."""
+    """The ``runs`` row of a run folder (incomplete until ``finish_run``), its selection
+    checked (``valid_selection``: a malformed one is recorded as none)."""
     engines = provenance.get("engines") or {}
+    engines = engines if isinstance(engines, dict) else {}
+    selection = valid_selection(provenance.get("selection"))
+    machine = provenance.get("machine")
     return {
         "created": _created(provenance, folder),
-        "commit": provenance.get("git_commit"),
-        "engine_versions": {label: str(info.get("version", "")) for label, info in engines.items()},
-        "machine": provenance.get("machine") or {},
+        "commit": _word(provenance.get("git_commit")),
+        "engine_versions": {
+            str(label): str(info.get("version", "") if isinstance(info, dict) else "")
+            for label, info in engines.items()
+        },
+        "machine": machine if isinstance(machine, dict) else {},
         "command": str(provenance.get("command", "")),
         "folder": str(folder.resolve()),
         "complete": False,
+        "selection": selection,
+        "selection_key": None if selection is None else selection_key(selection),
     }
 
 
@@ -286,10 +494,86 @@ def record_run(folder: Path, url: str = DEFAULT_URL) -> int:
 # --- reading -----------------------------------------------------------------------------
 
 
-def _runs_frame(connection: sa.Connection, query: sa.Select) -> pd.DataFrame:
-    columns = [c for c in RUNS.c if c.name != "complete"]
-    found = connection.execute(query.with_only_columns(*columns)).all()
-    return pd.DataFrame(found, columns=[c.name for c in columns])
+RUN_COLUMNS = (
+    "id",
+    "created",
+    "commit",
+    "engine_versions",
+    "machine",
+    "command",
+    "folder",
+    "selection",
+    "selection_key",
+)
+"""The columns of a run as readers get it (``selection_key`` computed from ``selection``)."""
+
+
+def _json_object(raw: object) -> dict:
+    """A JSON column read back: the object it holds, {} for anything else."""
+    if isinstance(raw, (str, bytes)):
+        try:
+            raw = json.loads(raw)
+        except (ValueError, RecursionError):
+            return {}
+    return raw if isinstance(raw, dict) else {}
+
+
+def _time(raw: object) -> pd.Timestamp | None:
+    """A stored time read back (a datetime, or text as SQLite keeps it), None if it is none."""
+    if isinstance(raw, dt_module.datetime):
+        return pd.Timestamp(raw)
+    try:
+        return pd.Timestamp(dt_module.datetime.fromisoformat(str(raw)))
+    except ValueError:
+        return None
+
+
+def _text(raw: object) -> str:
+    return "" if raw is None else str(raw)
+
+
+def _run_row(found: sa.Row, selection_recorded: bool) -> dict:
+    """One ``runs`` row checked: each column read as raw as the driver gives it (no type
+    processing that could raise on a malformed value) and validated here."""
+    selection = valid_selection(found.selection) if selection_recorded else None
+    return {
+        "id": int(found.id),
+        "created": _time(found.created),
+        "commit": _text(found.commit),
+        "engine_versions": {
+            str(label): _text(version) for label, version in _json_object(found.engines).items()
+        },
+        "machine": _json_object(found.machine),
+        "command": _text(found.command),
+        "folder": _text(found.folder),
+        "selection": selection,
+        "selection_key": selection_key(selection),
+    }
+
+
+def _runs_frame(connection: sa.Connection, where: sa.ColumnElement) -> pd.DataFrame:
+    """The complete runs matching ``where``, oldest first, checked (``_run_row``); a database
+    written before ``selection`` existed reads as every run ``unrecorded``."""
+    recorded = "selection" in run_columns(connection)
+    raw = {
+        name: sa.type_coerce(RUNS.c[column], sa.Text).label(name)
+        for name, column in (
+            ("created", "created"),
+            ("engines", "engine_versions"),
+            ("machine", "machine"),
+            ("selection", "selection"),
+        )
+        if name != "selection" or recorded
+    }
+    query = (
+        sa.select(RUNS.c.id, RUNS.c.commit, RUNS.c.command, RUNS.c.folder, *raw.values())
+        .where(RUNS.c.complete, where)
+        .order_by(RUNS.c.id)
+    )
+    rows = [_run_row(found, recorded) for found in connection.execute(query)]
+    frame = pd.DataFrame(rows, columns=list(RUN_COLUMNS))
+    frame["created"] = frame["created"].astype(object)
+    return frame
 
 
 ROW_COLUMNS = (*NUMBER_COLUMNS, "passed", "status", *OPTIONAL_COLUMNS, "engine_version")
@@ -305,9 +589,20 @@ def _series_names(connection: sa.Connection, only: str | None) -> pd.DataFrame:
         connection.execute(sa.select(SERIES.c.id, *(SERIES.c[k] for k in KEY_COLUMNS))).all(),
         columns=["series_id", *KEY_COLUMNS],
     )
+    for column in KEY_COLUMNS:  # text, whatever a foreign writer stored
+        names[column] = names[column].astype(str)
     if only:
         names = names[[fnmatch(name, only) for name in names["scenario"]]]
     return names
+
+
+def _numbers(column: tuple) -> np.ndarray:
+    """A number column read back as doubles: NULL as NaN, and anything that is not a number
+    (SQLite keeps whatever a foreign writer put in a column) as NaN too, not an exception."""
+    try:
+        return np.array(column, dtype=float)
+    except (TypeError, ValueError):
+        return pd.to_numeric(pd.Series(column, dtype=object), errors="coerce").to_numpy(float)
 
 
 def _fetch_rows(
@@ -326,7 +621,7 @@ def _fetch_rows(
     values = list(zip(*found, strict=True)) if found else [()] * (len(columns) + 2)
     frame = pd.DataFrame(
         {
-            name: np.array(column, dtype=float if name in NUMBER_COLUMNS else object)
+            name: _numbers(column) if name in NUMBER_COLUMNS else np.array(column, dtype=object)
             for name, column in zip(("run_id", "series_id", *columns), values, strict=True)
         }
     )
@@ -336,21 +631,26 @@ def _fetch_rows(
     return frame[["run_id", *KEY_COLUMNS, *columns]].reset_index(drop=True)
 
 
-def load_history(url: str, last: int | None = None, only: str | None = None) -> History:
-    """The ``last`` complete runs (all when None), oldest first: the trend columns of every
-    row, and the full rows of the latest run; ``only`` keeps the scenarios matching the glob."""
+def load_history(
+    url: str, last: int | None = None, only: str | None = None, selection: str | None = None
+) -> History:
+    """The ``last`` complete runs (all when None) of one selection, oldest first: the trend
+    columns of every row, and the full rows of the latest of them; ``only`` keeps the scenarios
+    matching the glob. ``selection`` (``chosen_selection``): ``latest`` (None) the selection of
+    the latest complete run, ``all`` every run, or a selection key."""
     engine = open_database(url, create=False)
     try:
         with engine.connect() as connection:
-            newest = sa.select(RUNS).where(RUNS.c.complete).order_by(RUNS.c.id.desc())
-            runs = _runs_frame(connection, newest.limit(last) if last else newest)
-            runs = runs.iloc[::-1].reset_index(drop=True)
+            recorded = _runs_frame(connection, sa.true())
+            chosen = chosen_selection(recorded, selection)
+            runs = recorded if chosen == "all" else recorded[recorded["selection_key"] == chosen]
+            runs = (runs.tail(last) if last else runs).reset_index(drop=True)
             run_ids = [int(i) for i in runs["id"]]
             trend = _fetch_rows(connection, run_ids, TREND_COLUMNS, only)
             latest = _fetch_rows(connection, run_ids[-1:], ROW_COLUMNS, only)
     finally:
         engine.dispose()
-    return History(runs, trend, latest)
+    return History(runs, trend, latest, recorded, chosen)
 
 
 def load_run(url: str, run_id: int) -> History:
@@ -359,12 +659,11 @@ def load_run(url: str, run_id: int) -> History:
     engine = open_database(url, create=False)
     try:
         with engine.connect() as connection:
-            runs = _runs_frame(
-                connection, sa.select(RUNS).where(RUNS.c.complete, RUNS.c.id == run_id)
-            )
+            runs = _runs_frame(connection, RUNS.c.id == run_id)
             if runs.empty:
-                raise HistoryInputError(f"run {run_id}: no such run in {url}")
+                raise HistoryInputError(f"run {run_id}: no such run in {shown_url(url)}")
             rows = _fetch_rows(connection, [run_id], ROW_COLUMNS, None)
     finally:
         engine.dispose()
-    return History(runs, rows[["run_id", *KEY_COLUMNS, *TREND_COLUMNS]], rows)
+    key = str(runs["selection_key"].iloc[0])
+    return History(runs, rows[["run_id", *KEY_COLUMNS, *TREND_COLUMNS]], rows, runs, key)

@@ -19,6 +19,12 @@ unaffected by a few steps), but never below half the noise rule's floor
 (``validation.measure.noise.noise_floor``), because physval's runs on one machine are bit-identical
 and their σ would otherwise be 0. The fit proposes steps; the noise rule disposes: neighbouring
 segments whose levels do not differ by more than the noise floor (``noise.moved`` == 0) are merged.
+
+A series' points are the runs that measured it: a run without a number (NaN: the run did not
+select the scene, or its row has no value) is left out of the fit, so a step is always placed at
+a run that measured the series, never at a run in between that did not. An infinite value (an
+error that overflowed) is a number beyond any: the change between finite and infinite is a step
+by itself, at the first run of the new class; the finite values alone are fitted as above.
 """
 
 from __future__ import annotations
@@ -70,12 +76,15 @@ def noise_sigma(values: np.ndarray, tolerances: np.ndarray) -> np.ndarray:
     return np.maximum(sigma, FLOOR_TO_SIGMA * floors)
 
 
-def optimal_partition(values: np.ndarray, penalty: float) -> np.ndarray:
+def optimal_partition(values: np.ndarray, penalty: float | np.ndarray) -> np.ndarray:
     """The exact penalized L2 piecewise-constant fit of every row of ``values`` (runs along
     axis 1, NaN for a run without the row, which then costs nothing), in units where each row's
-    σ is 1. Returns ``left (series, n + 1)``: ``left[s, r]`` the start of the last segment of the
-    best fit of the first ``r`` runs of series ``s`` (walk it back with ``segment_starts``)."""
+    σ is 1; ``penalty`` one for all rows or one per row. Returns ``left (series, n + 1)``:
+    ``left[s, r]`` the start of the last segment of the best fit of the first ``r`` runs of
+    series ``s`` (walk it back with ``segment_starts``). A NaN between two levels makes a tie
+    (either side of it costs the same), so callers fit packed rows (``packed_finite``)."""
     count, n = values.shape
+    penalty = np.broadcast_to(np.asarray(penalty, dtype=float), (count,))[:, None]
     present = np.isfinite(values)
     y = np.where(present, values, 0.0)
     zero = np.zeros((count, 1))
@@ -83,7 +92,7 @@ def optimal_partition(values: np.ndarray, penalty: float) -> np.ndarray:
     total = np.hstack([zero, np.cumsum(y, axis=1)])
     square = np.hstack([zero, np.cumsum(y * y, axis=1)])
     best = np.empty((count, n + 1))
-    best[:, 0] = -penalty
+    best[:, 0] = -penalty[:, 0]
     left = np.zeros((count, n + 1), dtype=int)
     for r in range(1, n + 1):
         w = weight[:, r : r + 1] - weight[:, :r]
@@ -150,24 +159,84 @@ def within_noise(values: np.ndarray, tolerances: np.ndarray) -> np.ndarray:
     )
 
 
-def detect_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]:
-    """The steps of each series: ``values (series, runs)`` with NaN where a run lacks the row,
-    ``tolerances (series,)`` (NaN without one). A series of fewer than 2 values has none, and
-    so has a series whose range is within noise (``within_noise``; not fitted at all)."""
-    values = np.asarray(values, dtype=float)
-    found: list[list[Step]] = [[] for _ in range(values.shape[0] if values.ndim == 2 else 0)]
-    if values.ndim != 2 or values.shape[1] < 2:
-        return found
-    tolerances = np.asarray(tolerances, dtype=float)
-    fitted = np.nonzero(~within_noise(values, tolerances))[0]
+def packed_finite(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row, its finite values moved to the front in run order and NaN after them, the run
+    position of each packed column (``order``) and the count of finite values per row."""
+    finite = np.isfinite(values)
+    order = np.argsort(~finite, axis=1, kind="stable")  # finite first, each in run order
+    counts = finite.sum(axis=1)
+    packed = np.take_along_axis(values, order, axis=1)
+    packed[np.arange(values.shape[1])[None, :] >= counts[:, None]] = np.nan
+    return packed, order, counts
+
+
+def finite_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]:
+    """The steps of the finite values of each series (infinite and NaN runs left out), at
+    run positions of ``values``: the fit runs on the packed finite values, so that no step
+    falls on a run without one."""
+    found: list[list[Step]] = [[] for _ in range(values.shape[0])]
+    packed, order, counts = packed_finite(values)
+    fitted = np.nonzero((counts >= 2) & ~within_noise(packed, tolerances))[0]
     if fitted.size == 0:
         return found
-    values, tolerances = values[fitted], tolerances[fitted]
-    sigma = noise_sigma(values, tolerances)
-    centre = np.nanmedian(values, axis=1)[:, None]  # every fitted row has a finite value
-    scaled = (values - centre) / sigma[:, None]  # sigma >= half the floor > 0
-    penalty = PENALTY_PER_LOG_RUN * np.log(values.shape[1])
+    width = int(counts[fitted].max())
+    rows, tolerances = packed[fitted, :width], tolerances[fitted]
+    sigma = noise_sigma(rows, tolerances)
+    centre = np.nanmedian(rows, axis=1)[:, None]  # every fitted row has a finite value
+    scaled = (rows - centre) / sigma[:, None]  # sigma >= half the floor > 0
+    penalty = PENALTY_PER_LOG_RUN * np.log(counts[fitted])  # the runs that measured it
     left = optimal_partition(scaled, penalty)
-    for index, row, left_row, tolerance in zip(fitted, values, left, tolerances, strict=True):
-        found[index] = merge_within_noise(row, segment_starts(left_row), float(tolerance))
+    for index, row, left_row, tolerance in zip(fitted, rows, left, tolerances, strict=True):
+        count = int(counts[index])
+        starts = [k for k in segment_starts(left_row) if k < count]  # a NaN tail adds no start
+        for step in merge_within_noise(row[:count], starts, float(tolerance)):
+            found[index].append(
+                Step(int(order[index, step.at]), step.before, step.after, step.direction)
+            )
     return found
+
+
+def infinite_steps(row: np.ndarray, steps: list[Step]) -> list[Step]:
+    """``steps`` (the finite fit's, of one series) with a step wherever the series crosses
+    between finite and infinite values (or between -inf and +inf), at the first run of the
+    new class; ``before`` / ``after`` are the finite level there or the infinite value. A
+    finite step at the same run gives way to the crossing."""
+    measured = np.nonzero(~np.isnan(row))[0]
+    kinds = np.where(np.isfinite(row[measured]), 0, np.sign(row[measured]))
+    if not kinds.any():
+        return steps
+    finite_row = np.where(np.isfinite(row), row, np.nan)
+    starts = [0, *(s.at for s in steps)]
+    levels = np.full(row.size, np.nan)
+    for start, stop, level in zip(
+        starts, [*starts[1:], row.size], segment_levels(finite_row, starts), strict=True
+    ):
+        levels[start:stop] = level
+
+    def level(position: int) -> float:
+        return float(row[position]) if np.isinf(row[position]) else float(levels[position])
+
+    crossings = {
+        int(b): Step(int(b), level(a), level(b), 1 if level(b) > level(a) else -1)
+        for a, b, kind_a, kind_b in zip(measured, measured[1:], kinds, kinds[1:], strict=False)
+        if kind_a != kind_b
+    }
+    kept = [s for s in steps if s.at not in crossings]
+    return sorted([*kept, *crossings.values()], key=lambda s: s.at)
+
+
+def detect_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]:
+    """The steps of each series: ``values (series, runs)`` with NaN where a run has no number
+    for the series (did not measure it, or its row has no value), ±inf where the number is
+    infinite; ``tolerances (series,)`` (NaN without one). The finite values of a series are
+    fitted (``finite_steps``: fewer than 2 of them, or a range within noise, give none), and
+    every crossing between finite and infinite values is a step (``infinite_steps``). Every
+    step is at a run that measured the series."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 2:
+        return []
+    if values.shape[1] < 2:
+        return [[] for _ in range(values.shape[0])]
+    tolerances = np.asarray(tolerances, dtype=float)
+    found = finite_steps(values, tolerances)
+    return [infinite_steps(row, steps) for row, steps in zip(values, found, strict=True)]
