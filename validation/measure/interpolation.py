@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.interpolate import BarycentricInterpolator, CubicHermiteSpline
+from scipy.interpolate import CubicHermiteSpline
 from scipy.spatial.transform import Rotation
 
 SMALL_ANGLE = 1e-4
@@ -44,9 +44,17 @@ def hermite_position(time: float, t: np.ndarray, pos: np.ndarray, vel: np.ndarra
 
 def cubic_through(time: float, t: np.ndarray, values: np.ndarray) -> np.ndarray:
     """(...) the polynomial through the observed ``values (k, ...)`` at times ``t (k,)`` (k <= 4,
-    the states around ``time``), evaluated at ``time``: the cubic of the module docstring."""
-    origin = float(t[0])  # times from the first state: a 10 s clock does not cost digits
-    return BarycentricInterpolator(t - origin, values, axis=0)(time - origin)
+    the states around ``time``), evaluated at ``time``: the cubic of the module docstring, in
+    Lagrange's form ``Σ_i values_i Π_{j≠i} (time - t_j)/(t_i - t_j)``. Written out rather than
+    SciPy's ``BarycentricInterpolator``, which permutes the nodes at random for stability (a
+    last-bit difference from run to run: the same scene must give the same numbers)."""
+    offsets = time - t  # (k,) s: times from each state, so a 10 s clock does not cost digits
+    gaps = t[:, None] - t[None, :]  # (k, k) s, t_i - t_j
+    np.fill_diagonal(gaps, 1.0)
+    factors = offsets[None, :] / gaps  # (time - t_j)/(t_i - t_j) for j != i
+    np.fill_diagonal(factors, 1.0)
+    weights = np.prod(factors, axis=1)  # (k,) the Lagrange basis at ``time``
+    return np.tensordot(weights, values, axes=1)
 
 
 def _skew(vector: np.ndarray) -> np.ndarray:
