@@ -2,9 +2,12 @@
 
 Every metric is a function in ``METRICS`` (or, for a scene's own expectations,
 ``EXPECTATIONS``) that returns a ``Measurement`` or ``None`` when the scene cannot
-define it (no restitution without an impact, no ballistic error where bodies touch).
-A ``None`` is left out of the report, never written as zero. The one-line definitions
-the report prints are in ``validation.measure.definitions``.
+define it. Whether a scene can define a metric (no ballistic error where bodies can touch,
+no momentum drift with a ground, ...) is ``validation.scenario.definability``'s table, the
+one the loader checks a scene's ``checks`` against; a metric then returns ``None`` only for
+what the run decides (no restitution without an impact). A ``None`` is left out of the
+report, never written as zero. The one-line definitions the report prints are in
+``validation.measure.definitions``.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
 from validation.scenario.compiled import CompiledScene
+from validation.scenario.definability import scene_traits, why_undefined
 
 ZERO_SCALE = 1e-12
 """Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
@@ -35,8 +39,7 @@ class Context:
         self.moving = scene.moving
         self.mass = np.array([b.mass for b in scene.scenario.bodies])
         self.gravity = scene.gravity
-        self.can_touch = scene.can_touch
-        self.external_contacts = scene.external_loads
+        self.traits = scene_traits(scene)
 
 
 def _conserved(name: str, drift: float, signed: tuple[float, ...], message: str) -> Measurement:
@@ -67,10 +70,6 @@ def energy_scale(ctx: Context) -> tuple[float, float, float]:
 def energy_drift(ctx: Context) -> Measurement | None:
     """max |E(t) - E(0)| / E_scale (``energy_scale``): the energy error on a scale no choice
     of origin or potential zero changes; the message keeps the error in J."""
-    if ctx.scene.applies_torque:  # a constant world torque does work with no potential
-        return None
-    if any(spring.damping > 0.0 for spring in ctx.scenario.springs):
-        return None  # a damper dissipates: energy is not an invariant then
     change = ctx.series.energy - ctx.series.energy[0]
     worst = int(np.argmax(np.abs(change)))
     scale, motion, weight = energy_scale(ctx)
@@ -104,24 +103,19 @@ def _impulse_balance(ctx: Context, values: np.ndarray, rate: np.ndarray, name: s
     return _conserved(name, float(change[worst] / divisor), signed, note)
 
 
-def angular_momentum_drift(ctx: Context) -> Measurement | None:
-    if ctx.external_contacts or not ctx.scene.uniform_acceleration:
-        return None
+def angular_momentum_drift(ctx: Context) -> Measurement:
     rate = ctx.scene.torque.sum(axis=0)  # uniform g + F/m exerts no torque about the COM
     return _impulse_balance(ctx, ctx.series.angular_momentum, rate, "angular_momentum_drift")
 
 
-def linear_momentum_drift(ctx: Context) -> Measurement | None:
-    if ctx.external_contacts:
-        return None
+def linear_momentum_drift(ctx: Context) -> Measurement:
     rate = ctx.mass[ctx.moving].sum() * ctx.gravity + ctx.scene.force.sum(axis=0)
     return _impulse_balance(ctx, ctx.series.momentum, rate, "linear_momentum_drift")
 
 
-def _ballistic(ctx: Context) -> tuple[np.ndarray, np.ndarray] | None:
-    """Analytic positions and velocities (s, n, 3) of free flight, or None if not free."""
-    if ctx.can_touch or ctx.scenario.springs:
-        return None
+def _ballistic(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic positions and velocities (s, n, 3) of free flight (a scene where nothing can
+    touch and no spring acts: ``definability``)."""
     t = ctx.trajectory.t[:, None, None]
     x0 = np.array([b.position for b in ctx.scenario.bodies])[None]
     v0 = np.array([b.velocity for b in ctx.scenario.bodies])[None]
@@ -139,17 +133,13 @@ def _largest_distance(name: str, difference: np.ndarray, expected_kind: str) -> 
     return Measurement(name, value, 0.0, expected_kind, value, signed=signed)
 
 
-def position_error(ctx: Context) -> Measurement | None:
+def position_error(ctx: Context) -> Measurement:
     analytic = _ballistic(ctx)
-    if analytic is None:
-        return None
     return _largest_distance("position_error", ctx.trajectory.pos - analytic[0], "analytic")
 
 
-def velocity_error(ctx: Context) -> Measurement | None:
+def velocity_error(ctx: Context) -> Measurement:
     analytic = _ballistic(ctx)
-    if analytic is None:
-        return None
     return _largest_distance("velocity_error", ctx.trajectory.vel - analytic[1], "analytic")
 
 
@@ -186,22 +176,40 @@ def restitution_error(ctx: Context) -> Measurement | None:
 
 
 def penetration_max(ctx: Context) -> Measurement | None:
+    """The deepest overlap the recording saw (None when it measured none)."""
     deepest = ctx.recording.penetration_max
     if deepest is None:
         return None
     return Measurement("penetration_max", deepest, 0.0, "analytic", deepest, signed=(deepest,))
 
 
-METRICS: dict[str, Callable[[Context], Measurement | None]] = {
-    "energy_drift": energy_drift,
-    "angular_momentum_drift": angular_momentum_drift,
-    "linear_momentum_drift": linear_momentum_drift,
-    "position_error": position_error,
-    "velocity_error": velocity_error,
-    "restitution_error": restitution_error,
-    "penetration_max": penetration_max,
+Metric = Callable[[Context], Measurement | None]
+
+
+def _where_defined(name: str, compute: Metric) -> Metric:
+    """``compute``, or None where the scene cannot define metric ``name`` (``definability``)."""
+
+    def metric(ctx: Context) -> Measurement | None:
+        return None if why_undefined(name, ctx.traits) is not None else compute(ctx)
+
+    metric.__doc__ = compute.__doc__
+    return metric
+
+
+METRICS: dict[str, Metric] = {
+    name: _where_defined(name, compute)
+    for name, compute in {
+        "energy_drift": energy_drift,
+        "angular_momentum_drift": angular_momentum_drift,
+        "linear_momentum_drift": linear_momentum_drift,
+        "position_error": position_error,
+        "velocity_error": velocity_error,
+        "restitution_error": restitution_error,
+        "penetration_max": penetration_max,
+    }.items()
 }
-"""Metric name -> its function (``divergence`` needs two engines: ``divergence()``)."""
+"""Metric name -> its function, None where the scene cannot define it (``divergence`` needs
+two engines: ``divergence()``)."""
 
 
 def divergence(ctx: Context, reference: Context, reference_label: str) -> Measurement | None:

@@ -3,13 +3,15 @@
 ``yaml_source`` reads YAML strictly with the position of every field; ``schema`` holds the
 pydantic models of format v1; ``problems`` turns what is wrong into
 ``file:line:column: field: message``; ``checks`` are the whole-document rules;
-``load`` puts them together; ``engine_spec`` parses ``name(key=value)`` specs; ``physics``
-is what a scenario implies for every engine (inertias, pair values, rest lengths, the mini
-model); ``compiled`` is the scene compiled once for every consumer.
+``definability`` says which metrics a scene can define; ``load`` puts them together;
+``engine_spec`` parses ``name(key=value)`` specs; ``physics`` is what a scenario implies for
+every engine (inertias, pair values, rest lengths, the mini model); ``compiled`` is the scene
+compiled once for every consumer.
 """
 
 from validation.scenario.load import (
     BUNDLED_SCENARIOS,
+    ScenarioWarning,
     check_scenario,
     default_scenario_paths,
     json_schema,
@@ -26,6 +28,7 @@ __all__ = [
     "Problem",
     "Scenario",
     "ScenarioError",
+    "ScenarioWarning",
     "check_scenario",
     "default_scenario_paths",
     "json_schema",

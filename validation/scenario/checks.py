@@ -1,9 +1,14 @@
 """Whole-document rules: checks that need the whole scenario, run after the schema.
 
-Each rule is one function in ``RULES``: it reads the validated ``Scenario`` and yields
-``(location, message)`` for every problem, the location being the field path it is reported
-at (``("bodies", 2, "name")``). ``document_problems`` runs them all and places each problem
-at its line and column.
+Each rule is one function that reads the validated ``Scenario`` and yields ``(location,
+message)`` for every problem, the location being the field path it is reported at
+(``("bodies", 2, "name")``). ``document_problems`` runs them in three phases and places each
+problem at its line and column:
+
+1. ``RULES``: the document's own consistency (names, references, specs, steps); errors.
+2. ``SCENE_RULES``, once those hold: what the scene can define (``definability``): a check
+   or a known finding on a metric the scene cannot define is an error.
+3. ``WARNING_RULES``: what loads but cannot do its job: a tolerance no reading can exceed.
 """
 
 from __future__ import annotations
@@ -14,10 +19,20 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from validation.reference.rotation import rotation_angle
+from validation.scenario.compiled import compile_scene
+from validation.scenario.definability import UNDEFINED_WHEN, Traits, scene_traits, why_undefined
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
-from validation.scenario.physics import body_inertia, symmetry_frame
+from validation.scenario.physics import body_inertia, pair_rule, symmetry_frame
 from validation.scenario.problems import Problem, path_text
-from validation.scenario.schema import ANY_METRIC, MAX_STEPS, METRIC_NAMES, BodySpec, Scenario
+from validation.scenario.schema import (
+    ANY_METRIC,
+    MAX_STEPS,
+    METRIC_NAMES,
+    BodySpec,
+    Scenario,
+    Tolerance,
+)
 from validation.scenario.yaml_source import SourceMap
 
 Location = tuple[str | int, ...]
@@ -231,7 +246,9 @@ def step_count(scenario: Scenario) -> Found:
         )
 
 
-RULES: tuple[Callable[[Scenario], Found], ...] = (
+Rule = Callable[[Scenario], Found]
+
+RULES: tuple[Rule, ...] = (
     unique_body_names,
     finite_mass_properties,
     spring_ends,
@@ -248,10 +265,201 @@ RULES: tuple[Callable[[Scenario], Found], ...] = (
 """Every whole-document rule, in the order their problems are listed."""
 
 
-def document_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
-    """Every problem the rules find, each placed at its field's line and column."""
+# --- phase 2: what the scene can define ---------------------------------------------------
+
+
+def _named_table_metrics(scenario: Scenario) -> bool:
+    """Whether a check or a known finding names a metric of the definability table (only
+    then is the scene compiled to read its traits)."""
+    patterns = [f.metric for f in scenario.known if f.metric != ANY_METRIC]
+    return any(m in UNDEFINED_WHEN for m in scenario.checks) or any(
+        fnmatch.filter(UNDEFINED_WHEN, p) for p in patterns
+    )
+
+
+def checks_the_scene_defines(scenario: Scenario, traits: Traits) -> Found:
+    """A ``checks`` entry names a metric this scene can define: else no row would ever be
+    written, and the check would never run."""
+    for metric in scenario.checks:
+        why = why_undefined(metric, traits)
+        if why is not None:
+            yield (
+                ("checks", metric),
+                f"expected a metric this scene can define; {metric} is undefined here: {why} "
+                "(no row would ever be written); remove the check",
+            )
+
+
+def known_findings_the_scene_defines(scenario: Scenario, traits: Traits) -> Found:
+    """A known finding names a metric, or a pattern matching a metric, this scene can define
+    (an entry that can only name undefined metrics would never match a row)."""
+    always = [*(e.metric for e in scenario.expect), STATUS_METRIC]  # defined in every scene
+    for i, finding in enumerate(scenario.known):
+        pattern = finding.metric
+        if pattern == ANY_METRIC or fnmatch.filter(always, pattern):
+            continue
+        undefined = {m: why_undefined(m, traits) for m in fnmatch.filter(UNDEFINED_WHEN, pattern)}
+        if not undefined or any(why is None for why in undefined.values()):
+            continue  # an unknown name (``known_findings``), or it matches a defined metric
+        reasons = "; ".join(f"{m}: {why}" for m, why in undefined.items())
+        yield (
+            ("known", i, "metric"),
+            f"expected a metric this scene can define; {pattern!r} names only undefined ones "
+            f"({reasons}), so it would never match a row; remove the entry",
+        )
+
+
+SceneRule = Callable[[Scenario, Traits], Found]
+
+SCENE_RULES: tuple[SceneRule, ...] = (checks_the_scene_defines, known_findings_the_scene_defines)
+"""Rules that read the compiled scene's traits (run once the document rules hold)."""
+
+
+# --- phase 3: tolerances that cannot fail -------------------------------------------------
+
+
+def _norm(expectation) -> float:
+    return float(np.linalg.norm(expectation.value))
+
+
+def _size(expectation) -> float:
+    return abs(float(expectation.value))
+
+
+def _smallest(expectation) -> float:
+    return min((abs(v) for v in expectation.value if v != 0.0), default=0.0)
+
+
+def _turn(expectation) -> float:
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+    return float(rotation_angle(np.asarray(expectation.value, dtype=float), identity))
+
+
+EXPECTED_SIZE: dict[str, Callable] = {
+    "velocity_after_impact": _norm,
+    "position_at": _norm,
+    "velocity_at": _norm,
+    "angular_velocity_at": _norm,
+    "angular_velocity_after_impact": _norm,
+    "orientation_at": _turn,
+    "bounce_heights": _smallest,
+    "flip_times": _smallest,
+    "impact_times": _smallest,
+    "precession_rate": _size,
+    "flips": _size,
+    "energy_at": _size,
+}
+"""Expectation kind -> |expected| of its row: the error a reading of zero (an engine that did
+nothing: no flip, no precession, no turn) would have. A vector's norm; an orientation's angle
+from the identity (the row compares angles); a list's smallest non-zero entry (each entry must
+be able to fail)."""
+
+
+def requested_restitutions(scenario: Scenario) -> set[float]:
+    """Every restitution the scene requests of a pair that can touch (two bodies not both
+    fixed, or a moving body and the ground): the ``pairs`` entry's, else the pair rule of the
+    two bodies' values. Counted per class of bodies with equal (restitution, fixed), so the
+    cost is the classes', not the pairs'."""
+    classes: dict[tuple, list[str]] = {}
+    for body in scenario.bodies:
+        classes.setdefault((body.restitution, body.fixed), []).append(body.name)
+    if scenario.ground is not None:
+        classes[(scenario.ground.restitution, True, "ground")] = ["ground"]
+    class_of = {name: key for key, names in classes.items() for name in names}
+    stated: dict[frozenset, float] = {}
+    for pair in scenario.pairs:
+        if pair.restitution is not None and pair.a != pair.b:
+            stated.setdefault(frozenset((pair.a, pair.b)), pair.restitution)
+    found: set[float] = set()
+    covered: dict[frozenset, int] = {}
+    for names, value in stated.items():
+        first, second = (class_of[n] for n in names)
+        if not (first[1] and second[1]):
+            found.add(value)
+            key = frozenset((first, second))
+            covered[key] = covered.get(key, 0) + 1
+    keys = list(classes)
+    for i, first in enumerate(keys):
+        for second in keys[i:]:
+            count = len(classes[first])
+            pairs = count * (count - 1) // 2 if first == second else count * len(classes[second])
+            if (first[1] and second[1]) or pairs <= covered.get(frozenset((first, second)), 0):
+                continue  # both fixed, or every such pair has its own value
+            found.add(pair_rule("restitution", first[0], second[0], None))
+    return found
+
+
+def _expected_size(scenario: Scenario, metric: str) -> float:
+    """|expected| of the rows of ``metric``: 0 for a conserved drift, a control (nothing
+    turns, no penetration) or a comparison with another engine, which do not warn."""
+    if metric == "restitution_error":  # each impact is judged against its pair's e
+        return min((e for e in requested_restitutions(scenario) if e > 0.0), default=0.0)
+    kinds = {e.metric: e for e in scenario.expect}
+    if metric not in kinds:
+        return 0.0
+    return EXPECTED_SIZE[kinds[metric].kind](kinds[metric])
+
+
+def _tolerance_entries(scenario: Scenario, metric: str, tolerance: Tolerance) -> Iterator:
+    """(location, tolerance, the engine specs it applies to) of one ``checks`` entry."""
+    labels = [spec.label for spec in scenario.engine_specs]
+    if not isinstance(tolerance, dict):
+        yield ("checks", metric), tolerance, labels
+        return
+    for key, value in tolerance.items():
+        specs = [key] if key != "default" else [x for x in labels if x not in tolerance]
+        if specs:
+            yield ("checks", metric, key), value, specs
+
+
+FIX = (
+    "give the row its physical tolerance and declare the gap under known: with its measured reason"
+)
+"""What a tolerance that cannot fail should become (the library's convention, scenarios/README.md)."""
+
+
+def tolerances_can_fail(scenario: Scenario) -> Found:
+    """A check's tolerance is below |expected|: else a reading of zero, an engine that did
+    nothing, passes it. Controls (expected 0) and conserved drifts do not warn."""
+    for metric, tolerance in scenario.checks.items():
+        size = _expected_size(scenario, metric)
+        if size <= 0.0:
+            continue
+        for loc, value, specs in _tolerance_entries(scenario, metric, tolerance):
+            if value >= size:
+                yield (
+                    loc,
+                    f"expected a tolerance below |expected| = {size:.6g} of {metric}; got "
+                    f"{value:.6g} for {', '.join(specs)}: a reading of 0 (an engine that did "
+                    f"nothing) passes; {FIX}",
+                )
+
+
+WARNING_RULES: tuple[Rule, ...] = (tolerances_can_fail,)
+"""Rules whose problems are warnings: the scene loads, but a row cannot do its job."""
+
+
+def _place(file: str, source: SourceMap, found: Found, warning: bool = False) -> list[Problem]:
     return [
-        Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)))
-        for rule in RULES
-        for loc, message in rule(scenario)
+        Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)), warning)
+        for loc, message in found
+    ]
+
+
+def _scene_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
+    if not _named_table_metrics(scenario):
+        return []
+    traits = scene_traits(compile_scene(scenario))
+    return [p for rule in SCENE_RULES for p in _place(file, source, rule(scenario, traits))]
+
+
+def document_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
+    """Every problem the rules find, each placed at its field's line and column: the
+    document rules' errors or, when there are none, the scene rules' errors and the
+    warnings."""
+    problems = [p for rule in RULES for p in _place(file, source, rule(scenario))]
+    if problems:
+        return problems  # the scene rules and warnings read a consistent document
+    return _scene_problems(scenario, file, source) + [
+        p for rule in WARNING_RULES for p in _place(file, source, rule(scenario), warning=True)
     ]

@@ -1,9 +1,17 @@
 """Loading: a file read strictly, validated by the schema, then by the whole-document
-rules; every problem collected."""
+rules; every problem collected.
+
+Every load warns: ``load_scenario`` (``physval run``, ``pytest --physval``, ``sweep``, ...)
+issues each warning of the rules as a ``ScenarioWarning`` placed at its line of the scene
+file, which Python prints on stderr (``file:line: ScenarioWarning: field: message`` and the
+YAML line) and pytest lists in its warnings summary; ``check_scenario`` returns them with the
+errors, for ``physval check`` to print.
+"""
 
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 from pydantic import (
@@ -35,6 +43,11 @@ def default_scenario_paths() -> list[Path]:
     return [local if local.is_dir() else BUNDLED_SCENARIOS]
 
 
+class ScenarioWarning(UserWarning):
+    """A scene that loads but has a problem a run cannot show (a tolerance no reading can
+    exceed): issued by ``load_scenario`` at the scene file's line."""
+
+
 def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     file = str(path)
     try:
@@ -54,14 +67,25 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
         problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
     problems = document_problems(scenario, file, source)
-    return (None if problems else scenario), problems
+    return (None if any(not p.warning for p in problems) else scenario), problems
+
+
+def _warn(problem: Problem) -> None:
+    """``problem`` as a ``ScenarioWarning`` at its line of the scene file."""
+    field = f"{problem.path}: " if problem.path else ""
+    warnings.warn_explicit(
+        f"{field}{problem.message}", ScenarioWarning, problem.file, problem.line or 0
+    )
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """The validated scenario at ``path``; raises ``ScenarioError`` listing every problem."""
+    """The validated scenario at ``path``; raises ``ScenarioError`` listing every problem,
+    and issues each warning as a ``ScenarioWarning``."""
     scenario, problems = _load(Path(path))
     if scenario is None:
         raise ScenarioError(problems)
+    for problem in problems:
+        _warn(problem)
     return scenario
 
 
