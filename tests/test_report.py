@@ -359,3 +359,20 @@ def test_chromium_renders_the_report(rendered, tmp_path):
     for colour in (RED, GREEN):  # the matrix's failing and passing cells
         rgb = np.array([int(colour[i : i + 2], 16) for i in (1, 3, 5)])
         assert (np.abs(pixels - rgb).max(axis=-1) <= 2).sum() > 1000, colour
+
+
+def test_a_run_against_a_baseline_with_rows_it_lacks_still_renders(tmp_path, capsys):
+    """The usual case when an engine or a metric is dropped: baseline.csv lists the rows the
+    run lacks (class missing), with empty and textual cells; the report was lost (a number
+    format on an empty cell) and ``physval report`` crashed."""
+    run_dir = write_synthetic_run(tmp_path)
+    (run_dir / "baseline.csv").write_text(
+        "scenario,engine,metric,value,error,tolerance,status,outcome,engine_version,"
+        "scene_sha256,baseline\n"
+        "bounce,pybullet,energy_drift,0.002,0.002,0.01,ok,passed,3.2.7,abc,missing\n"
+        "bounce,pybullet,restitution_error,,,,error,error,3.2.7,abc,missing\n"
+    )
+    assert render.report_command(run_dir) == 0, capsys.readouterr().err
+    page = (run_dir / "report.html").read_text()
+    news = page[page.index('id="news"') : page.index('id="matrix"')]
+    assert "restitution_error" in news and "0.002" in news, news[:3000]

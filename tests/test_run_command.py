@@ -163,3 +163,38 @@ def test_null_name_and_duplicate_engines(tmp_path, capsys):
         exit_code(["run", str(path), "--engines", "mini, mini", "--out", str(tmp_path / "p")]) == 2
     )
     assert "listed twice" in capsys.readouterr().err
+
+
+def test_a_report_that_cannot_be_rendered_is_exit_2_with_the_record_published(
+    tmp_path, capsys, monkeypatch
+):
+    """results.csv is the record and is published, but a run whose report.html could not be
+    written never exits 0 (it did: the page a reader opens was silently missing)."""
+    import validation.jobs.run as run_module
+
+    def broken(*_args, **_kwargs):
+        raise ValueError("Unknown format code 'g' for object of type 'str'")
+
+    monkeypatch.setattr(run_module, "render_report", broken)
+    out = tmp_path / "run"
+    scene = BUNDLED_SCENARIOS / "formulas" / "projectile.yaml"
+    code = main(
+        [
+            "run",
+            str(scene),
+            "--engines",
+            "mini",
+            "--jobs",
+            "1",
+            "--out",
+            str(out),
+            "--baseline",
+            "none",
+            "--history",
+            "none",
+        ]
+    )
+    printed = capsys.readouterr().out
+    assert code == 2, printed
+    assert (out / "results.csv").exists() and not (out / "report.html").exists()
+    assert "report.html not rendered" in printed and "physval report" in printed, printed

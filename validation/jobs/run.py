@@ -453,6 +453,8 @@ def _finish(
         + f"{len(rows)} rows, {bad} failed or unstable -> {output.destination / RESULTS_FILE}"
         + "".join(f"; {n}" for n in notes)
     )
+    if note:  # the record is published, but the page a reader opens is not: never exit 0
+        return EXIT_BAD_INPUT
     return EXIT_FAILED if exit_failed(rows) else EXIT_OK
 
 

@@ -31,6 +31,13 @@ MAX_NEWS_ROWS = 200
 """Rows listed per section; the rest are counted (every row is in the scene cards)."""
 
 
+def _shown_error(value: Any) -> str:
+    """A row's error as the news shows it: 4 significant digits, empty when it has none (a
+    baseline's missing row arrives as text, an empty cell as NaN)."""
+    error = pd.to_numeric(pd.Series([value]), errors="coerce").iloc[0]
+    return "" if pd.isna(error) else f"{error:.4g}"
+
+
 def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]]:
     return [
         {
@@ -39,7 +46,7 @@ def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]
             "engine": r["engine"],
             "metric": r["metric"],
             "outcome": r.get("outcome", ""),
-            "error": "" if pd.isna(r.get("error")) else f"{r['error']:.4g}",
+            "error": _shown_error(r.get("error")),
             "note": str(r.get("known", "") or r.get("message", "") or ""),
         }
         for _, r in rows.head(MAX_NEWS_ROWS).iterrows()
