@@ -1,4 +1,4 @@
-"""What ``physval run`` adds for the nightly job (issue 12): known findings, the baseline, the
+"""What ``physval run`` adds for the nightly job: known findings, the baseline, the
 scenes' own sweeps as rows, JUnit XML and the history store.
 
 Each function here is one phase of ``run._finish``; none runs an engine.
