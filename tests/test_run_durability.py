@@ -94,13 +94,13 @@ def test_sigkill_mid_run_then_resume_gives_the_files_of_an_uninterrupted_run(tmp
     arguments = [str(scene), str(PROJECTILE), "--jobs", "1"]
     killed = physval("run", *arguments, "--out", "killed", cwd=tmp_path)
     deadline = time.monotonic() + RUN_TIMEOUT_S
-    while not list(tmp_path.glob(".killed-staging-*/journal/job-*.pickle")):
+    while not list(tmp_path.glob(".killed-staging-*/journal/job-*.zip")):
         assert killed.poll() is None, f"the run ended before a job finished: {killed.stderr.read()}"
         assert time.monotonic() < deadline, "no job finished in time"
         time.sleep(0.005)
     os.killpg(killed.pid, signal.SIGKILL)
     killed.wait()
-    committed = len(list(tmp_path.glob(".killed-staging-*/journal/job-*.pickle")))
+    committed = len(list(tmp_path.glob(".killed-staging-*/journal/job-*.zip")))
     assert 1 <= committed < planned_jobs(scene, PROJECTILE), committed
     assert not (tmp_path / "killed").exists(), "a killed run must not publish"
 
@@ -295,7 +295,7 @@ def test_a_write_failing_after_the_engines_ran_keeps_their_jobs_for_resume(tmp_p
     code, _, err = run(*arguments, cwd=tmp_path, code=DISK_FULL_WHILE_WRITING)
     assert code == 2 and "No space left" in err and "--resume" in err, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    assert len(list(tmp_path.glob(".out-staging-*/journal/job-*.pickle"))) == 1
+    assert len(list(tmp_path.glob(".out-staging-*/journal/job-*.zip"))) == 1
     code, out, err = run("run", "--resume", "out", cwd=tmp_path)
     assert code == 0 and "1 of 1 jobs from the journal" in out, err
     assert set(pd.read_csv(tmp_path / "out" / "results.csv")["scenario"]) == {"first"}
