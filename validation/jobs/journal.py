@@ -23,14 +23,12 @@ The interface is four calls, so that another store can take its place:
 from __future__ import annotations
 
 import json
-import os
-import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from validation.files import write_atomically
+from validation.files import open_regular, read_regular, write_atomically
 from validation.jobs import records
 
 HEADER_FILE = "header.json"
@@ -96,7 +94,7 @@ class Journal:
         resuming command's to check."""
         path = folder / HEADER_FILE
         try:
-            text = _read_regular(path, MAX_HEADER_BYTES).decode("utf-8")
+            text = read_regular(path, MAX_HEADER_BYTES).decode("utf-8")
             header = json.loads(text)
         except (OSError, ValueError, RecursionError) as error:
             raise JournalError(
@@ -136,7 +134,7 @@ class Journal:
 
     def _read(self, path: Path, job: JobId) -> Any:
         kind = tuple[JobId, self.schema.results[job.kind]]
-        with _open_regular(path) as handle:
+        with open_regular(path) as handle:
             recorded, result = records.loads(
                 handle, kind, self.schema.shapes, {"bodies": job.bodies}
             )
@@ -150,25 +148,3 @@ class Journal:
                 f"{job.index} has {getattr(job, wrong)!r})",
             )
         return result
-
-
-def _open_regular(path: Path):
-    """``path`` opened for reading without following a symlink; ``OSError`` unless it is a
-    regular file."""
-    descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    try:
-        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
-            raise OSError(0, "not a regular file")
-        return os.fdopen(descriptor, "rb")
-    except BaseException:
-        os.close(descriptor)
-        raise
-
-
-def _read_regular(path: Path, limit: int) -> bytes:
-    """The bytes of the regular file ``path`` (never through a symlink), at most ``limit``."""
-    with _open_regular(path) as handle:
-        data = handle.read(limit + 1)
-    if len(data) > limit:
-        raise ValueError(f"larger than {limit} bytes")
-    return data
