@@ -83,9 +83,14 @@ def _read_csv(path: Path, **options) -> pd.DataFrame:
         with open_regular(path) as handle:
             return pd.read_csv(handle, **options)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        raise ReportInputError(f"{path.name}: cannot be read as CSV ({error})") from None
+        raise ReportInputError(f"{path.name}: cannot be read as CSV ({_one_line(error)})") from None
     except OSError as error:  # missing, a symlink, a folder of that name, permissions, an I/O error
         raise ReportInputError(f"{path.name}: cannot be read ({_why(error)})") from None
+
+
+def _one_line(error: Exception) -> str:
+    """An error's message on one line (pandas' parser errors end with a newline)."""
+    return " ".join(str(error).split())
 
 
 def _why(error: OSError) -> str:
@@ -204,7 +209,7 @@ def read_provenance(path: Path, warnings: list[str]) -> dict[str, Any] | None:
     except OSError as error:
         raise ReportInputError(f"{path.name}: cannot be read ({_why(error)})") from None
     except (ValueError, RecursionError) as error:
-        raise ReportInputError(f"{path.name}: cannot be read ({error})") from None
+        raise ReportInputError(f"{path.name}: cannot be read ({_one_line(error)})") from None
 
 
 def load_run(run_dir: Path) -> RunData:
