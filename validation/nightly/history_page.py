@@ -32,7 +32,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_atomically
 from validation.measure.noise import NOISE_RULE
 from validation.nightly.history import (
@@ -96,9 +96,6 @@ MARKER_PT = 3.0
 
 GAP_MARK = "x"
 """matplotlib's marker for a run without a number for the series (the sparkline draws a ×)."""
-
-BASELINE_CLASSES = ("regressed", "improved", "new", "missing", "scene_changed", "unchanged")
-"""The baseline classes of a run's ``baseline`` column (issue 12), news first."""
 
 VERSION_COLOUR, STEP_COLOUR, LINE_COLOUR, LEVEL_COLOUR = "#999999", "#c0392b", "#0072B2", "#D55E00"
 """Engine-version change marks (grey), a detected step (red), the trend (blue), fitted levels."""
@@ -263,7 +260,7 @@ def build_series(history: History) -> list[SeriesView]:
     quantity = np.where(use_error[:, None], arrays["error"], arrays["value"])
     kinds = point_kinds(quantity, arrays["present"], arrays["ran"])
     tolerance = last_finite(arrays["tolerance"])
-    steps = detect_steps(quantity, tolerance)  # NaN: no number at that run, not counted
+    steps = detect_steps(quantity, list(keys["scenario"]))  # NaN: no number, not counted
     changes = version_changes(history.runs)
     spark_at = spark_positions(quantity)
     taken: set[str] = set()
