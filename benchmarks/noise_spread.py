@@ -16,10 +16,10 @@ spread (over ``max |x|``), then per scene the largest relative spread and the la
 spread of rows whose number is 0 or tiny (``TINY``).
 
     python benchmarks/noise_spread.py [--engines mini] [--repeats 2] [--perturbation 1e-12]
-                                      [--only GLOB] [--jobs 2]
+                                      [--spin] [--only GLOB] [--jobs 2] [--tag SUFFIX]
 
 Prints the per-scene table and writes ``benchmarks/results/noise_spread.csv`` (per row) and
-``benchmarks/results/noise_spread_scenes.csv`` (per scene).
+``benchmarks/results/noise_spread_scenes.csv`` (per scene), each name ending in ``--tag``.
 """
 
 from __future__ import annotations
@@ -45,9 +45,16 @@ TINY = 1e-9
 an absolute one (what ``noise.ABSOLUTE_NOISE`` covers), not a relative one."""
 
 
-def perturbed(plan: Plan, size: float, seed: int) -> Plan:
+def _moved(vector, size: float, rng: np.random.Generator) -> tuple[float, ...]:
+    direction = rng.normal(size=3)
+    moved = np.asarray(vector, dtype=float) + size * direction / np.linalg.norm(direction)
+    return tuple(float(x) for x in moved)
+
+
+def perturbed(plan: Plan, size: float, seed: int, spin: bool = False) -> Plan:
     """``plan`` with every moving body's initial position moved by ``size`` m in a random
-    direction (seeded), each scene compiled again from the moved scenario."""
+    direction (seeded), and with ``spin`` its angular velocity by ``size`` rad/s too (a
+    position alone leaves a free body's rotation untouched), each scene compiled again."""
     rng = np.random.default_rng(seed)
     scenes = []
     for scene, specs in plan.scenes:
@@ -57,11 +64,10 @@ def perturbed(plan: Plan, size: float, seed: int) -> Plan:
             if body.fixed:
                 bodies.append(body)
                 continue
-            direction = rng.normal(size=3)
-            moved = np.asarray(body.position, dtype=float) + size * direction / np.linalg.norm(
-                direction
-            )
-            bodies.append(body.model_copy(update={"position": tuple(float(x) for x in moved)}))
+            update = {"position": _moved(body.position, size, rng)}
+            if spin:
+                update["angular_velocity"] = _moved(body.angular_velocity, size, rng)
+            bodies.append(body.model_copy(update=update))
         scenes.append((compile_scene(scenario.model_copy(update={"bodies": bodies})), specs))
     return Plan(scenes)
 
@@ -131,19 +137,21 @@ def main() -> None:
     parser.add_argument("--perturbation", type=float, default=1e-12)
     parser.add_argument("--only", default=None)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--spin", action="store_true", help="perturb angular velocities too")
+    parser.add_argument("--tag", default="", help="suffix of the result files")
     args = parser.parse_args()
     start = time.perf_counter()
     plan = plan_run([BUNDLED_SCENARIOS], args.engines, None, args.only)
     base = library_rows(plan, args.jobs)
     others = [
-        library_rows(perturbed(plan, args.perturbation, seed), args.jobs)
+        library_rows(perturbed(plan, args.perturbation, seed, args.spin), args.jobs)
         for seed in range(1, args.repeats + 1)
     ]
     rows = spread(base, others)
     scenes = per_scene(rows)
     RESULTS.mkdir(exist_ok=True)
-    rows.to_csv(RESULTS / "noise_spread.csv", index=False)
-    scenes.to_csv(RESULTS / "noise_spread_scenes.csv", index=False)
+    rows.to_csv(RESULTS / f"noise_spread{args.tag}.csv", index=False)
+    scenes.to_csv(RESULTS / f"noise_spread_scenes{args.tag}.csv", index=False)
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         print(scenes.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     finite = rows["relative"].dropna()

@@ -42,7 +42,13 @@ from validation.contract import (
     VECTOR_ERROR_COLUMNS,
 )
 from validation.files import write_atomically
-from validation.measure.noise import FAILS_A_RUN, Reading, attribute_divergence, classify_change
+from validation.measure.noise import (
+    FAILS_A_RUN,
+    Reading,
+    attribute_divergence,
+    classify_change,
+    floor_for,
+)
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_results
 
@@ -155,7 +161,8 @@ def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
     if before["scene_sha256"] != scene_sha256:
         return "scene_changed"
     was = reading(before, str(before["outcome"]))
-    return classify_change(was, reading(now, outcome_of(now)), str(now.get("scenario", "")))
+    floor = floor_for(now.get("scenario"), now.get("metric"))
+    return classify_change(was, reading(now, outcome_of(now)), floor)
 
 
 def classify(

@@ -45,6 +45,7 @@ from validation.measure.noise import (
     Reading,
     attribute_divergence,
     classify_change,
+    floor_for,
     noise_floor,
 )
 from validation.nightly.baseline import VERDICT_RANK
@@ -240,7 +241,8 @@ def classify(row: dict[str, Any]) -> str:
         return "new"
     if not isinstance(row["verdict_b"], str):
         return "missing"
-    return classify_change(_reading(row, "a"), _reading(row, "b"), str(row["scenario"]))
+    floor = floor_for(row["scenario"], row["metric"])
+    return classify_change(_reading(row, "a"), _reading(row, "b"), floor)
 
 
 def _version_moved(row: dict[str, Any]) -> bool:
@@ -264,7 +266,9 @@ def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
         ),
         "change",
     )
-    matched["noise_floor"] = [noise_floor(*judged(r), str(r["scenario"])) for r in records]
+    matched["noise_floor"] = [
+        noise_floor(*judged(r), floor_for(r["scenario"], r["metric"])) for r in records
+    ]
     found = matched[matched["change"] != "unchanged"].copy()
     found["order"] = [CHANGES.index(change) for change in found["change"]]
     found = found.sort_values(["order", *KEY_COLUMNS], kind="stable")

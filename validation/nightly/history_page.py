@@ -34,7 +34,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_atomically
-from validation.measure.noise import NOISE_RULE
+from validation.measure.noise import FAILS_A_RUN, NOISE_RULE, floor_for
 from validation.nightly.history import (
     KEY_COLUMNS,
     SELECTION_RULES,
@@ -143,7 +143,8 @@ class SeriesView:
 
     @property
     def regressed(self) -> bool:
-        return self.last.get("baseline") == "regressed"
+        """The latest run's row fails the run against its baseline (``noise.FAILS_A_RUN``)."""
+        return self.last.get("baseline") in FAILS_A_RUN
 
     @property
     def expanded(self) -> bool:
@@ -260,7 +261,9 @@ def build_series(history: History) -> list[SeriesView]:
     quantity = np.where(use_error[:, None], arrays["error"], arrays["value"])
     kinds = point_kinds(quantity, arrays["present"], arrays["ran"])
     tolerance = last_finite(arrays["tolerance"])
-    steps = detect_steps(quantity, list(keys["scenario"]))  # NaN: no number, not counted
+    pairs = zip(keys["scenario"], keys["metric"], strict=True)
+    floors = [floor_for(scene, metric) for scene, metric in pairs]
+    steps = detect_steps(quantity, floors)  # NaN: no number at that run, not counted
     changes = version_changes(history.runs)
     spark_at = spark_positions(quantity)
     taken: set[str] = set()
