@@ -222,10 +222,12 @@ def test_the_history_finds_a_step_where_the_rule_sees_a_move():
     series = {
         "19x": (np.array([1.4e-7] * 10 + [2.6e-6] * 10), [(10, 1)]),
         "within the floor": (np.array([1e-3] * 10 + [WITHIN] * 10), []),
+        "just beyond the floor": (np.array([1e-3] * 10 + [GROWN] * 10), [(10, 1)]),
         "finite -> inf": (np.array([1e-3] * 10 + [INF] * 10), [(10, 1)]),
         "order 0.98 -> 0": (np.array([0.98] * 10 + [0.0] * 10), [(10, -1)]),
     }
     steps = detect_steps(np.vstack([values for values, _ in series.values()]))
+    assert len(steps) == len(series)
     for (what, (values, expected)), found in zip(series.items(), steps, strict=True):
         assert [(s.at, s.direction) for s in found] == expected, (what, found)
         rule = classify_change(Reading(error=values[0]), Reading(error=values[-1]))
