@@ -339,6 +339,20 @@ def test_a_baseline_charges_divergence_to_the_reference_and_covers_every_class()
     assert exit_failed([classified[3]]), "changed fails the run like a regression"
 
 
+def test_a_version_that_reads_as_a_number_is_no_move(tmp_path):
+    """An engine version such as 3.10 stays text when a baseline is read back: it did not
+    move, so a divergence against that engine is not charged to it."""
+    rows = [
+        {**results_row("mini", "energy_drift", 1e-3, 0.01), "engine_version": "3.10"},
+        {**results_row("mujoco", "divergence", 1e-4), "expected_kind": "engine:mini"},
+    ]
+    path = tmp_path / "baseline.csv"
+    baseline_table(pd.DataFrame(rows), {SCENE: "abc"}).to_csv(path, index=False)
+    now = [dict(rows[0]), {**rows[1], "value": 4e-3, "error": 4e-3}]
+    classified, _ = classify(now, read_baseline(path), {SCENE: "abc"})
+    assert [r["baseline"] for r in classified] == ["unchanged", "regressed"], classified
+
+
 def test_compare_charges_divergence_to_the_reference():
     before = [
         results_row("mini", "energy_drift", 1e-3, 0.01),

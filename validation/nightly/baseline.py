@@ -112,7 +112,8 @@ def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.Da
 def read_baseline(path: Path) -> pd.DataFrame:
     """A baseline file; ValueError naming the file and what is missing when it is not one."""
     try:
-        table = pd.read_csv(path, dtype={"scene_sha256": str}, keep_default_na=False)
+        text = {"scene_sha256": str, "engine_version": str}  # "3.10" is no number 3.1
+        table = pd.read_csv(path, dtype=text, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
     absent = [c for c in REQUIRED_COLUMNS if c not in table.columns]
