@@ -27,7 +27,12 @@ FAILING = ("error", "model_mismatch", "unstable", "failed")
 
 NEWS_SECTIONS = (
     ("regressed", "Regressions since the baseline", True),
-    ("changed", "Changed (a row without an error whose value moved: fails the run)", True),
+    (
+        "changed",
+        "Changed (a row without an error whose value moved, an error that appeared, or a "
+        "verdict that changed within its rank: fails the run)",
+        True,
+    ),
     (
         "large_improvements",
         f"Large improvements (error {LARGE_IMPROVEMENT:g}x smaller or more, or no longer "
