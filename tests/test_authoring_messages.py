@@ -39,7 +39,7 @@ def test_a_shape_written_as_a_word_is_told_the_mapping_to_write(tmp_path):
 def test_a_quoted_tolerance_is_one_message_with_the_fix(tmp_path):
     found = _problems(
         tmp_path,
-        f"dt: 1.0e-3\nduration: 1.0\nbodies:\n{GOOD_BODY}checks:\n  energy_drift: \"1e-3\"\n",
+        f'dt: 1.0e-3\nduration: 1.0\nbodies:\n{GOOD_BODY}checks:\n  energy_drift: "1e-3"\n',
     )
     assert len(found) == 1, found  # not one per member of the union
     assert "checks.energy_drift:" in found[0] and "without quotes" in found[0], found

@@ -1,12 +1,12 @@
-"""docs/metrics.md is what ``validation.docs_reference`` generates from the definitions: the
+"""docs/metrics.md is what ``validation.measure.docs_reference`` generates from the definitions: the
 documentation and the code cannot drift apart."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from validation.docs_reference import DOC_PATH, render
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
+from validation.measure.docs_reference import DOC_PATH, render
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -14,7 +14,7 @@ REPOSITORY = Path(__file__).resolve().parent.parent
 def test_the_metric_reference_is_the_generated_one():
     on_disk = (REPOSITORY / DOC_PATH).read_text()
     assert on_disk == render(), (
-        f"{DOC_PATH} is stale: python -m validation.docs_reference > {DOC_PATH}"
+        f"{DOC_PATH} is stale: python -m validation.measure.docs_reference > {DOC_PATH}"
     )
 
 

@@ -8,7 +8,7 @@ import importlib.metadata
 import pytest
 
 from validation.cli import main
-from validation.listing import LIST_WIDTH
+from validation.jobs.listing import LIST_WIDTH
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
 from validation.scenario import BUNDLED_SCENARIOS
 from validation.scenario.engine_spec import ENGINE_OPTIONS

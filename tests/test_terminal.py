@@ -254,3 +254,52 @@ def test_progress_on_an_injected_console_that_is_not_a_terminal_prints_lines():
     lines = screen.getvalue().splitlines()
     assert [line.split()[1] for line in lines] == ["1/2", "2/2"], lines
     assert "\x1b[" not in screen.getvalue()  # no bar, no cursor codes in a log
+
+
+def test_the_terminal_news_has_the_reports_sections_and_counts():
+    """The same run gives the same words and counts in the terminal and in report.html's news
+    (both from ``report.news.news_selections``), regressions and new failures named."""
+    import pandas as pd
+
+    from validation.jobs.terminal import news
+    from validation.report.news import NEWS_WORDS, build_news
+
+    rows = [
+        {**_row("a", "mini", "energy_drift", 2e-3, 1e-3, "failed"), "baseline": "regressed"},
+        {**_row("b", "mini", "energy_drift", 2e-3, 1e-3, "failed"), "baseline": "new"},
+        {**_row("c", "mini", "energy_drift", 1e-4, 1e-3, "ok"), "baseline": "unchanged"},
+        {**_row("d", "mini", "sweep_order.x", None, None, "ok"), "baseline": "changed"},
+    ]
+    rows = [{**row, "outcome": outcome_of(row)} for row in rows]
+    comparison = pd.DataFrame(
+        [
+            *(
+                {
+                    "scenario": r["scenario"],
+                    "engine": r["engine"],
+                    "metric": r["metric"],
+                    "baseline": r["baseline"],
+                    "error": r["error"],
+                    "baseline_error": 1e-4,
+                }
+                for r in rows
+            ),
+            {
+                "scenario": "a",
+                "engine": "mini",
+                "metric": "gone",
+                "baseline": "missing",
+                "error": math.nan,
+                "baseline_error": 1.0,
+            },
+        ]
+    )
+    text = news(rows, comparison, "base.csv")
+    page = build_news(pd.DataFrame(rows), comparison, {})
+    for section in page["sections"]:
+        assert f"{section['count']} {NEWS_WORDS[section['key']]}" in text, (section, text)
+    assert "1 regressed" in text and "1 new failures" in text and "1 changed" in text, text
+    assert "  regressed: a · mini · energy_drift (error 0.002)" in text, text
+    assert "  new failure: b · mini · energy_drift" in text, text
+    assert "  changed: d · mini · sweep_order.x" in text, text
+    assert max(len(line) for line in text.splitlines()) <= 100

@@ -19,10 +19,10 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.jobs.check import check_main
 from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
+from validation.jobs.listing import list_main, version_text
 from validation.jobs.run import RESUME_ALONE, run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
-from validation.listing import list_main, version_text
 from validation.nightly.baseline import BASELINE_ACTIONS, baseline_main
 from validation.nightly.compare import compare_main
 from validation.nightly.history_page import history_main

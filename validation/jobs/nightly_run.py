@@ -17,10 +17,8 @@ from validation.files import write_atomically
 from validation.jobs.plan import BadInputError, Plan
 from validation.jobs.sweep import SWEEP_METRICS
 from validation.nightly.baseline import (
-    CLASSES,
     KEY,
     classify,
-    is_new_failure,
     read_baseline,
     scene_hash,
 )
@@ -133,20 +131,20 @@ def scene_hashes(plan: Plan) -> dict[str, dict[str, str]]:
 
 def against_baseline(
     rows: list[dict], options: NightlyOptions, hashes: dict[str, dict[str, str]], folder: Path
-) -> tuple[list[dict], str]:
-    """The rows with their ``baseline`` class, ``baseline.csv`` written into the run folder
-    (every class, the missing rows too, each with the baseline's value and error), and a
-    summary line; the rows unchanged and '' without a baseline."""
+) -> tuple[list[dict], pd.DataFrame | None]:
+    """The rows with their ``baseline`` class, and ``baseline.csv`` (every class, the missing
+    rows too, each with the baseline's value and error), written into the run folder and
+    returned; the rows unchanged and None without a baseline."""
     if options.baseline_table is None:
-        return rows, ""
+        return rows, None
     sha = {name: entry["sha256"] for name, entry in hashes.items()}
     classified, missing = classify(rows, options.baseline_table, sha)
     before = {_key(r): r for r in options.baseline_table.to_dict("records")}
-    table = [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
-    write_atomically(folder / BASELINE_FILE, pd.DataFrame(table).to_csv(index=False))
-    counts = pd.Series([r["baseline"] for r in table]).value_counts()
-    words = ", ".join(f"{int(counts.get(c, 0))} {c}" for c in CLASSES if counts.get(c, 0))
-    return classified, f"against {options.baseline}: {words}"
+    comparison = pd.DataFrame(
+        [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
+    )
+    write_atomically(folder / BASELINE_FILE, comparison.to_csv(index=False))
+    return classified, comparison
 
 
 def _key(row: dict) -> tuple[str, ...]:
@@ -167,16 +165,6 @@ def _comparison(row: dict, before: dict) -> dict:
         "baseline_value": before.get("value"),
         "baseline_error": before.get("error"),
     }
-
-
-def outcome_summary(rows: list[dict]) -> str:
-    """``k known, f fixed, n new failures`` (the nightly words of the run's last line)."""
-    outcomes = pd.Series([outcome_of(r) for r in rows]).value_counts()
-    new = sum(is_new_failure(r) for r in rows)
-    return (
-        f"{int(outcomes.get('known', 0))} known, {int(outcomes.get('fixed', 0))} fixed, "
-        f"{new} new failures"
-    )
 
 
 def write_ci_files(rows: list[dict], options: NightlyOptions) -> None:

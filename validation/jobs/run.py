@@ -46,7 +46,6 @@ from validation.jobs.nightly_run import (
     NightlyOptions,
     against_baseline,
     nightly_options,
-    outcome_summary,
     record_history,
     run_selection,
     scene_hashes,
@@ -63,7 +62,7 @@ from validation.jobs.sweep import (
     sweep_job,
     with_cross_checks,
 )
-from validation.jobs.terminal import Progress, summary
+from validation.jobs.terminal import SUMMARY_WIDTH, Progress, news, packed_lines, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
@@ -573,7 +572,7 @@ def _finish(
     if resumed:
         total = len(plan.jobs) + len(_sweep_work(plan))
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}
-    rows, compared = against_baseline(rows, options, hashes, output.run_folder)
+    rows, comparison = against_baseline(rows, options, hashes, output.run_folder)
     write_run(output.run_folder, rows, executed.series, executed.impacts, provenance)
     if executed.sweep_rows:
         write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
@@ -584,16 +583,16 @@ def _finish(
         output.keep_history()
     recorded = record_history(output.destination, options)
     print(summary(rows, color=sys.stdout.isatty()))
-    bad = sum(row["status"] in BAD_STATUSES for row in rows)
-    notes = [n for n in (outcome_summary(rows), compared, recorded, note) if n]
+    print(news(rows, comparison, options.baseline))
+    total = len(plan.jobs) + len(_sweep_work(plan))
+    journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
+    written = f"{len(rows)} rows -> {output.destination / RESULTS_FILE}"
     print(
-        (
-            f"{resumed} of {len(plan.jobs) + len(_sweep_work(plan))} jobs from the journal; "
-            if resumed
-            else ""
+        "\n".join(
+            packed_lines(
+                [n for n in (journaled, written, recorded, note) if n], SUMMARY_WIDTH, "", "; "
+            )
         )
-        + f"{len(rows)} rows, {bad} failed or unstable -> {output.destination / RESULTS_FILE}"
-        + "".join(f"; {n}" for n in notes)
     )
     if note:  # the record is published, but the page a reader opens is not: never exit 0
         return EXIT_BAD_INPUT

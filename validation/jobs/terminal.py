@@ -17,6 +17,7 @@ from collections import Counter
 from collections.abc import Iterable
 from types import TracebackType
 
+import pandas as pd
 from rich import box
 from rich.console import Console
 from rich.progress import (
@@ -32,6 +33,7 @@ from rich.text import Text
 
 from validation.contract import SWEEP_ROW_PREFIXES
 from validation.nightly.known import outcome_of
+from validation.report.news import NEWS_SECTIONS, NEWS_WORDS, news_selections
 from validation.report.outcomes import OUTCOME_ORDER, error_ratio, outcome_label
 
 BAR_WIDTH = 30
@@ -239,7 +241,7 @@ def _cell_text(word: str, ratio: float | None, worst: bool, width: int | None) -
     return f"{head}{separator}{_ratio_text(ratio)}"
 
 
-def _packed(entries: Iterable[str], width: int, prefix: str, sep: str = "  ") -> list[str]:
+def packed_lines(entries: Iterable[str], width: int, prefix: str, sep: str = "  ") -> list[str]:
     """``prefix`` then ``entries`` joined by ``sep``, in lines of at most ``width`` columns
     (an entry is never split; continuation lines are indented under the first entry)."""
     indent = " " * (len(prefix) + 1) if prefix else ""
@@ -352,15 +354,63 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
         legacy_windows=False,
     )
     console.print(table)
-    legend = _packed((f"{labels[e]}={e}" for e in engines), width, "engines:")
+    legend = packed_lines((f"{labels[e]}={e}" for e in engines), width, "engines:")
     key = [f"{ABBREVIATIONS[word]}={word}" for word in ABBREVIATIONS if word in used]
     key += [f"{WORST_MARKER} worst cell of its scene", f"{NO_TOLERANCE} no tolerance", RATIO_KEY]
-    tally = _packed(
+    tally = packed_lines(
         (f"{n} {outcome_label(o)}" for o, n in counts(rows).items()),
         width,
         f"{len(rows)} rows:",
         ", ",
     )
-    for line in [*legend, *_packed(key, width, "key:"), *tally]:
+    for line in [*legend, *packed_lines(key, width, "key:"), *tally]:
         console.print(line, highlight=False, markup=False, soft_wrap=False)
     return "\n".join(line.rstrip() for line in console.file.getvalue().splitlines())
+
+
+NAMED_NEWS = ("regressed", "changed", "new_failures")
+"""The news sections whose rows the terminal names one by one (what a nightly reader needs
+first); the others are counted, as the report's collapsed sections."""
+
+MAX_NAMED = 10
+"""Rows named per section; the rest are counted, and every one is in report.html's news."""
+
+
+def _named(key: str, rows: pd.DataFrame, width: int) -> list[str]:
+    """``  regressed: scene · engine · metric (error 3.1e-3)``, one per row, within ``width``."""
+    word = NEWS_WORDS[key].removesuffix("s") if key == "new_failures" else NEWS_WORDS[key]
+    lines = []
+    for _, row in rows.head(MAX_NAMED).iterrows():
+        error = pd.to_numeric(pd.Series([row.get("error")]), errors="coerce").iloc[0]
+        said = "" if pd.isna(error) else f" (error {error:.3g})"
+        line = f"  {word}: {row['scenario']} · {row['engine']} · {row['metric']}{said}"
+        lines.append(line if len(line) <= width else line[: width - 1] + "…")
+    if len(rows) > MAX_NAMED:
+        lines.append(f"  ... and {len(rows) - MAX_NAMED} more {NEWS_WORDS[key]} in report.html")
+    return lines
+
+
+def news(
+    rows: list[dict],
+    comparison: pd.DataFrame | None = None,
+    baseline: object = None,
+    width: int = SUMMARY_WIDTH,
+) -> str:
+    """The run's news as report.html's news counts it (``report.news.news_selections``: the
+    same sections, the same counts): a line of counts, then the regressions, changed rows and
+    new failures by name. ``comparison`` is the run's baseline.csv (None without a baseline),
+    ``baseline`` the baseline's file, named in the first line."""
+    table = pd.DataFrame(rows)
+    table["outcome"] = [outcome_of(row) for row in rows]
+    selected = news_selections(table, comparison)
+    against = "baseline" in table and table["baseline"].fillna("").astype(bool).any()
+    keys = [key for key, _, _ in NEWS_SECTIONS]
+    if not against:
+        keys = ["new_failures", "fixed", "known"]  # the sections a run without a baseline has
+    counts = [f"{len(selected[key])} {NEWS_WORDS[key]}" for key in keys]
+    head = f"news against {baseline}:" if against else "news (no baseline):"
+    lines = packed_lines(counts, width, head, ", ")
+    for key in NAMED_NEWS:
+        if key in keys:
+            lines += _named(key, selected[key], width)
+    return "\n".join(lines)

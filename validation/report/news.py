@@ -1,4 +1,4 @@
-"""What report.html leads with (issue 12): the news since the baseline, and a scene's own sweep.
+"""What report.html leads with: the news since the baseline, and a scene's own sweep.
 
 The news, in the page's order: regressions since the baseline, rows without an error whose
 value changed, large improvements (``noise.LARGE_IMPROVEMENT``: unexplained until someone
@@ -53,6 +53,20 @@ NEWS_SECTIONS = (
 )
 """(key, heading, open): the news sections in order; the last ones start collapsed."""
 
+NEWS_WORDS = {
+    "regressed": "regressed",
+    "changed": "changed",
+    "large_improvements": "large improvements",
+    "new_failures": "new failures",
+    "fixed": "fixed",
+    REFERENCE_MOVED: "moved with the reference",
+    "missing": "missing",
+    "unchanged": "unchanged",
+    "known": "known",
+}
+"""The news sections' short words, for the terminal's news line (the same sections and counts
+as the page's news: ``news_selections``)."""
+
 MAX_NEWS_ROWS = 200
 """Rows listed per section; the rest are counted (every row is in the scene cards)."""
 
@@ -105,7 +119,10 @@ def large_improvements(baseline: pd.DataFrame | None) -> pd.DataFrame:
     return found
 
 
-def _selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[str, pd.DataFrame]:
+def news_selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[str, pd.DataFrame]:
+    """The rows of each news section (``NEWS_SECTIONS``) of a judged results table (an
+    ``outcome`` column, a ``baseline`` class when run against one) and the run's baseline.csv:
+    what the page and the terminal both count."""
     classes = table["baseline"].fillna("") if "baseline" in table else pd.Series("", table.index)
     failing = table["outcome"].isin(FAILING)
     missing = (
@@ -129,7 +146,7 @@ def build_news(
 ) -> dict[str, Any]:
     """The news sections (``NEWS_SECTIONS``) of a judged results table, each with its count,
     listed rows and how many more there are; ``against_baseline`` says whether it had one."""
-    selected = _selections(table, baseline)
+    selected = news_selections(table, baseline)
     sections = []
     for key, heading, is_open in NEWS_SECTIONS:
         rows = selected[key]
