@@ -27,6 +27,7 @@ from validation.measure.definitions import (
     SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
+from validation.report.closed_form import closed_form_charts, read_expectations
 from validation.report.news import build_news, build_sweep_cards
 from validation.report.outcomes import (
     OUTCOME_COLOURS,
@@ -37,16 +38,17 @@ from validation.report.outcomes import (
     outcome_label,
     worst_first,
 )
+from validation.report.palette import engine_colour
 from validation.report.plots import (
     PLOT_LIMIT,
     PLOTTED_IMPACTS,
     PLOTTED_SERIES,
     drawable,
-    engine_styles,
     plot_restitution,
     plot_scene_series,
 )
 from validation.report.read import RunData
+from validation.report.svgchart import engine_legend, figure_html
 
 # --- page size limits --------------------------------------------------------------------------
 
@@ -54,6 +56,10 @@ MAX_OFFENDERS = 20  # rows in the "worst offenders" table at the top
 MAX_IMPACT_ROWS = 40  # impacts listed per scene; the rest stay in impacts.csv
 IMPACTS_OPEN_UP_TO = 12  # an impacts table this short is shown expanded
 SETTINGS_INLINE_UP_TO = 6  # more settings than this are folded in the scene's runs table
+
+OPEN_ROWS = ("error", "model_mismatch", "unstable", "failed", "known", "fixed")
+"""A scene's rows table starts open when one of its rows has one of these outcomes (the rows a
+reader comes for); a scene whose rows all passed or were not judged shows its summary line."""
 
 
 def format_number(value: Any, raw: str = "") -> str:
@@ -151,8 +157,25 @@ def build_rows(rows: pd.DataFrame, anchors: dict[str, str] | None = None) -> lis
             "outcome": row["outcome"],
             "outcome_label": outcome_label(row["outcome"]),
             "message": row["message"],
+            "known": str(row.get("known", "") or "")
+            if row["outcome"] in ("known", "fixed")
+            else "",
         }
         for _, row in worst_first(rows).iterrows()
+    ]
+
+
+def is_zero_unjudged(rows: pd.DataFrame) -> pd.Series:
+    """Rows with no tolerance whose value is exactly zero (a quantity the scene cannot move in
+    that engine): listed in one line, not one row each."""
+    return (rows["outcome"] == "no_tolerance") & (rows["value"] == 0.0)
+
+
+def zero_line(rows: pd.DataFrame) -> list[dict[str, Any]]:
+    """The collapsed rows (``is_zero_unjudged``) as metric -> the engines it is zero in."""
+    return [
+        {"metric": metric, "engines": ", ".join(dict.fromkeys(group["engine"]))}
+        for metric, group in rows.groupby("metric", sort=False)
     ]
 
 
@@ -301,48 +324,88 @@ def _engine_order(table: pd.DataFrame, series: pd.DataFrame | None) -> list[str]
     return engines
 
 
+DRIFT_METRICS = ("energy_drift", "linear_momentum_drift", "angular_momentum_drift")
+"""The conserved quantities charted over time when a row of the scene measures their drift."""
+
+
+def _judged_drifts(rows: pd.DataFrame) -> set[str]:
+    """The drift metrics of a scene with a number in some engine that is judged or non-zero
+    (``plots.PLOT_QUANTITIES``): a drift identically zero without a tolerance is one line."""
+    mine = rows[
+        rows["metric"].isin(DRIFT_METRICS) & rows["value"].notna() & ~is_zero_unjudged(rows)
+    ]
+    return set(mine["metric"])
+
+
+def _scene_source(provenance: dict | None, scene: str) -> tuple[str, str]:
+    """The scene's description and file, as the run recorded them (empty when absent)."""
+    scenes = (provenance or {}).get("scenes")
+    entry = scenes.get(scene) if isinstance(scenes, dict) else None
+    if not isinstance(entry, dict):
+        return "", ""
+    description, source = entry.get("description", ""), entry.get("file", "")
+    return (
+        description if isinstance(description, str) else "",
+        source if isinstance(source, str) else "",
+    )
+
+
 def build_scene(
     scene: str,
     anchor: str,
     rows: pd.DataFrame,
     run: RunData,
     engines: list[str],
-    colours: dict[str, tuple[str, str]],
 ) -> dict[str, Any]:
-    """One scene's section: runs, the plot, the impacts and the checks."""
-    plot_note = ""
-    svg = None
+    """One scene's section: description and file, runs, the charts (the quantities under test
+    against their closed forms, the conserved quantities judged, e against impact speed),
+    the sweep charts, the impacts and the rows."""
+    notes = []
+    charts = []
+    scene_engines = [e for e in engines if e in set(rows["engine"])]
+    expectations = read_expectations(run.provenance, scene, run.warnings)
+    closed, left_out = closed_form_charts(scene, run.trace, expectations, scene_engines)
+    charts += closed
+    if left_out:
+        notes.append(f"{left_out} more closed-form charts not drawn (the rows list every check)")
     clipped = 0
     if run.series is None:
-        plot_note = f"no {SERIES_FILE} in this run"
+        notes.append(f"no {SERIES_FILE} in this run")
     else:
         series, clipped = drawable(run.series[run.series["scenario"] == scene], PLOTTED_SERIES)
-        if series.empty:
-            plot_note = "no time series recorded for this scene"
-        else:
-            svg = Markup(plot_scene_series(scene, series, engines, colours))
-    restitution_svg = None
+        judged = _judged_drifts(rows)
+        if not series.empty and judged:
+            charts += plot_scene_series(scene, series, scene_engines, judged)
     if run.impacts is not None:
         mine, clipped_impacts = drawable(
             run.impacts[run.impacts["scenario"] == scene], PLOTTED_IMPACTS
         )
         clipped += clipped_impacts
         if not mine.empty:
-            restitution_svg = Markup(plot_restitution(scene, mine, engines, colours))
+            charts.append(plot_restitution(scene, mine, scene_engines))
     if clipped:
-        plot_note = (
-            f"{plot_note + '; ' if plot_note else ''}{clipped} values non-finite or beyond "
-            f"±{PLOT_LIMIT:g} not drawn (gaps); the CSV files keep them"
+        notes.append(
+            f"{clipped} values non-finite or beyond ±{PLOT_LIMIT:g} not drawn (gaps); the CSV "
+            "files keep them"
         )
+    description, source = _scene_source(run.provenance, scene)
+    zero = is_zero_unjudged(rows)
+    shown = rows[~zero]
     return {
         "name": scene,
         "anchor": anchor,
+        "description": description,
+        "source": source,
         "runs": build_runs(rows, engines),
-        "svg": svg,
-        "restitution_svg": restitution_svg,
-        "plot_note": plot_note,
+        "engine_legend": Markup(engine_legend(scene_engines)),
+        "charts": [Markup(figure_html(chart, set(scene_engines))) for chart in charts],
+        "plot_note": "; ".join(notes),
         "impacts": build_impacts(run.impacts, scene),
-        "rows": build_rows(rows),
+        "rows": build_rows(shown),
+        "rows_open": bool(rows["outcome"].isin(OPEN_ROWS).any()),
+        "row_chips": count_chips(list(shown["outcome"])),
+        "zero_rows": zero_line(rows[zero]),
+        "zero_count": int(zero.sum()),
         "sweeps": build_sweep_cards(run.sweep, scene),
     }
 
@@ -351,7 +414,6 @@ def build_context(run: RunData) -> dict[str, Any]:
     """Everything the template prints, as plain strings, lists and dicts."""
     table = classify_rows(run.results, run.warnings)
     engines = _engine_order(table, run.series)
-    colours = engine_styles(engines)
     scenes = scene_order(table)
     taken: set[str] = set()
     anchors = {scene: slug(scene, taken) for scene in scenes}
@@ -384,7 +446,7 @@ def build_context(run: RunData) -> dict[str, Any]:
         },
         "scene_count": len(scenes),
         "engines": engines,
-        "engine_colours": {e: c for e, (c, _) in colours.items()},
+        "engine_colours": {e: engine_colour(e) for e in engines},
         "run_chips": count_chips([o for o in cell_outcomes if o != "not_run"]),
         "row_chips": count_chips(list(table["outcome"])),
         "row_count": len(table),
@@ -393,9 +455,7 @@ def build_context(run: RunData) -> dict[str, Any]:
         "offenders": build_rows(offenders, anchors)[:MAX_OFFENDERS],
         "offenders_hidden": max(0, len(offenders) - MAX_OFFENDERS),
         "scenes": [
-            build_scene(
-                scene, anchors[scene], table[table["scenario"] == scene], run, engines, colours
-            )
+            build_scene(scene, anchors[scene], table[table["scenario"] == scene], run, engines)
             for scene in scenes
         ],
         "legend": build_legend(table),
