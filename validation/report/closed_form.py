@@ -265,30 +265,21 @@ def closed_form_charts(
     if trace is None or not expectations:
         return [], 0
     mine = trace[trace["scenario"] == scene]
+    lines = dict(tuple(mine.groupby(["body", "quantity", "engine"], sort=False)))
     charts = []
     groups = _groups(expectations)
     for (body, quantity, component), records in list(groups.items())[:MAX_CHARTS]:
-        rows = mine[(mine["body"] == body) & (mine["quantity"] == quantity)]
-        if rows.empty:
+        found = [(e, lines[body, quantity, e]) for e in engines if (body, quantity, e) in lines]
+        if not found:
             continue
         traces = []
-        for engine in engines:
-            line = rows[rows["engine"] == engine].sort_values("t", kind="stable")
-            if line.empty:
-                continue
+        for engine, line in found:
+            t = line["t"].to_numpy(float)
+            order = np.argsort(t, kind="stable")
             style = engine_style(engine)
-            traces.append(
-                Trace(
-                    engine,
-                    line["t"].to_numpy(float),
-                    line[component].to_numpy(float),
-                    style.colour,
-                    style.dash,
-                )
-            )
-        if not traces:
-            continue
-        t_end = float(rows["t"].max())
+            values = line[component].to_numpy(float)[order]
+            traces.append(Trace(engine, t[order], values, style.colour, style.dash))
+        t_end = max(float(line["t"].max()) for _, line in found)
         pattern, unit = QUANTITY_WORDS[quantity]
         charts.append(
             Chart(

@@ -41,7 +41,12 @@ MAX_POINTS = 240
 nothing visible is lost; spikes and explosions survive the bucketing."""
 
 COORDINATE_DECIMALS = 1
-"""Decimals of an SVG coordinate (px): 0.1 px is below what a screen shows."""
+"""Decimals of an SVG coordinate (px) of text, markers and the grid: 0.1 px is below what a
+screen shows."""
+
+LINE_DECIMALS = 0
+"""Decimals of a line's points (px): whole pixels, the resolution of the screen the chart is
+drawn on (380 px wide), and two thirds of the bytes of 0.1 px; lines are most of a page."""
 
 MIN_RELATIVE_SPAN = 1e-6
 """An axis spans at least this fraction of its largest |value|: a quantity conserved to
@@ -117,8 +122,9 @@ def thin_line(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS):
     return t[index], y[index]
 
 
-def _number(value: float) -> str:
-    text = f"{value:.{COORDINATE_DECIMALS}f}".rstrip("0").rstrip(".")
+def _number(value: float, decimals: int = COORDINATE_DECIMALS) -> str:
+    text = f"{value:.{decimals}f}"
+    text = text.rstrip("0").rstrip(".") if "." in text else text
     return "0" if text in ("-0", "") else text
 
 
@@ -215,15 +221,43 @@ class _Scale:
 
 
 def _runs(x: np.ndarray, y: np.ndarray) -> list[str]:
-    """Polyline point lists, split where a point is not drawable (a gap)."""
+    """Polyline point lists at line resolution (``LINE_DECIMALS``), split where a point is not
+    drawable (a gap); a point that repeats its predecessor, or lies between two neighbours on
+    the same horizontal or vertical pixel line, adds nothing drawn and is left out (a flat
+    conserved quantity is two points, not 240)."""
     good = np.isfinite(x) & np.isfinite(y)
     found, current = [], []
-    for xi, yi, ok in zip(x.tolist(), y.tolist(), good.tolist(), strict=True):
-        if ok:
-            current.append(f"{_number(xi)},{_number(yi)}")
-        elif current:
-            found, current = [*found, current], []
-    return [" ".join(run) for run in ([*found, current] if current else found) if run]
+    for xi, yi, ok in zip(
+        np.round(x, LINE_DECIMALS).tolist(),
+        np.round(y, LINE_DECIMALS).tolist(),
+        good.tolist(),
+        strict=True,
+    ):
+        if not ok:
+            found, current = ([*found, current] if current else found), []
+            continue
+        point = (xi, yi)
+        if current and current[-1] == point:
+            continue
+        if len(current) >= 2 and _between(current[-2], current[-1], point):
+            current[-1] = point
+            continue
+        current.append(point)
+    runs = [*found, current] if current else found
+    return [
+        " ".join(f"{_number(a, LINE_DECIMALS)},{_number(b, LINE_DECIMALS)}" for a, b in run)
+        for run in runs
+    ]
+
+
+def _between(first: tuple, middle: tuple, last: tuple) -> bool:
+    """``middle`` lies on the straight horizontal or vertical segment from ``first`` to ``last``."""
+    for axis in (0, 1):
+        other = 1 - axis
+        if first[other] == middle[other] == last[other]:
+            low, high = sorted((first[axis], last[axis]))
+            return low <= middle[axis] <= high
+    return False
 
 
 def _marker_path(kind: str, x: np.ndarray, y: np.ndarray) -> str:
