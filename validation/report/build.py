@@ -56,11 +56,15 @@ from validation.report.svgchart import engine_legend, figure_html
 MAX_OFFENDERS = 20  # rows in the "worst offenders" table at the top
 MAX_IMPACT_ROWS = 40  # impacts listed per scene; the rest stay in impacts.csv
 IMPACTS_OPEN_UP_TO = 12  # an impacts table this short is shown expanded
-SETTINGS_INLINE_UP_TO = 6  # more settings than this are folded in the scene's runs table
 
-OPEN_ROWS = ("error", "model_mismatch", "unstable", "failed", "known", "fixed")
+SETTINGS_INLINE_UP_TO = 3
+"""A run's settings that differ from its spec's (provenance.json) are listed inline up to this
+many; more are folded under their count (they are long: one line of the table each)."""
+
+OPEN_ROWS = ("error", "model_mismatch", "unstable", "failed", "fixed")
 """A scene's rows table starts open when one of its rows has one of these outcomes (the rows a
-reader comes for); a scene whose rows all passed or were not judged shows its summary line."""
+reader comes for: news); otherwise, known findings included (listed with their reasons in the
+news), it shows its summary line and opens on a click."""
 
 
 def format_number(value: Any, raw: str = "") -> str:
@@ -180,19 +184,29 @@ def zero_line(rows: pd.DataFrame) -> list[dict[str, Any]]:
     ]
 
 
-def _pretty_settings(text: str) -> tuple[str, int]:
-    """The settings JSON of a row as ``k=v, ...`` and the number of settings."""
+def _pretty_settings(text: str, common: Any = None) -> tuple[str, int, int]:
+    """The settings JSON of a row as ``k=v, ...`` (those that differ from ``common``, the
+    engine spec's settings in provenance.json), the number of settings, and how many of them
+    are as in provenance (listed there once, not in every scene)."""
     try:
         settings = json.loads(text) if text else {}
     except json.JSONDecodeError:
-        return text, 1
-    if isinstance(settings, dict):
-        return ", ".join(f"{k}={v}" for k, v in settings.items()), len(settings)
-    return text, 1
+        return text, 1, 0
+    if not isinstance(settings, dict):
+        return text, 1, 0
+    common = common if isinstance(common, dict) else {}
+    own = {k: v for k, v in settings.items() if k not in common or str(common[k]) != str(v)}
+    shown = ", ".join(f"{k}={v}" for k, v in own.items())
+    return shown, len(settings), len(settings) - len(own)
 
 
-def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
-    """One line per engine of a scene: outcome, version, dt, steps, wall time, settings."""
+def build_runs(
+    rows: pd.DataFrame, engines: list[str], provenance: dict | None = None
+) -> list[dict[str, Any]]:
+    """One line per engine of a scene: outcome, version, dt, steps, wall time, and the
+    settings that differ from the spec's in provenance.json (the others are counted)."""
+    specs = (provenance or {}).get("engines")
+    specs = specs if isinstance(specs, dict) else {}
     runs = []
     by_engine = dict(tuple(rows.groupby("engine", sort=False)))
     for engine in engines:
@@ -201,7 +215,10 @@ def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
             continue
         first = mine.iloc[0]
         worst = worst_first(mine).iloc[0]["outcome"]
-        settings, count = _pretty_settings(first["settings"])
+        spec = specs.get(engine)
+        common = spec.get("settings") if isinstance(spec, dict) else None
+        settings, count, same = _pretty_settings(first["settings"], common)
+        own = count - same
         messages = [m for m in dict.fromkeys(mine.loc[mine["metric"] == "status", "message"]) if m]
         runs.append(
             {
@@ -214,6 +231,9 @@ def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
                 "wall_time_s": format_number(first["wall_time_s"], first["wall_time_s_text"]),
                 "settings": settings,
                 "settings_count": count,
+                "settings_common": same,
+                "settings_folded": own > SETTINGS_INLINE_UP_TO,
+                "settings_own": own,
                 "message": "; ".join(messages),
             }
         )
@@ -302,7 +322,9 @@ def build_provenance(provenance: dict[str, Any] | None, table: pd.DataFrame) -> 
                 "version": str(info.get("version", "")),
                 "settings": settings
                 if isinstance(settings, str)
-                else json.dumps(settings, indent=1, sort_keys=True, default=str),
+                else ", ".join(f"{k}={v}" for k, v in sorted(settings.items()))
+                if isinstance(settings, dict)
+                else json.dumps(settings, default=str),
                 "notes": [str(n) for n in info.get("notes", []) or []],
             }
         )
@@ -331,10 +353,15 @@ DRIFT_METRICS = ("energy_drift", "linear_momentum_drift", "angular_momentum_drif
 
 
 def _judged_drifts(rows: pd.DataFrame) -> set[str]:
-    """The drift metrics of a scene with a number in some engine that is judged or non-zero
-    (``plots.PLOT_QUANTITIES``): a drift identically zero without a tolerance is one line."""
+    """The drift metrics of a scene worth a chart (``plots.PLOT_QUANTITIES``): measured in
+    some engine with an outcome other than ``passed`` (a failure, a known finding, a drift
+    without tolerance that is not identically zero). A drift that passed everywhere is a flat
+    line that says no more than its rows."""
     mine = rows[
-        rows["metric"].isin(DRIFT_METRICS) & rows["value"].notna() & ~is_zero_unjudged(rows)
+        rows["metric"].isin(DRIFT_METRICS)
+        & rows["value"].notna()
+        & ~is_zero_unjudged(rows)
+        & (rows["outcome"] != "passed")
     ]
     return set(mine["metric"])
 
@@ -398,7 +425,7 @@ def build_scene(
         "anchor": anchor,
         "description": description,
         "source": source,
-        "runs": build_runs(rows, engines),
+        "runs": build_runs(rows, engines, run.provenance),
         "engine_legend": Markup(engine_legend(scene_engines)),
         "charts": [Markup(figure_html(chart, set(scene_engines))) for chart in charts],
         "plot_note": "; ".join(notes),
@@ -491,5 +518,4 @@ def build_context(run: RunData) -> dict[str, Any]:
         "outcome_colours": OUTCOME_COLOURS,
         "outcome_labels": {o: outcome_label(o) for o in OUTCOME_ORDER},
         "red_outcomes": RED_OUTCOMES,
-        "settings_inline_up_to": SETTINGS_INLINE_UP_TO,
     }

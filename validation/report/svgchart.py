@@ -24,7 +24,7 @@ import numpy as np
 
 from validation.report.palette import engine_style
 
-WIDTH, HEIGHT = 380, 230
+WIDTH, HEIGHT = 380, 200
 """px: one chart; three fit side by side in the report's 1200 px column."""
 
 MARGIN = {"left": 58, "right": 10, "top": 20, "bottom": 36}
@@ -36,9 +36,9 @@ FONT_PX = 11
 TICKS = 5
 """At most this many labelled ticks per axis: enough to read a value off."""
 
-MAX_POINTS = 240
-"""Points kept per line (buckets of min and max): about one per 1.3 px of the plot's width, so
-nothing visible is lost; spikes and explosions survive the bucketing."""
+MAX_POINTS = 180
+"""Points kept per line (buckets of min and max): about one per 1.7 px of the plot's 312 px
+width, so nothing visible is lost; spikes and explosions survive the bucketing."""
 
 COORDINATE_DECIMALS = 1
 """Decimals of an SVG coordinate (px) of text, markers and the grid: 0.1 px is below what a
