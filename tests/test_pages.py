@@ -19,7 +19,7 @@ from test_history import night, row, write_run
 
 from validation.cli import main
 from validation.contract import EXIT_OK
-from validation.nightly import history, history_page
+from validation.nightly import compare, history, history_page
 from validation.nightly.pages import render_page
 from validation.report import render
 from validation.report.palette import SPEC_STYLES, engine_colour
@@ -210,14 +210,16 @@ def compare_context(tmp_path: Path) -> dict:
     b = [row("bounce", "mini", "e", 5e-3), row("spin", "mini", "drift", 1e-4)]
     folders = [write_run(tmp_path / f"c{i}", rows, night(i + 1)) for i, rows in enumerate((a, b))]
     out = tmp_path / "cmp"
-    assert main(["compare", str(folders[0]), str(folders[1]), "--out", str(out)]) == EXIT_OK
-    from validation.nightly import compare
+    assert main(["compare", *map(str, folders), "--selection", "all", "--out", str(out)]) == 0
 
-    sides = [compare.resolve_run(str(f), "sqlite://") for f in folders]
-    every = compare.classified_rows(*sides)
+    shared = compare.shared_rows(
+        *(compare.resolve_run(str(f), "sqlite://") for f in folders), "all"
+    )  # as --selection all: every row of both runs
+    every = compare.classified_rows(shared.a, shared.b)
     moved = every[every["change"] != "unchanged"].reset_index(drop=True)
-    context = compare.build_context(*sides, moved, every[every["change"] == "unchanged"])
-    shared = compare.shared_rows(*sides)
+    context = compare.build_context(
+        shared.a, shared.b, moved, every[every["change"] == "unchanged"]
+    )
     return {**context, "selection": compare.selection_context(shared)}
 
 
