@@ -368,3 +368,22 @@ def test_a_library_sized_report_stays_within_2_mb(tmp_path):
     assert charts >= 5 * LIBRARY_SCENES, f"only {charts} charts: not the library's load"
     size = len(html.encode("utf-8"))
     assert size <= REPORT_BUDGET_BYTES, f"report.html weighs {size:,} bytes ({charts} charts)"
+
+
+def test_malformed_expectations_and_huge_traced_values_render_with_a_warning(tmp_path):
+    """provenance.json and trace.csv are read back as untrusted data: an expectation of the
+    wrong shape is left out with a warning, a traced value of 1e308 is a gap, not a crash."""
+    run_dir = write_synthetic_run(tmp_path / "run")
+    provenance = json.loads((run_dir / "provenance.json").read_text())
+    provenance["scenes"][SCENES[0]]["expect"] += [
+        {"kind": "velocity_at", "body": "ball", "time": 0.3, "value": [1.0]},  # not a vector
+        {"kind": "velocity_at", "body": "ball", "time": "soon", "value": [0, 0, 1]},
+        "not a record",
+    ]
+    (run_dir / "provenance.json").write_text(json.dumps(provenance))
+    trace = pd.read_csv(run_dir / "trace.csv")
+    trace.loc[trace.index[:3], "z"] = [1e308, -1e308, np.inf]
+    trace.to_csv(run_dir / "trace.csv", index=False)
+    html = render.render_report(run_dir).read_text(encoding="utf-8")
+    assert f"scenes.{SCENES[0]}.expect: 3 expectations not of the form the run writes" in html
+    assert "z(t) of ball" in html and "v_z(t) of ball" in html

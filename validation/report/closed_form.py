@@ -151,20 +151,36 @@ def _finite_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+VALUE_SHAPES = {
+    "points": "vector",
+    "after_impact": "vector",
+    "levels": "list",
+    "times": "list",
+    "zero": "number",
+}
+"""What an expectation's ``value`` is, by how it is drawn (``ClosedForm.expected``): a vector
+of three numbers, a non-empty list of numbers, or one number."""
+
+
 def _valid(record: Any) -> bool:
     """An expectation record as ``expectation_records`` writes it: a known kind, a body name,
-    finite numbers where numbers belong."""
+    a finite time where the kind has one, a value of the kind's shape (``VALUE_SHAPES``) of
+    finite numbers, an axis x, y or z."""
     if not isinstance(record, dict) or record.get("kind") not in CLOSED_FORMS:
         return False
+    form = CLOSED_FORMS[record["kind"]]
     if not isinstance(record.get("body"), str):
         return False
-    if "time" in record and not _finite_number(record["time"]):
+    if form.expected == "points" and not _finite_number(record.get("time")):
         return False
-    value = record.get("value")
-    values = value if isinstance(value, list) else [value]
-    if not values or not all(_finite_number(v) for v in values):
+    value, shape = record.get("value"), VALUE_SHAPES[form.expected]
+    if shape == "number":
+        values = [value]
+    elif isinstance(value, list) and value and (shape == "list" or len(value) == 3):
+        values = value
+    else:
         return False
-    return record.get("axis", "x") in ("x", "y", "z")
+    return all(_finite_number(v) for v in values) and record.get("axis", "x") in ("x", "y", "z")
 
 
 def read_expectations(provenance: dict | None, scene: str, warnings: list[str]) -> list[dict]:

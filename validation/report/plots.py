@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from validation.report.palette import engine_style
-from validation.report.svgchart import Chart, Trace
+from validation.report.svgchart import PLOT_LIMIT, Chart, Trace
 
 PLOT_QUANTITIES = (
     ("energy", "energy_drift", "energy E (J)"),
@@ -28,12 +28,6 @@ row of that metric has a number in the scene (a conserved quantity under test), 
 MAX_IMPACT_POINTS = 400
 """Impacts drawn per engine in the e-against-speed chart (evenly chosen; impacts.csv and the
 table keep all): a pile of 49 balls has thousands, and 400 already fill the chart."""
-
-PLOT_LIMIT = 1e100
-"""Largest magnitude a plotted value (time, energy, momentum, impact speed, e) may have;
-beyond it, or non-finite, a value is not drawn (a gap) and the page says how many: near
-1e308 matplotlib's transforms overflow (t = 1e308 crashed the report), and nothing a scene
-measures comes near 1e100."""
 
 PLOTTED_SERIES = ("t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
 PLOTTED_IMPACTS = ("normal_velocity_before", "e_requested", "e_measured", "band")

@@ -62,6 +62,12 @@ axis at least ``MIN_RELATIVE_SPAN`` wide)."""
 MARKER_RADIUS = 2.6
 """px, a point marker's half-size."""
 
+PLOT_LIMIT = 1e100
+"""Largest magnitude a plotted value (time, energy, momentum, impact speed, e, a traced
+quantity) may have; beyond it, or non-finite, a value is not drawn (a gap): near 1e308 an
+axis's span overflows (t = 1e308 crashed the report once), and nothing a scene measures comes
+near 1e100."""
+
 GRID, AXIS, TEXT = "#e6e6e6", "#888888", "#333333"
 """Grid lines, the plot's frame, and text."""
 
@@ -130,7 +136,7 @@ def _number(value: float, decimals: int = COORDINATE_DECIMALS) -> str:
 
 def _finite(values: np.ndarray, log: bool) -> np.ndarray:
     values = np.asarray(values, dtype=float)
-    keep = np.isfinite(values) & ((values > 0) if log else True)
+    keep = (np.abs(values) <= PLOT_LIMIT) & ((values > 0) if log else True)
     return values[keep]
 
 
@@ -213,6 +219,7 @@ class _Scale:
 
     def __call__(self, values: np.ndarray) -> np.ndarray:
         values = np.asarray(values, dtype=float)
+        values = np.where(np.abs(values) <= PLOT_LIMIT, values, np.nan)  # beyond: a gap
         with np.errstate(divide="ignore", invalid="ignore"):
             if self.log:
                 values = np.where(values > 0, np.log10(np.where(values > 0, values, 1.0)), np.nan)
