@@ -289,5 +289,5 @@ def test_a_sweep_fits_rk4_above_its_floor_and_marks_the_points_left_out(tmp_path
         "floor-bound: left out of the order fit",
         "saturated: left out of the order fit",
     ):
-        assert f"<!-- {legend} -->" in page, f"the legend lacks {legend!r}"
+        assert f"{legend}</span>" in page, f"the legend lacks {legend!r}"  # a legend entry
     assert "fitted over 3 points, dt 0.001 to 0.01 s" in page, "the page lacks RK4's range"

@@ -17,6 +17,9 @@ BASELINE_FILE = "baseline.csv"
 lacks (``missing``) included, with the baseline's value and error next to the run's."""
 SWEEP_FILE = "sweep.csv"
 """In a run folder whose scenes declare ``sweep:``: the sweep rows (as ``physval sweep``)."""
+TRACE_FILE = "trace.csv"
+"""In a run folder whose scenes have expectations with a chart: the thin trace of each body's
+quantity under test (``validation.report.closed_form``)."""
 
 NIGHTLY_COLUMNS = ("outcome", "known", "baseline")
 
@@ -74,6 +77,10 @@ IMPACTS_COLUMNS = (
 )
 """impacts.csv: one row per impact event; ``delta_e`` = e_measured - e_requested and its
 discretization ``band`` (``validation.measure.restitution``)."""
+
+TRACE_COLUMNS = ("scenario", "engine", "body", "quantity", "t", "x", "y", "z")
+"""trace.csv: a body's ``quantity`` (pos m, vel m/s, ang_vel rad/s world frame, body_ang_vel
+rad/s body frame) at time ``t`` (s), components x, y, z."""
 
 STATUS_DESCRIPTIONS: dict[str, str] = {
     "ok": "the engine ran the whole scene and the row's check (if any) passed",

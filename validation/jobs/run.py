@@ -36,6 +36,8 @@ from validation.contract import (
     RESULTS_FILE,
     SERIES_FILE,
     SWEEP_FILE,
+    TRACE_COLUMNS,
+    TRACE_FILE,
 )
 from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
@@ -69,6 +71,7 @@ from validation.measure.runner import EngineRun, run_engine
 from validation.measure.states import Series
 from validation.nightly.baseline import exit_failed
 from validation.nightly.known import apply_known
+from validation.report.closed_form import expectation_records, trace_rows, traced
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -79,6 +82,10 @@ scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
+
+TRACE_FORMAT = "%.7g"
+"""trace.csv's numbers: 7 significant digits, finer than the charts' narrowest axis
+(``svgchart.MIN_RELATIVE_SPAN``, 1e-6 of the values); the rows keep every digit."""
 
 
 def _sample_every(scene: CompiledScene) -> int:
@@ -148,11 +155,30 @@ def kept_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Mea
     every metric stay whole."""
     run, measured = run_job(job)
     if run.recording is not None:
-        slim = _positions_only(run.recording.trajectory)
+        trajectory = run.recording.trajectory
+        slim = _positions_only(trajectory)
         run = dataclasses.replace(
-            run, recording=dataclasses.replace(run.recording, trajectory=slim)
+            run,
+            recording=dataclasses.replace(run.recording, trajectory=slim),
+            trace=_trace(job[0], run.engine, trajectory),
         )
     return run, measured
+
+
+def _trace(scene: CompiledScene, engine: str, trajectory: Trajectory) -> dict[str, object] | None:
+    """The thin trace of the bodies the scene's expectations test (trace.csv's rows), as
+    columns of plain data (text lists, float arrays), so a journal record can hold it."""
+    bodies = [body.name for body in scene.scenario.bodies]
+    wanted = traced(scene.scenario.expect)
+    frame = trace_rows(scene.name, engine, trajectory, bodies, wanted)
+    if frame.empty:
+        return None
+    return {
+        column: frame[column].to_numpy(dtype=float)
+        if pd.api.types.is_numeric_dtype(frame[column])
+        else [str(text) for text in frame[column]]
+        for column in TRACE_COLUMNS
+    }
 
 
 def _git_commit() -> str:
@@ -259,6 +285,7 @@ class Executed:
     Attributes:
         rows: result rows with the scenes' known findings applied. series: series frames.
         impacts: impact rows. runs: the engine runs. sweep_rows: the scenes' sweep rows.
+        traces: trace frames (the bodies under test).
     """
 
     rows: list[dict]
@@ -266,6 +293,7 @@ class Executed:
     impacts: list[dict]
     runs: list[EngineRun]
     sweep_rows: list[dict]
+    traces: list[pd.DataFrame] = dataclasses.field(default_factory=list)
 
 
 def execute(
@@ -320,7 +348,8 @@ def execute(
                 impacts += _impact_rows(scene, run)
         all_runs += runs
     sweep_rows = [row for index in range(position, len(work)) for row in done[index]]
-    return Executed(rows, series, impacts, all_runs, sweep_rows)
+    traces = [pd.DataFrame(run.trace) for run in all_runs if isinstance(run.trace, dict)]
+    return Executed(rows, series, impacts, all_runs, sweep_rows, traces)
 
 
 def _how_it_ended(kind: str, result) -> str:
@@ -338,7 +367,7 @@ def _label(spec: EngineSpec | None) -> str:
     return "sweep cross-check" if spec is None else spec.label
 
 
-def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
+def write_run(folder: Path, rows, series, impacts, provenance: dict, traces=()) -> None:
     """The record files of one run into ``folder`` (which must exist), each fsync'd."""
     write_atomically(
         folder / RESULTS_FILE, pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(index=False)
@@ -353,6 +382,14 @@ def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
         pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS)).to_csv(index=False),
     )
     write_atomically(folder / PROVENANCE_FILE, json.dumps(provenance, indent=2, default=str))
+    traced_frames = [f for f in traces if not f.empty]
+    if traced_frames:
+        write_atomically(
+            folder / TRACE_FILE,
+            pd.concat(traced_frames, ignore_index=True)[list(TRACE_COLUMNS)].to_csv(
+                index=False, float_format=TRACE_FORMAT
+            ),
+        )
 
 
 def render_html(folder: Path, shown_as: Path) -> str:
@@ -566,6 +603,12 @@ def _finish(
     rows = executed.rows + _sweep_rows(plan, executed)
     provenance = _provenance(executed.runs, request.argv)
     provenance["scenes"] = hashes = scene_hashes(plan)
+    for scene, _ in plan.scenes:  # what a scene card says first, and its closed forms
+        hashes[scene.name] = {
+            **hashes[scene.name],
+            "description": scene.scenario.description,
+            "expect": expectation_records(scene.scenario.expect),
+        }
     provenance["selection"] = run_selection(
         request.paths, request.cwd, request.only, request.engines, request.dt, plan
     )
@@ -573,7 +616,9 @@ def _finish(
         total = len(plan.jobs) + len(_sweep_work(plan))
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}
     rows, comparison = against_baseline(rows, options, hashes, output.run_folder)
-    write_run(output.run_folder, rows, executed.series, executed.impacts, provenance)
+    write_run(
+        output.run_folder, rows, executed.series, executed.impacts, provenance, executed.traces
+    )
     if executed.sweep_rows:
         write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
     write_ci_files(rows, options)

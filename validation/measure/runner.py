@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,9 @@ class EngineRun:
     mismatches: list[Mismatch] = field(default_factory=list)
     provenance: Provenance | None = None
     wall_time_s: float = 0.0
+    trace: dict[str, Any] | None = None
+    """The thin trace of the bodies under test, trace.csv's columns (``contract.TRACE_COLUMNS``:
+    lists of text, float arrays), set by the run's job; None when the scene charts none."""
 
 
 def run_engine(scene: CompiledScene, spec: EngineSpec, sample_every: int = 1) -> EngineRun:

@@ -252,6 +252,12 @@ def _version_moved(row: dict[str, Any]) -> bool:
 
 def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
     """The moved rows of B against A (``COMPARE_COLUMNS``), news first, then by name."""
+    found = classified_rows(a, b)
+    return found[found["change"] != "unchanged"].reset_index(drop=True)
+
+
+def classified_rows(a: RunSide, b: RunSide) -> pd.DataFrame:
+    """Every matched row of B against A with its class, ``unchanged`` ones included (last)."""
     matched = a.rows.merge(b.rows, on=list(KEY_COLUMNS), how="outer", suffixes=("_a", "_b"))
     for column in ("value", "error", "tolerance"):
         for side in "ab":
@@ -269,8 +275,8 @@ def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
     matched["noise_floor"] = [
         noise_floor(*judged(r), floor_for(r["scenario"], r["metric"])) for r in records
     ]
-    found = matched[matched["change"] != "unchanged"].copy()
-    found["order"] = [CHANGES.index(change) for change in found["change"]]
+    found = matched.copy()
+    found["order"] = [(*CHANGES, "unchanged").index(change) for change in found["change"]]
     found = found.sort_values(["order", *KEY_COLUMNS], kind="stable")
     return found[list(COMPARE_COLUMNS)].reset_index(drop=True)
 
@@ -321,9 +327,42 @@ def _versions(row: dict[str, Any]) -> str:
     return f"{a} → {b}" if a and b and a != b else b or a
 
 
-def build_context(a: RunSide, b: RunSide, moved_rows: pd.DataFrame) -> dict[str, Any]:
-    """Everything compare.html shows."""
-    shown = [
+FOLDED = ("missing", "unchanged")
+"""Classes listed folded under their scene (a count first): not what a reader looks for."""
+
+
+def scene_groups(rows: list[dict[str, Any]], unchanged: pd.DataFrame | None) -> list[dict]:
+    """The page's rows grouped by scene, scenes with a regression first, then with any move,
+    then by name; each with its counts per class, its moved rows (open when any), its missing
+    rows and its unchanged rows (both folded)."""
+    unchanged_counts = (
+        unchanged["scenario"].value_counts().to_dict() if unchanged is not None else {}
+    )
+    names = list(dict.fromkeys([r["scenario"] for r in rows] + list(unchanged_counts)))
+    groups = []
+    for name in names:
+        mine = [r for r in rows if r["scenario"] == name]
+        counts = {c: sum(r["change"] == c for r in mine) for c in CHANGES}
+        counts["unchanged"] = int(unchanged_counts.get(name, 0))
+        moved = [r for r in mine if r["change"] not in FOLDED]
+        groups.append(
+            {
+                "name": name,
+                "counts": [(c, n) for c, n in counts.items() if n],
+                "moved": moved,
+                "missing": [r for r in mine if r["change"] == "missing"],
+                "unchanged": _shown_rows(unchanged[unchanged["scenario"] == name])
+                if unchanged is not None
+                else [],
+                "open": bool(moved),
+                "key": (not counts["regressed"], not moved, name),
+            }
+        )
+    return sorted(groups, key=lambda g: g["key"])
+
+
+def _shown_rows(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    return [
         {
             **{k: row[k] for k in (*KEY_COLUMNS, "change")},
             **{k: row[k] if isinstance(row[k], str) else "" for k in ("verdict_a", "verdict_b")},
@@ -333,14 +372,23 @@ def build_context(a: RunSide, b: RunSide, moved_rows: pd.DataFrame) -> dict[str,
             },
             "versions": _versions(row),
         }
-        for row in moved_rows.to_dict("records")
+        for row in frame.to_dict("records")
     ]
+
+
+def build_context(
+    a: RunSide, b: RunSide, moved_rows: pd.DataFrame, unchanged: pd.DataFrame | None = None
+) -> dict[str, Any]:
+    """Everything compare.html shows: the runs, the counts, the rows grouped by scene."""
+    shown = _shown_rows(moved_rows)
     counts = moved_rows["change"].value_counts()
     return {
         "a": _side_context(a),
         "b": _side_context(b),
         "counts": [(change, int(counts.get(change, 0))) for change in CHANGES],
         "rows": shown,
+        "scenes": scene_groups(shown, unchanged),
+        "unchanged_count": 0 if unchanged is None else len(unchanged),
         "noise_rule": NOISE_RULE,
     }
 
@@ -357,11 +405,16 @@ def compare_main(
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     a, b = shared.a, shared.b
-    moved_rows = compare_runs(a, b)
+    every_row = classified_rows(a, b)
+    moved_rows = every_row[every_row["change"] != "unchanged"].reset_index(drop=True)
     folder = out or DEFAULT_OUT
     folder.mkdir(parents=True, exist_ok=True)
     write_atomically(folder / COMPARE_CSV, moved_rows.to_csv(index=False))
-    context = {**build_context(a, b, moved_rows), "selection": selection_context(shared)}
+    unchanged = every_row[every_row["change"] == "unchanged"]
+    context = {
+        **build_context(a, b, moved_rows, unchanged),
+        "selection": selection_context(shared),
+    }
     write_atomically(folder / COMPARE_HTML, render_page(TEMPLATE, context))
     counts = ", ".join(f"{n} {change}" for change, n in context["counts"] if n)
     print(

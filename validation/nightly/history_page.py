@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, ScalarFormatter
 
 from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.files import write_atomically
@@ -52,6 +52,7 @@ from validation.nightly.known import row_verdict
 from validation.nightly.pages import figure_svg, render_page
 from validation.nightly.steps import PENALTY_PER_LOG_RUN, Step, detect_steps, segment_levels
 from validation.report.build import format_number, slug
+from validation.report.palette import engine_colour
 
 HISTORY_PAGE = "history.html"
 TEMPLATE = "history.html.j2"
@@ -97,8 +98,9 @@ MARKER_PT = 3.0
 GAP_MARK = "x"
 """matplotlib's marker for a run without a number for the series (the sparkline draws a ×)."""
 
-VERSION_COLOUR, STEP_COLOUR, LINE_COLOUR, LEVEL_COLOUR = "#999999", "#c0392b", "#0072B2", "#D55E00"
-"""Engine-version change marks (grey), a detected step (red), the trend (blue), fitted levels."""
+VERSION_COLOUR, STEP_COLOUR, LEVEL_COLOUR = "#999999", "#c0392b", "#555555"
+"""Engine-version change marks (grey), a detected step (red), fitted levels (dark grey); the
+trend itself is drawn in its engine spec's colour (``palette``), as on every page."""
 
 INFINITE_COLOUR, GAP_COLOUR = "#c0392b", "#777777"
 """An infinite value's mark (red, as a regression) and a gap mark (grey)."""
@@ -338,6 +340,7 @@ def sparkline(view: SeriesView, runs: pd.DataFrame) -> dict[str, Any]:
 
     last = int(measured[-1]) if measured.size else None
     return {
+        "colour": engine_colour(view.engine),
         "lines": lines,
         "dots": [(x[p], y[p]) for p in points] if len(points) <= SPARK_MARKER_MAX else [],
         "infinite": marks(INFINITE, MINUS_INFINITE),
@@ -385,10 +388,9 @@ def trend_plot(view: SeriesView, runs: pd.DataFrame) -> str:
     axis = figure.subplots()
     at = np.arange(view.values.size)
     marker = "o" if (view.kinds == POINT).sum() <= PLOT_MARKER_MAX else None
+    colour = engine_colour(view.engine)
     for segment in _segments(view.kinds):
-        axis.plot(
-            segment, view.values[segment], color=LINE_COLOUR, lw=1.2, marker=marker, ms=MARKER_PT
-        )
+        axis.plot(segment, view.values[segment], color=colour, lw=1.2, marker=marker, ms=MARKER_PT)
     finite_row = np.where(view.kinds == POINT, view.values, np.nan)
     starts = [0, *(s.at for s in view.steps)]
     stops = [*starts[1:], view.values.size]
@@ -451,6 +453,7 @@ def trend_plot(view: SeriesView, runs: pd.DataFrame) -> str:
         FuncFormatter(lambda p, _: labels[int(p)] if p == int(p) and 0 <= p < len(labels) else "")
     )
     axis.yaxis.set_major_locator(MaxNLocator(TICKS_PER_AXIS))
+    axis.yaxis.set_major_formatter(ScalarFormatter(useOffset=False))  # the values, no offset
     axis.set_xlabel("run · date · commit", fontsize=8)
     axis.set_ylabel(view.quantity, fontsize=8)
     axis.tick_params(labelsize=7)
@@ -624,7 +627,6 @@ def build_context(history: History, source: str) -> dict[str, Any]:
         "colours": {
             "version": VERSION_COLOUR,
             "step": STEP_COLOUR,
-            "line": LINE_COLOUR,
             "infinite": INFINITE_COLOUR,
             "gap": GAP_COLOUR,
         },

@@ -12,7 +12,7 @@ import matplotlib
 from matplotlib.figure import Figure
 
 from validation.report.plots import svg_for_html
-from validation.report.render import template_environment
+from validation.report.templating import template_environment
 
 matplotlib.use("Agg")  # headless: rendering must never need a display
 

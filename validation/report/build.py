@@ -9,6 +9,7 @@ offenders (``build_rows``), one section per scene (``build_scene``: runs, the pl
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -27,6 +28,7 @@ from validation.measure.definitions import (
     SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
+from validation.report.closed_form import closed_form_charts, read_expectations
 from validation.report.news import build_news, build_sweep_cards
 from validation.report.outcomes import (
     OUTCOME_COLOURS,
@@ -37,23 +39,32 @@ from validation.report.outcomes import (
     outcome_label,
     worst_first,
 )
+from validation.report.palette import engine_colour
 from validation.report.plots import (
     PLOT_LIMIT,
     PLOTTED_IMPACTS,
     PLOTTED_SERIES,
     drawable,
-    engine_styles,
     plot_restitution,
     plot_scene_series,
 )
 from validation.report.read import RunData
+from validation.report.svgchart import engine_legend, figure_html
 
 # --- page size limits --------------------------------------------------------------------------
 
 MAX_OFFENDERS = 20  # rows in the "worst offenders" table at the top
 MAX_IMPACT_ROWS = 40  # impacts listed per scene; the rest stay in impacts.csv
 IMPACTS_OPEN_UP_TO = 12  # an impacts table this short is shown expanded
-SETTINGS_INLINE_UP_TO = 6  # more settings than this are folded in the scene's runs table
+
+SETTINGS_INLINE_UP_TO = 3
+"""A run's settings that differ from its spec's (provenance.json) are listed inline up to this
+many; more are folded under their count (they are long: one line of the table each)."""
+
+OPEN_ROWS = ("error", "model_mismatch", "unstable", "failed", "fixed")
+"""A scene's rows table starts open when one of its rows has one of these outcomes (the rows a
+reader comes for: news); otherwise, known findings included (listed with their reasons in the
+news), it shows its summary line and opens on a click."""
 
 
 def format_number(value: Any, raw: str = "") -> str:
@@ -151,32 +162,63 @@ def build_rows(rows: pd.DataFrame, anchors: dict[str, str] | None = None) -> lis
             "outcome": row["outcome"],
             "outcome_label": outcome_label(row["outcome"]),
             "message": row["message"],
+            "known": str(row.get("known", "") or "")
+            if row["outcome"] in ("known", "fixed")
+            else "",
         }
         for _, row in worst_first(rows).iterrows()
     ]
 
 
-def _pretty_settings(text: str) -> tuple[str, int]:
-    """The settings JSON of a row as ``k=v, ...`` and the number of settings."""
+def is_zero_unjudged(rows: pd.DataFrame) -> pd.Series:
+    """Rows with no tolerance whose value is exactly zero (a quantity the scene cannot move in
+    that engine): listed in one line, not one row each."""
+    return (rows["outcome"] == "no_tolerance") & (rows["value"] == 0.0)
+
+
+def zero_line(rows: pd.DataFrame) -> list[dict[str, Any]]:
+    """The collapsed rows (``is_zero_unjudged``) as metric -> the engines it is zero in."""
+    return [
+        {"metric": metric, "engines": ", ".join(dict.fromkeys(group["engine"]))}
+        for metric, group in rows.groupby("metric", sort=False)
+    ]
+
+
+def _pretty_settings(text: str, common: Any = None) -> tuple[str, int, int]:
+    """The settings JSON of a row as ``k=v, ...`` (those that differ from ``common``, the
+    engine spec's settings in provenance.json), the number of settings, and how many of them
+    are as in provenance (listed there once, not in every scene)."""
     try:
         settings = json.loads(text) if text else {}
     except json.JSONDecodeError:
-        return text, 1
-    if isinstance(settings, dict):
-        return ", ".join(f"{k}={v}" for k, v in settings.items()), len(settings)
-    return text, 1
+        return text, 1, 0
+    if not isinstance(settings, dict):
+        return text, 1, 0
+    common = common if isinstance(common, dict) else {}
+    own = {k: v for k, v in settings.items() if k not in common or str(common[k]) != str(v)}
+    shown = ", ".join(f"{k}={v}" for k, v in own.items())
+    return shown, len(settings), len(settings) - len(own)
 
 
-def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
-    """One line per engine of a scene: outcome, version, dt, steps, wall time, settings."""
+def build_runs(
+    rows: pd.DataFrame, engines: list[str], provenance: dict | None = None
+) -> list[dict[str, Any]]:
+    """One line per engine of a scene: outcome, version, dt, steps, wall time, and the
+    settings that differ from the spec's in provenance.json (the others are counted)."""
+    specs = (provenance or {}).get("engines")
+    specs = specs if isinstance(specs, dict) else {}
     runs = []
+    by_engine = dict(tuple(rows.groupby("engine", sort=False)))
     for engine in engines:
-        mine = rows[rows["engine"] == engine]
-        if mine.empty:
+        mine = by_engine.get(engine)
+        if mine is None:
             continue
         first = mine.iloc[0]
         worst = worst_first(mine).iloc[0]["outcome"]
-        settings, count = _pretty_settings(first["settings"])
+        spec = specs.get(engine)
+        common = spec.get("settings") if isinstance(spec, dict) else None
+        settings, count, same = _pretty_settings(first["settings"], common)
+        own = count - same
         messages = [m for m in dict.fromkeys(mine.loc[mine["metric"] == "status", "message"]) if m]
         runs.append(
             {
@@ -189,6 +231,9 @@ def build_runs(rows: pd.DataFrame, engines: list[str]) -> list[dict[str, Any]]:
                 "wall_time_s": format_number(first["wall_time_s"], first["wall_time_s_text"]),
                 "settings": settings,
                 "settings_count": count,
+                "settings_common": same,
+                "settings_folded": own > SETTINGS_INLINE_UP_TO,
+                "settings_own": own,
                 "message": "; ".join(messages),
             }
         )
@@ -277,7 +322,9 @@ def build_provenance(provenance: dict[str, Any] | None, table: pd.DataFrame) -> 
                 "version": str(info.get("version", "")),
                 "settings": settings
                 if isinstance(settings, str)
-                else json.dumps(settings, indent=1, sort_keys=True, default=str),
+                else ", ".join(f"{k}={v}" for k, v in sorted(settings.items()))
+                if isinstance(settings, dict)
+                else json.dumps(settings, default=str),
                 "notes": [str(n) for n in info.get("notes", []) or []],
             }
         )
@@ -301,49 +348,119 @@ def _engine_order(table: pd.DataFrame, series: pd.DataFrame | None) -> list[str]
     return engines
 
 
+DRIFT_METRICS = ("energy_drift", "linear_momentum_drift", "angular_momentum_drift")
+"""The conserved quantities charted over time when a row of the scene measures their drift."""
+
+
+def _judged_drifts(rows: pd.DataFrame) -> set[str]:
+    """The drift metrics of a scene worth a chart (``plots.PLOT_QUANTITIES``): measured in
+    some engine with an outcome other than ``passed`` (a failure, a known finding, a drift
+    without tolerance that is not identically zero). A drift that passed everywhere is a flat
+    line that says no more than its rows."""
+    mine = rows[
+        rows["metric"].isin(DRIFT_METRICS)
+        & rows["value"].notna()
+        & ~is_zero_unjudged(rows)
+        & (rows["outcome"] != "passed")
+    ]
+    return set(mine["metric"])
+
+
+def _scene_source(provenance: dict | None, scene: str) -> tuple[str, str]:
+    """The scene's description and file, as the run recorded them (empty when absent)."""
+    scenes = (provenance or {}).get("scenes")
+    entry = scenes.get(scene) if isinstance(scenes, dict) else None
+    if not isinstance(entry, dict):
+        return "", ""
+    description, source = entry.get("description", ""), entry.get("file", "")
+    return (
+        description if isinstance(description, str) else "",
+        source if isinstance(source, str) else "",
+    )
+
+
 def build_scene(
     scene: str,
     anchor: str,
     rows: pd.DataFrame,
     run: RunData,
     engines: list[str],
-    colours: dict[str, tuple[str, str]],
 ) -> dict[str, Any]:
-    """One scene's section: runs, the plot, the impacts and the checks."""
-    plot_note = ""
-    svg = None
+    """One scene's section: description and file, runs, the charts (the quantities under test
+    against their closed forms, the conserved quantities judged, e against impact speed),
+    the sweep charts, the impacts and the rows."""
+    notes = []
+    charts = []
+    scene_engines = [e for e in engines if e in set(rows["engine"])]
+    expectations = read_expectations(run.provenance, scene, run.warnings)
+    closed, left_out = closed_form_charts(scene, run.trace, expectations, scene_engines)
+    charts += closed
+    if left_out:
+        notes.append(f"{left_out} more closed-form charts not drawn (the rows list every check)")
     clipped = 0
     if run.series is None:
-        plot_note = f"no {SERIES_FILE} in this run"
+        notes.append(f"no {SERIES_FILE} in this run")
     else:
         series, clipped = drawable(run.series[run.series["scenario"] == scene], PLOTTED_SERIES)
-        if series.empty:
-            plot_note = "no time series recorded for this scene"
-        else:
-            svg = Markup(plot_scene_series(scene, series, engines, colours))
-    restitution_svg = None
+        judged = _judged_drifts(rows)
+        if not series.empty and judged:
+            charts += plot_scene_series(scene, series, scene_engines, judged)
     if run.impacts is not None:
         mine, clipped_impacts = drawable(
             run.impacts[run.impacts["scenario"] == scene], PLOTTED_IMPACTS
         )
         clipped += clipped_impacts
         if not mine.empty:
-            restitution_svg = Markup(plot_restitution(scene, mine, engines, colours))
+            charts.append(plot_restitution(scene, mine, scene_engines))
     if clipped:
-        plot_note = (
-            f"{plot_note + '; ' if plot_note else ''}{clipped} values non-finite or beyond "
-            f"±{PLOT_LIMIT:g} not drawn (gaps); the CSV files keep them"
+        notes.append(
+            f"{clipped} values non-finite or beyond ±{PLOT_LIMIT:g} not drawn (gaps); the CSV "
+            "files keep them"
         )
+    description, source = _scene_source(run.provenance, scene)
+    zero = is_zero_unjudged(rows)
+    shown = rows[~zero]
     return {
         "name": scene,
         "anchor": anchor,
-        "runs": build_runs(rows, engines),
-        "svg": svg,
-        "restitution_svg": restitution_svg,
-        "plot_note": plot_note,
+        "description": description,
+        "source": source,
+        "runs": build_runs(rows, engines, run.provenance),
+        "engine_legend": Markup(engine_legend(scene_engines)),
+        "charts": [Markup(figure_html(chart, set(scene_engines))) for chart in charts],
+        "plot_note": "; ".join(notes),
         "impacts": build_impacts(run.impacts, scene),
-        "rows": build_rows(rows),
+        "rows": build_rows(shown),
+        "rows_open": bool(rows["outcome"].isin(OPEN_ROWS).any()),
+        "row_chips": count_chips(list(shown["outcome"])),
+        "zero_rows": zero_line(rows[zero]),
+        "zero_count": int(zero.sum()),
         "sweeps": build_sweep_cards(run.sweep, scene),
+    }
+
+
+PER_SCENE = ("series", "impacts", "trace", "sweep")
+"""The record tables of a run that a scene card reads its own rows of."""
+
+
+def split_by_scene(run: RunData) -> dict[str, RunData]:
+    """Scene -> the run with only that scene's rows in its per-scene tables (``PER_SCENE``),
+    each table grouped once: filtering the library's 200,000 series rows per scene was half
+    the report's time."""
+    scenes = set(run.results["scenario"])
+    empty = {name: getattr(run, name) for name in PER_SCENE}
+    groups = {
+        name: dict(tuple(frame.groupby("scenario", sort=False)))
+        for name, frame in empty.items()
+        if frame is not None and "scenario" in frame
+    }
+    for name in groups:
+        empty[name] = empty[name].iloc[0:0]
+    return {
+        scene: dataclasses.replace(
+            run, **{name: groups[name].get(scene, empty[name]) for name in groups}
+        )
+        for scene in scenes
     }
 
 
@@ -351,24 +468,24 @@ def build_context(run: RunData) -> dict[str, Any]:
     """Everything the template prints, as plain strings, lists and dicts."""
     table = classify_rows(run.results, run.warnings)
     engines = _engine_order(table, run.series)
-    colours = engine_styles(engines)
     scenes = scene_order(table)
     taken: set[str] = set()
     anchors = {scene: slug(scene, taken) for scene in scenes}
+    cells = dict(tuple(table.groupby(["scenario", "engine"], sort=False)))
+    no_rows = table.iloc[0:0]
     matrix = [
         {
             "scene": scene,
             "anchor": anchors[scene],
             "cells": [
-                build_cell(
-                    table[(table["scenario"] == scene) & (table["engine"] == engine)],
-                    anchors[scene],
-                )
+                build_cell(cells.get((scene, engine), no_rows), anchors[scene])
                 for engine in engines
             ],
         }
         for scene in scenes
     ]
+    by_scene = dict(tuple(table.groupby("scenario", sort=False)))
+    scene_runs = split_by_scene(run)
     cell_outcomes = [cell["outcome"] for row in matrix for cell in row["cells"]]
     red_runs = sum(o in RED_OUTCOMES for o in cell_outcomes)
     offenders = table[table["outcome"].isin(RED_OUTCOMES)]
@@ -384,7 +501,7 @@ def build_context(run: RunData) -> dict[str, Any]:
         },
         "scene_count": len(scenes),
         "engines": engines,
-        "engine_colours": {e: c for e, (c, _) in colours.items()},
+        "engine_colours": {e: engine_colour(e) for e in engines},
         "run_chips": count_chips([o for o in cell_outcomes if o != "not_run"]),
         "row_chips": count_chips(list(table["outcome"])),
         "row_count": len(table),
@@ -393,9 +510,7 @@ def build_context(run: RunData) -> dict[str, Any]:
         "offenders": build_rows(offenders, anchors)[:MAX_OFFENDERS],
         "offenders_hidden": max(0, len(offenders) - MAX_OFFENDERS),
         "scenes": [
-            build_scene(
-                scene, anchors[scene], table[table["scenario"] == scene], run, engines, colours
-            )
+            build_scene(scene, anchors[scene], by_scene[scene], scene_runs[scene], engines)
             for scene in scenes
         ],
         "legend": build_legend(table),
@@ -403,5 +518,4 @@ def build_context(run: RunData) -> dict[str, Any]:
         "outcome_colours": OUTCOME_COLOURS,
         "outcome_labels": {o: outcome_label(o) for o in OUTCOME_ORDER},
         "red_outcomes": RED_OUTCOMES,
-        "settings_inline_up_to": SETTINGS_INLINE_UP_TO,
     }

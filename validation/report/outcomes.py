@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pandas as pd
 
 from validation.contract import RESULTS_FILE, STATUS_DESCRIPTIONS
@@ -99,5 +100,6 @@ def classify_rows(results: pd.DataFrame, warnings: list[str]) -> pd.DataFrame:
 
 def worst_first(rows: pd.DataFrame) -> pd.DataFrame:
     """Rows sorted worst outcome first, then largest error/tolerance first."""
-    key = rows.assign(_neg_ratio=-rows["ratio"].fillna(-math.inf))
-    return rows.loc[key.sort_values(["severity", "_neg_ratio"], kind="stable").index]
+    negative_ratio = -rows["ratio"].fillna(-math.inf).to_numpy(float)
+    severity = rows["severity"].to_numpy(int)
+    return rows.iloc[np.lexsort((negative_ratio, severity))]  # stable: ties keep their order

@@ -3,6 +3,7 @@
 - ``results.csv`` (required): one row per (scenario, engine spec, metric);
 - ``series.csv`` (optional): energy, linear and angular momentum over time;
 - ``impacts.csv`` (optional): every impact with its requested and measured restitution;
+- ``trace.csv`` (optional): the thin trace of each body's quantity under test;
 - ``provenance.json`` (optional here, always written by the run): command, commit, machine,
   engine versions and settings.
 
@@ -37,6 +38,8 @@ from validation.contract import (
     SERIES_FILE,
     SIGNED_COLUMNS,
     SWEEP_FILE,
+    TRACE_COLUMNS,
+    TRACE_FILE,
 )
 from validation.files import open_regular, read_regular
 
@@ -75,6 +78,7 @@ class RunData:
     provenance: dict[str, Any] | None = None
     sweep: pd.DataFrame | None = None
     baseline: pd.DataFrame | None = None
+    trace: pd.DataFrame | None = None
     warnings: list[str] = field(default_factory=list)
 
 
@@ -230,6 +234,12 @@ def load_run(run_dir: Path) -> RunData:
     run.provenance = read_provenance(run_dir / PROVENANCE_FILE, run.warnings)
     run.sweep = _read_optional_table(
         run_dir / SWEEP_FILE, SWEEP_READ_COLUMNS, SWEEP_TEXT_COLUMNS, run.warnings
+    )
+    run.trace = _read_optional_table(
+        run_dir / TRACE_FILE,
+        TRACE_COLUMNS,
+        ("scenario", "engine", "body", "quantity"),
+        run.warnings,
     )
     run.baseline = _read_optional_table(
         run_dir / BASELINE_FILE, BASELINE_READ_COLUMNS, BASELINE_READ_COLUMNS, run.warnings

@@ -18,31 +18,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from jinja2 import Environment, FileSystemLoader, StrictUndefined
-
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK, REPORT_FILE
 from validation.files import write_atomically
 from validation.report.build import build_context
 from validation.report.read import ReportInputError, load_run
+from validation.report.templating import ENVIRONMENT
 
-TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 TEMPLATE_NAME = "report.html.j2"
-
-
-def template_environment(directory: Path) -> Environment:
-    """Jinja2 on a template folder: autoescaping on, undefined names an error (every page)."""
-    return Environment(
-        loader=FileSystemLoader(directory),
-        autoescape=True,
-        undefined=StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
-    )
 
 
 def render_html(context: dict[str, Any]) -> str:
     """The page: ``templates/report.html.j2`` with autoescaping on."""
-    return template_environment(TEMPLATE_DIR).get_template(TEMPLATE_NAME).render(**context)
+    return ENVIRONMENT.get_template(TEMPLATE_NAME).render(**context)
 
 
 def render_report(run_dir: Path, shown_as: Path | None = None) -> Path:

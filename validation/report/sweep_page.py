@@ -1,9 +1,11 @@
-"""sweep.html: error against wall time and against dt, per scene, one line per engine spec.
+"""sweep.html: error against wall time and against dt, per scene, one line per engine spec
+(its colour on every page: ``palette``), drawn by ``svgchart`` into the shared page frame
+(``templates/base.html.j2``, ``templates/sweep.html.j2``).
 
 Failed points (unstable, error) are drawn as red crosses along the top of each chart at
 their dt or run time, never dropped; the legend gives each engine's fitted convergence
 order. Points the order fit left out (sweep.csv's ``fit_role``) stay on their engine's line
-but are drawn hollow, one marker per reason (``ROLE_MARKERS``), named in the legend;
+but are drawn hollow, one marker per reason (``ROLE_DRAWN``), named in the legend;
 under each chart, each engine's order with the range it was fitted over, or why there is
 none. One self-contained page (inline SVG, no network), written atomically.
 """
@@ -11,26 +13,24 @@ none. One self-contained page (inline SVG, no network), written atomically.
 from __future__ import annotations
 
 import html
-import io
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
-from matplotlib.lines import Line2D
+from markupsafe import Markup
 
 from validation.files import write_atomically
-from validation.report.plots import plain_text, svg_for_html
-
-FIGURE_SIZE = (11.0, 3.6)
-"""inches: two charts side by side, readable at a laptop's width."""
-
-FAILED_MARKER = {"marker": "x", "color": "#c0392b", "linestyle": "none", "markersize": 8}
-"""How a failed (unstable, error) point is drawn: a red cross pinned to the top of the axis."""
-
+from validation.report.palette import engine_style
+from validation.report.svgchart import (
+    Chart,
+    Trace,
+    engine_legend,
+    legend_html,
+    legend_items,
+    render_chart,
+)
+from validation.report.templating import ENVIRONMENT
 
 FITTED, FLOOR, SATURATED, OUTSIDE, UNMEASURED = FIT_ROLES = (
     "fitted",
@@ -44,23 +44,13 @@ in the order fit; floor-bound (at round-off or at the reference's own accuracy);
 (its error near the largest it can be); usable but outside the asymptotic range (or in one
 too short to fit); no error to fit (status not ok, NaN, infinite or zero)."""
 
-ROLE_MARKERS = {
-    FITTED: {"marker": "o", "linestyle": "none", "markersize": 6},
-    FLOOR: {"marker": "s", "fillstyle": "none", "linestyle": "none", "markersize": 9},
-    SATURATED: {"marker": "^", "fillstyle": "none", "linestyle": "none", "markersize": 9},
-    OUTSIDE: {"marker": "o", "fillstyle": "none", "linestyle": "none", "markersize": 7},
-}
-"""How a point is drawn by its role in the order fit, in its engine's colour: a filled dot in
-the fit (also a point of a sweep.csv without roles), a hollow square at a floor, a hollow
-triangle saturated, a hollow dot outside the asymptotic range."""
-
 ROLE_LABELS = {
     FITTED: "filled: in the order fit",
     FLOOR: "floor-bound: left out of the order fit",
     SATURATED: "saturated: left out of the order fit",
     OUTSIDE: "outside the asymptotic range",
 }
-"""The legend entry of each marker of ``ROLE_MARKERS``."""
+"""The legend entry of each marker of ``ROLE_DRAWN``."""
 
 LEGEND_GREY = "#555555"
 """The colour of the legend's marker samples (each point is drawn in its engine's colour)."""
@@ -76,24 +66,59 @@ DEFINITIONS = {
 """The one-line definition of each sweep metric, printed on the page."""
 
 IDENTICALLY_ZERO_PREFIX = "identically zero"
+"""How the sweep's note of a metric zero at every dt begins (``jobs.sweep.IDENTICALLY_ZERO``)."""
 
 
-def _draw_engine(by_time, by_dt, points: pd.DataFrame, label: str) -> set[str]:
-    """One engine's curve on both charts: a line through its measured points, each point
-    marked by its role in the fit (``ROLE_MARKERS``), failed ones as red crosses at the top.
-    Returns the roles it drew."""
+FAILED_COLOUR = "#c0392b"
+"""A failed (unstable, error) point: a red cross along the top of the chart at its dt."""
+
+ROLE_DRAWN = {
+    FITTED: {"marker": "o", "hollow": False},
+    FLOOR: {"marker": "s", "hollow": True},
+    SATURATED: {"marker": "^", "hollow": True},
+    OUTSIDE: {"marker": "o", "hollow": True},
+}
+"""How a point is drawn by its role in the order fit (``svgchart`` markers), in its
+engine's colour: filled dot in the fit, hollow square floor-bound,
+hollow triangle saturated, hollow dot outside the asymptotic range."""
+
+
+def _engine_traces(points: pd.DataFrame, label: str, column: str, top: float) -> list[Trace]:
+    """One engine's curve on one chart: a line through its measured points in its colour,
+    each point marked by its role in the fit, failed ones as red crosses at ``top``."""
     good = points[(points["status"].isin(["ok", "failed"])) & (points["error"] > 0)]
+    good = good.sort_values(column, kind="stable")
     bad = points[~points["status"].isin(["ok", "failed", "unsupported"])]
     roles = good["fit_role"].fillna(FITTED) if "fit_role" in good else pd.Series(FITTED, good.index)
-    (line,) = by_time.loglog(good["wall_time_s"], good["error"], "-", label=plain_text(label))
-    by_dt.loglog(good["dt"], good["error"], "-", color=line.get_color(), label=plain_text(label))
-    for axis, column in ((by_time, "wall_time_s"), (by_dt, "dt")):
-        for role, marker in ROLE_MARKERS.items():
-            mine = good[roles == role]
-            axis.plot(mine[column], mine["error"], color=line.get_color(), **marker)
-        top = axis.get_ylim()[1] if len(good) else 1.0
-        axis.plot(bad[column].fillna(1.0), [top] * len(bad), **FAILED_MARKER)
-    return set(roles)
+    style = engine_style(str(points["engine"].iloc[0]))
+    x, y = good[column].to_numpy(float), good["error"].to_numpy(float)
+    traces = [Trace(label, x, y, style.colour, style.dash)]
+    for role, drawn in ROLE_DRAWN.items():
+        mine = roles.to_numpy() == role
+        if mine.any():
+            traces.append(
+                Trace(
+                    ROLE_LABELS[role],
+                    x[mine],
+                    y[mine],
+                    style.colour,
+                    line=False,
+                    legend=False,
+                    **drawn,
+                )
+            )
+    if len(bad):
+        traces.append(
+            Trace(
+                "failed (unstable, error)",
+                bad[column].fillna(1.0).to_numpy(float),
+                np.full(len(bad), top),
+                FAILED_COLOUR,
+                line=False,
+                marker="x",
+            )
+        )
+    return traces
 
 
 def _legend_label(engine: str, order: float) -> str:
@@ -101,32 +126,43 @@ def _legend_label(engine: str, order: float) -> str:
 
 
 def sweep_chart(scene: pd.DataFrame, orders: dict[str, float], unit: str) -> str:
-    """Error against stepping time and against dt, log-log, one line per engine (inline SVG);
-    the legend names each engine's order and the marker of each role in the fit drawn."""
-    figure, (by_time, by_dt) = plt.subplots(1, 2, figsize=FIGURE_SIZE)
-    drawn = set()
+    """Error against stepping time and against dt, log-log, one line per engine spec in its
+    colour (HTML: two charts and one legend naming each engine's order and the marker of each
+    role in the fit drawn)."""
+    measured = scene["error"][(scene["error"] > 0) & np.isfinite(scene["error"])]
+    top = float(measured.max()) if len(measured) else 1.0
+    charts = {
+        "wall_time_s": Chart(
+            "error vs run time (down-left is better)",
+            "wall time of stepping (s)",
+            f"error ({unit})",
+            xlog=True,
+            ylog=True,
+        ),
+        "dt": Chart(
+            "error vs dt (failed points: red x)", "dt (s)", f"error ({unit})", xlog=True, ylog=True
+        ),
+    }
+    roles: set[str] = set()
     for engine, points in scene.groupby("engine", sort=False):
         label = _legend_label(str(engine), orders.get(engine, math.nan))
-        drawn |= _draw_engine(by_time, by_dt, points, label)
-    by_time.set(
-        xlabel="wall time of stepping (s)",
-        ylabel=f"error ({unit})",
-        title="error vs run time (down-left is better)",
-    )
-    by_dt.set(xlabel="dt (s)", ylabel=f"error ({unit})", title="error vs dt (failed points: red x)")
-    samples = [
-        Line2D([], [], color=LEGEND_GREY, label=ROLE_LABELS[role], **marker)
-        for role, marker in ROLE_MARKERS.items()
-        if role in drawn
+        for column, chart in charts.items():
+            chart.traces += _engine_traces(points, label, column, top)
+        if "fit_role" in points:
+            roles |= set(points["fit_role"].dropna())
+    items = legend_items(charts["dt"]) + [
+        {
+            "label": ROLE_LABELS[role],
+            "colour": LEGEND_GREY,
+            "dash": "",
+            "marker": drawn["marker"],
+            "hollow": "1" if drawn["hollow"] else "",
+        }
+        for role, drawn in ROLE_DRAWN.items()
+        if role in roles or (role == FITTED and not roles)
     ]
-    handles, _ = by_dt.get_legend_handles_labels()
-    by_dt.legend(handles=handles + samples, fontsize=7)
-    figure.tight_layout()
-    buffer = io.StringIO()
-    with matplotlib.rc_context({"svg.hashsalt": "physval-sweep"}):
-        figure.savefig(buffer, format="svg", metadata={"Date": None})
-    plt.close(figure)
-    return svg_for_html(buffer.getvalue())
+    figures = "".join(f'<figure class="chart">{render_chart(c)}</figure>' for c in charts.values())
+    return f'<div class="charts">{figures}</div><p class="legend">{legend_html(items)}</p>'
 
 
 def sweep_orders(table: pd.DataFrame, scene: str, metric: str) -> dict[str, float]:
@@ -156,73 +192,99 @@ def order_notes(table: pd.DataFrame, scene: str, metric: str) -> str:
     return f"<ul class='orders'>{''.join(items)}</ul>" if items else ""
 
 
+SWEEP_TEMPLATE = "sweep.html.j2"
+
+POINT_COLUMNS = (
+    "engine",
+    "dt",
+    "steps",
+    "error",
+    "fit_role",
+    "status",
+    "wall_time_s",
+    "real_time_factor",
+    "message",
+)
+"""The columns of a sweep point listed under its charts."""
+
+
+def _point_rows(curve: pd.DataFrame) -> list[dict[str, str]]:
+    """A metric's points as display strings, each with its role's mark (``ROLE_LABELS``)."""
+    columns = [c for c in POINT_COLUMNS if c in curve]
+    rows = []
+    for _, point in curve.iterrows():
+        row = {c: format_value(point[c]) for c in columns}
+        role = str(point.get("fit_role", "") or "")
+        row["mark"] = ROLE_LABELS.get(role, "") if role in (FLOOR, SATURATED) else ""
+        rows.append(row)
+    return rows
+
+
+def format_value(value) -> str:
+    """A point's cell: 4 significant digits for a number, the text otherwise, empty for NaN."""
+    if isinstance(value, float | np.floating):
+        return "" if math.isnan(value) else f"{value:.4g}"
+    return "" if value is None else str(value)
+
+
+def _metric_view(table: pd.DataFrame, scene: str, group: pd.DataFrame, metric: str, unit: str):
+    """One sweep metric of a scene: its charts (or the note why there are none), its order
+    notes and its points; ``zero`` when the metric is identically zero in every engine."""
+    curve = group[group["metric"] == metric]
+    if curve.empty:
+        return None
+    zero = curve["message"].fillna("").astype(str).str.startswith(IDENTICALLY_ZERO_PREFIX)
+    measured = curve[curve["error"].notna()] if "error" in curve else curve.iloc[0:0]
+    view = {"metric": metric, "zero": bool(zero.all()), "note": "", "chart": "", "orders": ""}
+    if view["zero"]:
+        view["note"] = str(curve["message"].iloc[0])
+    elif measured.empty:
+        view["note"] = (
+            f"{metric}: no values (out of range, not run, or not constrained by the reference); "
+            "the points are listed."
+        )
+    else:
+        view["chart"] = Markup(sweep_chart(curve, sweep_orders(table, scene, metric), unit))
+        view["orders"] = Markup(order_notes(table, scene, metric))
+    columns = [c for c in POINT_COLUMNS if c in curve]
+    view["columns"], view["points"] = columns, _point_rows(curve)
+    view["floor_bound"] = sum(1 for r in view["points"] if r["mark"])
+    return view
+
+
 def render_sweep(rows: list[dict], path: Path, fit_rule: str = "") -> Path:
     """Write sweep.html for the sweep ``rows`` (sweep.csv's rows) to ``path``; ``fit_rule``:
-    the order fit's rule in one paragraph, printed under the definitions."""
+    the order fit's rule in one paragraph, printed under the definitions. The page leads with
+    each scene's charts; a metric identically zero in every engine is one line; floor-bound
+    and saturated points are marked on the charts and in the point tables."""
     table = pd.DataFrame(rows)
     if "of" not in table:
         table["of"] = ""
     if "message" not in table:
         table["message"] = ""
-    parts = [
-        "<!doctype html><meta charset='utf-8'><title>physval sweep</title>",
-        "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
-        ".note{color:#a05a00}</style>",
-        "<h1>physval sweep: error against run time</h1>",
-        "<dl>"
-        + "".join(
-            f"<dt>{html.escape(m)}</dt><dd>{html.escape(d)}</dd>" for m, d in DEFINITIONS.items()
-        )
-        + "</dl>",
-        f"<p>{html.escape(fit_rule)}</p>" if fit_rule else "",
-    ]
     points = table[table["metric"].isin(list(DEFINITIONS))]
+    scenes = []
     for scene, group in points.groupby("scenario", sort=False):
-        reference = html.escape(str(group["expected_kind"].iloc[0]))
-        parts.append(f"<h2>{html.escape(str(scene))}</h2><p>reference: {reference}</p>")
         check = table[(table["metric"] == "reference_cross_check") & (table["scenario"] == scene)]
-        if not check.empty:
-            found = ", ".join(
-                f"{html.escape(str(r['of']))} {r['value']:.3g}" for _, r in check.iterrows()
-            )
-            parts.append(f"<p>cross-check, MuJoCo RK4 against the reference: {found}</p>")
-        for metric, unit in UNITS.items():
-            curve = group[group["metric"] == metric]
-            if curve.empty:
-                continue
-            parts.append(f"<h3>{html.escape(metric)}</h3>")
-            zero = curve["message"].fillna("").astype(str).str.startswith(IDENTICALLY_ZERO_PREFIX)
-            measured = curve[curve["error"].notna()] if "error" in curve else curve.iloc[0:0]
-            if measured.empty:
-                parts.append(
-                    f"<p class='note'>{html.escape(metric)}: no values (out of range, not run, "
-                    "or not constrained by the reference); the points are listed.</p>"
-                )
-            elif zero.all():
-                note = html.escape(str(curve["message"].iloc[0]))
-                parts.append(f"<p class='note'>{note}; not drawn.</p>")
-            else:
-                parts.append(sweep_chart(curve, sweep_orders(table, scene, metric), unit))
-                parts.append(order_notes(table, scene, metric))
-            columns = [
-                c
-                for c in (
-                    "engine",
-                    "dt",
-                    "steps",
-                    "error",
-                    "fit_role",
-                    "status",
-                    "wall_time_s",
-                    "real_time_factor",
-                    "message",
-                )
-                if c in curve
-            ]
-            parts.append(
-                curve[columns].to_html(
-                    index=False, na_rep="", float_format=lambda v: f"{v:.4g}", escape=True
-                )
-            )
-    write_atomically(path, "\n".join(parts))
+        views = [_metric_view(table, scene, group, m, u) for m, u in UNITS.items()]
+        views = [v for v in views if v is not None]
+        scenes.append(
+            {
+                "name": str(scene),
+                "reference": str(group["expected_kind"].iloc[0]),
+                "cross_check": ", ".join(
+                    f"{r['of']} {r['value']:.3g}" for _, r in check.iterrows()
+                ),
+                "metrics": [v for v in views if not v["zero"]],
+                "zero": [v for v in views if v["zero"]],
+            }
+        )
+    html = ENVIRONMENT.get_template(SWEEP_TEMPLATE).render(
+        definitions=DEFINITIONS,
+        fit_rule=fit_rule,
+        scenes=scenes,
+        engine_legend=Markup(engine_legend(list(dict.fromkeys(points.get("engine", []))))),
+        roles=ROLE_LABELS,
+    )
+    write_atomically(path, html)
     return path
