@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from validation.csv_safe import csv_text
+
 
 def sync_folder(folder: Path) -> None:
     """fsync a folder, so that the names created or renamed in it survive a crash."""
@@ -44,6 +46,7 @@ def write_atomically(path: Path, data: str | bytes) -> None:
 
 
 def write_table(rows: list[dict], path: Path) -> None:
-    """A CSV of ``rows`` written atomically (``files.write_atomically``)."""
+    """A spreadsheet-safe CSV (``csv_safe``) of ``rows`` written atomically
+    (``files.write_atomically``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(path, pd.DataFrame(rows).to_csv(index=False))
+    write_atomically(path, csv_text(pd.DataFrame(rows)))

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from validation.contract import BASELINE_FILE
+from validation.csv_safe import csv_text
 from validation.files import write_atomically
 from validation.jobs.plan import BadInputError, Plan
 from validation.jobs.sweep import SWEEP_METRICS
@@ -27,6 +28,7 @@ from validation.nightly.baseline import (
 from validation.nightly.history import record_run
 from validation.nightly.junit import write_junit
 from validation.nightly.known import outcome_of
+from validation.redact import shown_url
 from validation.scenario import BUNDLED_SCENARIOS
 from validation.scenario.engine_spec import parse_engine_spec, split_engine_list
 
@@ -151,7 +153,7 @@ def against_baseline(
     classified, missing = classify(rows, options.baseline_table, sha)
     before = {_key(r): r for r in options.baseline_table.to_dict("records")}
     table = [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
-    write_atomically(folder / BASELINE_FILE, pd.DataFrame(table).to_csv(index=False))
+    write_atomically(folder / BASELINE_FILE, csv_text(pd.DataFrame(table)))
     counts = pd.Series([r["baseline"] for r in table]).value_counts()
     words = ", ".join(f"{int(counts.get(c, 0))} {c}" for c in CLASSES if counts.get(c, 0))
     return classified, f"against {options.baseline}: {words}"
@@ -201,7 +203,7 @@ def record_history(folder: Path, options: NightlyOptions) -> str:
     try:
         run_id = record_run(folder, options.history)
     except Exception as error:  # a locked or unreachable database must not fail the run
-        return f"history not recorded ({type(error).__name__}: {error})"
+        return f"history not recorded ({type(error).__name__}: {shown_url(error)})"
     return f"history run {run_id}"
 
 

@@ -36,6 +36,7 @@ from validation.contract import (
     SERIES_FILE,
     SWEEP_FILE,
 )
+from validation.csv_safe import csv_text
 from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
@@ -66,6 +67,7 @@ from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
 from validation.nightly.baseline import exit_failed
 from validation.nightly.known import apply_known
+from validation.redact import shown_argv, shown_command
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -179,7 +181,7 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
                 "notes": p.notes,
             }
     return {
-        "command": " ".join(["physval", *argv]),
+        "command": shown_command(argv),
         "git_commit": _git_commit(),
         "created": dt_module.datetime.now(dt_module.UTC).isoformat(timespec="seconds"),
         "machine": {
@@ -299,17 +301,13 @@ def _label(spec: EngineSpec | None) -> str:
 
 def write_run(folder: Path, rows, series, impacts, provenance: dict) -> None:
     """The record files of one run into ``folder`` (which must exist), each fsync'd."""
-    write_atomically(
-        folder / RESULTS_FILE, pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(index=False)
-    )
+    write_atomically(folder / RESULTS_FILE, csv_text(pd.DataFrame(rows, columns=list(COLUMNS))))
     frames = [f for f in series if not f.empty]
     if frames:
-        write_atomically(
-            folder / SERIES_FILE, pd.concat(frames, ignore_index=True).to_csv(index=False)
-        )
+        write_atomically(folder / SERIES_FILE, csv_text(pd.concat(frames, ignore_index=True)))
     write_atomically(
         folder / IMPACTS_FILE,
-        pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS)).to_csv(index=False),
+        csv_text(pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS))),
     )
     write_atomically(folder / PROVENANCE_FILE, json.dumps(provenance, indent=2, default=str))
 
@@ -399,7 +397,7 @@ def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
     if job_fingerprints(plan) != journal.header.get("jobs"):
         raise BadInputError(
             f"--resume: the scenes or engines changed since the killed run "
-            f"({' '.join(request.argv) or 'physval run'}); run it again without --resume"
+            f"({' '.join(shown_argv(request.argv)) or 'physval run'}); run it again without --resume"
         )
     if journal.header.get("git_commit") != _git_commit():
         raise BadInputError(

@@ -37,6 +37,7 @@ from validation.contract import (
     SIGNED_ERROR_COLUMN,
     VECTOR_ERROR_COLUMNS,
 )
+from validation.csv_safe import csv_text, restored
 from validation.files import write_atomically
 from validation.measure.noise import moved_signed
 from validation.nightly.known import FIXED, KNOWN, outcome_of
@@ -113,7 +114,7 @@ def read_baseline(path: Path) -> pd.DataFrame:
             table[column] = ""
     for column in ("value", "error", "tolerance", *SIGNED_COLUMNS):
         table[column] = pd.to_numeric(table[column], errors="coerce")
-    return table
+    return restored(table)
 
 
 def _number(value: object) -> float:
@@ -193,7 +194,7 @@ def save_baseline(run_dir: Path, to: Path) -> int:
     table = baseline_table(results, hashes)
     if not to.parent.is_dir() or to.is_dir():
         raise ValueError(f"--to: expected a file in an existing folder; got {to}")
-    write_atomically(to, table.to_csv(index=False))
+    write_atomically(to, csv_text(table))
     return len(table)
 
 

@@ -34,6 +34,7 @@ from typing import Any
 import pandas as pd
 
 from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, EXIT_OK
+from validation.csv_safe import csv_text
 from validation.files import write_atomically
 from validation.measure.noise import NOISE_RULE, moved, noise_floor
 from validation.nightly.history import (
@@ -340,7 +341,7 @@ def compare_main(
     moved_rows = compare_runs(a, b)
     folder = out or DEFAULT_OUT
     folder.mkdir(parents=True, exist_ok=True)
-    write_atomically(folder / COMPARE_CSV, moved_rows.to_csv(index=False))
+    write_atomically(folder / COMPARE_CSV, csv_text(moved_rows))
     context = {**build_context(a, b, moved_rows), "selection": selection_context(shared)}
     write_atomically(folder / COMPARE_HTML, render_page(TEMPLATE, context))
     counts = ", ".join(f"{n} {change}" for change, n in context["counts"] if n)

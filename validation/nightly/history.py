@@ -50,6 +50,7 @@ import pandas as pd
 import sqlalchemy as sa
 
 from validation.contract import PROVENANCE_FILE, RESULTS_FILE
+from validation.redact import shown_url
 from validation.report.read import ReportInputError, read_provenance, read_results
 
 DEFAULT_DATABASE = Path("reports") / "history.sqlite"
@@ -273,18 +274,6 @@ def chosen_selection(runs: pd.DataFrame, rule: str | None) -> str:
 
 # --- URLs --------------------------------------------------------------------------------
 
-PASSWORD_IN_URL = re.compile(r"(://[^/@:\s]*:)[^/\s]*@")
-"""``scheme://user:password@host``: the password part of a URL (that may not even parse)."""
-
-PASSWORD_IN_QUERY = re.compile(r"([?&](?:password|passwd|pwd)=)[^&\s]*", re.IGNORECASE)
-"""``...?password=...``: a password given as a URL's query parameter."""
-
-
-def shown_url(text: str) -> str:
-    """``text`` (a URL, or a message or command line holding one) as it may be printed: every
-    password in it replaced by ``***``."""
-    return PASSWORD_IN_QUERY.sub(r"\1***", PASSWORD_IN_URL.sub(r"\1***@", str(text)))
-
 
 def database_url(text: str | Path | None) -> str:
     """``--db``: a URL as given, a bare path as an SQLite file, nothing as the default."""
@@ -402,7 +391,7 @@ def run_record(folder: Path, provenance: dict) -> dict:
             for label, info in engines.items()
         },
         "machine": machine if isinstance(machine, dict) else {},
-        "command": str(provenance.get("command", "")),
+        "command": shown_url(provenance.get("command", "")),  # a foreign folder's too
         "folder": str(folder.resolve()),
         "complete": False,
         "selection": selection,
