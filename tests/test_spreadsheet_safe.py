@@ -33,7 +33,7 @@ bodies:
 """A scene whose name (and body) a spreadsheet reads as a formula: ``-cmd`` is ``=-cmd``,
 #NAME? in Excel; the schema's name pattern allows a leading ``-``."""
 
-ATTACKS = [start + "HYPERLINK(\"http://x\",\"y\")" for start in FORMULA_STARTS]
+ATTACKS = [start + 'HYPERLINK("http://x","y")' for start in FORMULA_STARTS]
 """One text cell per first character of OWASP's list."""
 
 
@@ -105,9 +105,7 @@ def test_a_formula_named_scene_is_neutralised_in_every_csv_and_round_trips(
     assert run(tmp_path, "b", "--baseline", str(baseline)) == EXIT_OK
     classes = pd.read_csv(tmp_path / "b" / "results.csv")["baseline"]
     assert set(classes) == {"unchanged"}, classes.tolist()  # the baseline read back matches
-    assert {row[0] for row in cells(tmp_path / "b" / "baseline.csv")[1:]} == {
-        "'-cmd"
-    }
+    assert {row[0] for row in cells(tmp_path / "b" / "baseline.csv")[1:]} == {"'-cmd"}
     page = (tmp_path / "b" / "report.html").read_text()
     assert "-cmd" in page and "'-cmd" not in page and "&#39;-cmd" not in page
 
