@@ -25,7 +25,7 @@ from validation.nightly.baseline import (
     read_baseline,
     scene_hash,
 )
-from validation.nightly.history import record_run
+from validation.nightly.history import HistoryInputError, check_database, record_run
 from validation.nightly.junit import write_junit
 from validation.nightly.known import outcome_of
 from validation.redact import shown_url
@@ -69,7 +69,8 @@ def nightly_options(
 ) -> NightlyOptions:
     """The flags resolved and checked: the baseline read (``none`` turns the default off), the
     JUnit file's folder present, the history URL (``none``: not recorded; default: next to
-    the run folder). BadInputError naming the flag otherwise."""
+    the run folder) recordable into (``_check_history``). BadInputError naming the flag
+    otherwise."""
     path = _baseline_path(baseline)
     table = None
     if path is not None:
@@ -84,7 +85,20 @@ def nightly_options(
         url = f"sqlite:///{(destination.parent / HISTORY_FILE).resolve()}"
     else:
         url = None if history == "none" else history
+    _check_history(url, given=history is not None, destination=destination)
     return NightlyOptions(path, junit_path, url, table)
+
+
+def _check_history(url: str | None, given: bool, destination: Path) -> None:
+    """The history database checked before any work (``history.check_database``: connected,
+    the tables created and rolled back): a bad ``--history`` is exit 2, not a note after the
+    run. The default one is checked when its folder exists (the run creates it otherwise)."""
+    if url is None or not (given or destination.parent.is_dir()):
+        return
+    try:
+        check_database(url, "--history" if given else "the history database")
+    except HistoryInputError as error:
+        raise BadInputError(str(error)) from None
 
 
 def _baseline_path(baseline: str | None) -> Path | None:

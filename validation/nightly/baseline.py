@@ -101,9 +101,11 @@ def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.Da
 
 
 def read_baseline(path: Path) -> pd.DataFrame:
-    """A baseline file; ValueError naming the file and what is missing when it is not one."""
+    """A baseline file, its text cells as written (``csv_safe.restored``); ValueError naming
+    the file and what is wrong when it is not one (columns missing, a key on two rows)."""
     try:
-        table = pd.read_csv(path, dtype={"scene_sha256": str}, keep_default_na=False)
+        text = dict.fromkeys((*KEY, "scene_sha256"), str)  # names are text, whatever they look like
+        table = pd.read_csv(path, dtype=text, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
     absent = [c for c in REQUIRED_COLUMNS if c not in table.columns]
@@ -114,7 +116,22 @@ def read_baseline(path: Path) -> pd.DataFrame:
             table[column] = ""
     for column in ("value", "error", "tolerance", *SIGNED_COLUMNS):
         table[column] = pd.to_numeric(table[column], errors="coerce")
-    return restored(table)
+    return _one_row_per_key(restored(table), path)
+
+
+def _one_row_per_key(table: pd.DataFrame, path: Path) -> pd.DataFrame:
+    """``table``, or ValueError naming the first key (``KEY``) that has two rows and their
+    lines: which of two rows would a run be classified against?"""
+    twice = table[table.duplicated(list(KEY), keep=False)]
+    if twice.empty:
+        return table
+    keys = list(zip(*(twice[k] for k in KEY), strict=True))
+    key = keys[0]
+    lines = [i + 2 for i, found in zip(twice.index, keys, strict=True) if found == key]  # 1: header
+    raise ValueError(
+        f"{path}: not a baseline: lines {', '.join(map(str, lines))} are all the row "
+        f"({', '.join(map(str, key))}); a baseline has one row per (scenario, engine, metric)"
+    )
 
 
 def _number(value: object) -> float:

@@ -35,12 +35,13 @@ import pandas as pd
 
 from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.csv_safe import csv_text
-from validation.files import write_atomically
+from validation.files import folder_target_problem, write_atomically
 from validation.measure.noise import NOISE_RULE, moved, noise_floor
 from validation.nightly.history import (
     KEY_COLUMNS,
     UNRECORDED,
     HistoryInputError,
+    check_url,
     database_url,
     describe_selection,
     load_run,
@@ -326,20 +327,31 @@ def build_context(a: RunSide, b: RunSide, moved_rows: pd.DataFrame) -> dict[str,
     }
 
 
+def _check_flags(url: str | None, folder: Path) -> None:
+    """``--db`` (when given) a usable URL even if both runs are folders, and ``--out`` a
+    folder compare.csv and compare.html can be written into: HistoryInputError otherwise."""
+    if url is not None:
+        check_url(url, "--db")
+    problem = folder_target_problem(folder, (COMPARE_CSV, COMPARE_HTML))
+    if problem:
+        raise HistoryInputError(f"--out: {problem}")
+
+
 def compare_main(
     run_a: str, run_b: str, db: str | None, out: Path | None, selection: str | None = None
 ) -> int:
     """``physval compare``: writes compare.csv and compare.html; 0, or 2 and one line."""
     try:
         url = database_url(db)
-        rule = compare_rule(selection)  # the flag checked before any run is read
+        rule = compare_rule(selection)  # the flags checked before any run is read
+        folder = out or DEFAULT_OUT
+        _check_flags(url if db is not None else None, folder)
         shared = shared_rows(resolve_run(run_a, url), resolve_run(run_b, url), rule)
     except HistoryInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     a, b = shared.a, shared.b
     moved_rows = compare_runs(a, b)
-    folder = out or DEFAULT_OUT
     folder.mkdir(parents=True, exist_ok=True)
     write_atomically(folder / COMPARE_CSV, csv_text(moved_rows))
     context = {**build_context(a, b, moved_rows), "selection": selection_context(shared)}
