@@ -84,7 +84,7 @@ def test_a_bad_history_is_refused_before_the_first_job(tmp_path, capsys, url, sa
 
 def test_the_check_rolls_back_what_it_created(tmp_path, capsys):
     """An empty SQLite file passes the check (the tables can be created) and is left empty:
-    the check's CREATE TABLE and INSERT are rolled back when the run then stops on a bad
+    the check's CREATE TABLE is rolled back when the run then stops on a bad
     scene."""
     database = tmp_path / "history.sqlite"
     sqlite3.connect(database).close()
@@ -100,7 +100,7 @@ def test_the_check_rolls_back_what_it_created(tmp_path, capsys):
 
 def test_the_check_leaves_an_older_recorded_history_as_it_was(tmp_path):
     """The check on a database of an older version (runs recorded, no selection columns)
-    adds the columns and a run, then rolls both back: the next run's recording migrates."""
+    adds the columns, then rolls them back: the next run's recording migrates."""
     from test_history_selection import old_database
 
     database = tmp_path / "history.sqlite"

@@ -380,7 +380,8 @@ def check_url(url: str, flag: str = "--db") -> None:
 def _transactional_sqlite(engine: sa.Engine) -> None:
     """Make Python's sqlite3 driver run DDL inside the transaction (it commits ``CREATE
     TABLE`` at once otherwise), so that a probe can roll it back: SQLAlchemy's recipe for
-    pysqlite (its "Serializable isolation / Savepoints / Transactional DDL" section)."""
+    pysqlite (its "Serializable isolation / Savepoints / Transactional DDL" section), with
+    ``BEGIN IMMEDIATE``, which takes the write lock: a read-only or locked file fails here."""
 
     @sa.event.listens_for(engine, "connect")
     def _no_implicit_transactions(dbapi_connection, _record) -> None:
@@ -388,18 +389,7 @@ def _transactional_sqlite(engine: sa.Engine) -> None:
 
     @sa.event.listens_for(engine, "begin")
     def _explicit_begin(connection) -> None:
-        connection.exec_driver_sql("BEGIN")
-
-
-PROBE_RUN = {
-    "created": None,
-    "engine_versions": {},
-    "machine": {},
-    "command": "physval probe",
-    "folder": "",
-    "complete": False,
-}
-"""The ``runs`` row ``check_database`` inserts and rolls back."""
+        connection.exec_driver_sql("BEGIN IMMEDIATE")
 
 
 def _missing_sqlite_file(path: Path, url: str, flag: str) -> None:
@@ -417,9 +407,10 @@ def _missing_sqlite_file(path: Path, url: str, flag: str) -> None:
 
 def check_database(url: str, flag: str = "--history") -> None:
     """Before any work: the history at ``url`` can be recorded into. Connect, create the
-    tables and the missing columns, insert a run, and roll all of it back; a missing SQLite
-    file is not created (its folder is checked, ``_missing_sqlite_file``). One
-    ``HistoryInputError`` line otherwise (``usable``)."""
+    tables and the missing columns, and roll it back (no run is inserted: a PostgreSQL
+    sequence is not rolled back, and the run ids would have gaps); a missing SQLite file is not
+    created (its folder is checked, ``_missing_sqlite_file``). One ``HistoryInputError`` line
+    otherwise (``usable``)."""
     with usable(url, flag):
         path = sqlite_file(url, flag)
         if path is not None and path.is_dir():
@@ -438,7 +429,6 @@ def check_database(url: str, flag: str = "--history") -> None:
                     for name in ADDED_RUN_COLUMNS:
                         if name not in run_columns(connection):
                             connection.execute(sa.text(_column_ddl(connection, name)))
-                    begin_run(connection, PROBE_RUN)
                 finally:
                     transaction.rollback()
         finally:
