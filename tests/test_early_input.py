@@ -32,6 +32,13 @@ UNREACHABLE = f"postgresql://ci:{SECRET}@127.0.0.1:1/physval"
 """A server that refuses the connection at once (nothing listens on port 1 of the loopback)."""
 
 
+FALL = (
+    "dt: 0.01\nduration: 0.05\nengines: [mini]\n"
+    "bodies: [{name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0}]\n"
+)
+"""A scene of five steps, for the runs that must get through."""
+
+
 class TooSlow(BaseException):
     """The alarm of ``refused``: no ``except Exception`` or ``except OSError`` of the run may
     take it for one of its own errors (a TimeoutError is an OSError)."""
@@ -82,6 +89,18 @@ def test_a_bad_history_is_refused_before_the_first_job(tmp_path, capsys, url, sa
     assert sorted(tmp_path.rglob("*")) == before  # no run folder, no database, no folder
 
 
+def test_an_sqlite_file_in_the_folder_the_run_makes_is_recorded(tmp_path, capsys):
+    """A CI cache's first night: ``--history sqlite:///reports/history.sqlite`` before
+    ``reports/`` exists, which the run makes for its ``--out``: accepted and recorded."""
+    fall = tmp_path / "fall.yaml"
+    fall.write_text(FALL)
+    database = tmp_path / "reports" / "history.sqlite"
+    out = tmp_path / "reports" / "latest"
+    argv = ["run", str(fall), "--out", str(out), "--history", f"sqlite:///{database}"]
+    assert main([*argv, "--jobs", "1", "--baseline", "none"]) == EXIT_OK
+    assert "history run 1" in capsys.readouterr().out and database.is_file()
+
+
 def test_the_check_rolls_back_what_it_created(tmp_path, capsys):
     """An empty SQLite file passes the check (the tables can be created) and is left empty:
     the check's CREATE TABLE is rolled back when the run then stops on a bad
@@ -128,10 +147,7 @@ def test_a_history_that_fails_after_the_check_is_a_note(tmp_path, capsys, monkey
 
     monkeypatch.setattr(nightly_run, "record_run", unreachable)
     fall = tmp_path / "fall.yaml"
-    fall.write_text(
-        "dt: 0.01\nduration: 0.05\nengines: [mini]\n"
-        "bodies: [{name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0}]\n"
-    )
+    fall.write_text(FALL)
     url = f"sqlite:///{tmp_path / 'history.sqlite'}"
     out = tmp_path / "out"
     code = main(["run", str(fall), "--out", str(out), "--history", url, "--jobs", "1"])

@@ -8,6 +8,7 @@ password, an unreachable server) print one line without it."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -156,3 +157,24 @@ def test_a_wrong_password_is_one_line_before_any_work_without_the_password(
     assert "password authentication failed" in done.stderr, done.stderr
     assert wrong not in done.stderr and postgres.password not in done.stderr, done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_foreign_folder_that_recorded_a_password_is_masked_when_read(tmp_path):
+    """A run folder written by an older version (or by hand) with the password in its command
+    line: ``physval report`` and the history import show it masked (no server needed)."""
+    from report_fixtures import write_synthetic_run
+
+    from validation.cli import main
+    from validation.nightly import history
+
+    folder = write_synthetic_run(tmp_path / "run")
+    provenance = json.loads((folder / "provenance.json").read_text())
+    provenance["command"] = "physval run --history=postgresql://ci:hunter2@db/physval"
+    (folder / "provenance.json").write_text(json.dumps(provenance))
+    assert main(["report", str(folder)]) == EXIT_OK
+    page = (folder / "report.html").read_text()
+    assert "hunter2" not in page and "--history=postgresql://ci:***@db/physval" in page
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    history.record_run(folder, url)
+    stored = database_text(url)
+    assert "hunter2" not in stored and "ci:***@db" in stored, stored

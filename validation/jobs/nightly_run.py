@@ -92,11 +92,13 @@ def nightly_options(
 def _check_history(url: str | None, given: bool, destination: Path) -> None:
     """The history database checked before any work (``history.check_database``: connected,
     the tables created and rolled back): a bad ``--history`` is exit 2, not a note after the
-    run. The default one is checked when its folder exists (the run creates it otherwise)."""
-    if url is None or not (given or destination.parent.is_dir()):
+    run. An SQLite file may be in a folder the run makes (one that holds ``--out``: the
+    default ``reports/history.sqlite``, or a CI cache's before its first run)."""
+    if url is None:
         return
+    made = tuple(destination.resolve().parents)
     try:
-        check_database(url, "--history" if given else "the history database")
+        check_database(url, "--history" if given else "the history database", made)
     except HistoryInputError as error:
         raise BadInputError(str(error)) from None
 

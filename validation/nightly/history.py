@@ -392,10 +392,12 @@ def _transactional_sqlite(engine: sa.Engine) -> None:
         connection.exec_driver_sql("BEGIN IMMEDIATE")
 
 
-def _missing_sqlite_file(path: Path, url: str, flag: str) -> None:
+def _missing_sqlite_file(path: Path, url: str, flag: str, made: tuple[Path, ...]) -> None:
     """An SQLite file that does not exist yet: its folder must (nothing is created before the
-    run is recorded, a folder never), and be writable."""
+    run is recorded, and no folder but those of ``made``), and be writable."""
     folder = path.parent
+    if not folder.exists() and folder.resolve() in made:
+        return  # the run makes it (the folder of its --out), and the file in it when recording
     if not folder.is_dir():
         raise HistoryInputError(
             f"{flag} {shown_url(url)}: no folder {folder} (the database file is created in an "
@@ -405,18 +407,19 @@ def _missing_sqlite_file(path: Path, url: str, flag: str) -> None:
         raise HistoryInputError(f"{flag} {shown_url(url)}: folder {folder} is not writable")
 
 
-def check_database(url: str, flag: str = "--history") -> None:
+def check_database(url: str, flag: str = "--history", made: tuple[Path, ...] = ()) -> None:
     """Before any work: the history at ``url`` can be recorded into. Connect, create the
     tables and the missing columns, and roll it back (no run is inserted: a PostgreSQL
     sequence is not rolled back, and the run ids would have gaps); a missing SQLite file is not
-    created (its folder is checked, ``_missing_sqlite_file``). One ``HistoryInputError`` line
-    otherwise (``usable``)."""
+    created (its folder is checked, ``_missing_sqlite_file``: it must exist, or be one of the
+    folders ``made`` by the run, resolved). One ``HistoryInputError`` line otherwise
+    (``usable``)."""
     with usable(url, flag):
         path = sqlite_file(url, flag)
         if path is not None and path.is_dir():
             raise HistoryInputError(f"{flag} {shown_url(url)}: {path} is a folder, not a file")
         if path is not None and not path.exists():
-            _missing_sqlite_file(path, url, flag)
+            _missing_sqlite_file(path, url, flag, made)
             return
         engine = create_engine(url)
         if engine.dialect.name == "sqlite":
