@@ -396,8 +396,8 @@ def _missing_sqlite_file(path: Path, url: str, flag: str, made: tuple[Path, ...]
     """An SQLite file that does not exist yet: its folder must (nothing is created before the
     run is recorded, and no folder but those of ``made``), and be writable."""
     folder = path.parent
-    if not folder.exists() and folder.resolve() in made:
-        return  # the run makes it (the folder of its --out), and the file in it when recording
+    if folder.resolve() in made:
+        return  # the run makes it or checks it (a folder of its --out), and records into it
     if not folder.is_dir():
         raise HistoryInputError(
             f"{flag} {shown_url(url)}: no folder {folder} (the database file is created in an "
