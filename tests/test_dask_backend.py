@@ -21,8 +21,8 @@ from validation.jobs.dask_backend import MISSING
 from validation.jobs.executor import BACKENDS, run_jobs
 from validation.jobs.journal import Journal
 from validation.jobs.plan import plan_run
-from validation.jobs.run import execute
-from validation.jobs.terminal import PROGRESS_PREFIX
+from validation.jobs.run import JOURNAL_SCHEMA, execute, job_ids
+from validation.jobs.terminal import message_lines
 
 distributed = pytest.importorskip("distributed")
 
@@ -276,7 +276,7 @@ them before it exits; this only bounds how long the machine takes to notice."""
 
 INTERRUPT_MOMENTS = {
     "starting": lambda run, out: _descendants(run.pid),
-    "running": lambda run, out: list(out.parent.glob(".run-staging-*/journal/job-*.pickle")),
+    "running": lambda run, out: list(out.parent.glob(".run-staging-*/journal/job-*.zip")),
 }
 """When Ctrl-C comes: as soon as the run has started a process of the cluster (its
 scheduler and workers are starting), or once it has committed a finished job to its
@@ -308,7 +308,7 @@ def test_ctrl_c_with_a_local_cluster_is_one_line_and_leaves_no_dask_process(tmp_
     finally:
         if run.poll() is None:
             run.kill()
-    lines = [line for line in stderr.splitlines() if not line.startswith(PROGRESS_PREFIX)]
+    lines = message_lines(stderr)
     assert run.returncode == 130, (run.returncode, stderr[-3000:])
     assert "Traceback" not in stderr, stderr[-3000:]
     assert len(lines) == 1 and lines[0].startswith("interrupted"), lines
@@ -341,18 +341,18 @@ def test_a_job_the_cluster_lost_is_an_error_row_and_runs_again_on_resume(tmp_pat
     and gets its real rows."""
     plan = plan_run([FOUR_SCENES[1]], "mini, mujoco", None, None)
     monkeypatch.setitem(BACKENDS, "dask", lambda workers, scheduler: _LosesTheFirstJob())
-    journal = Journal.create(tmp_path / "journal", {"run": "test"})
+    journal = Journal.create(tmp_path / "journal", {"run": "test"}, JOURNAL_SCHEMA)
     first = execute(plan, 2, journal, scheduler="tcp://lossy:8786")
     lost = [run for run in first.runs if run.status == "error"]
     assert [run.engine for run in lost] == ["mini"], [(r.engine, r.status) for r in first.runs]
     assert "KilledWorker" in lost[0].message, lost[0].message
-    committed = journal.finished()
+    committed = journal.finished(job_ids(plan))
     assert 0 not in committed and len(committed) == len(plan.jobs) + len(plan.sweeps) - 1, sorted(
         committed
     )
     resumed = execute(plan, 1, journal, committed)
     assert [run.status for run in resumed.runs] == ["ok", "ok"], [r.message for r in resumed.runs]
-    assert sorted(journal.finished()) == sorted([0, *committed])
+    assert sorted(journal.finished(job_ids(plan))) == sorted([0, *committed])
 
 
 def test_a_local_cluster_that_cannot_start_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):

@@ -22,6 +22,7 @@ import pytest
 
 from validation.cli import main
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK, PROVENANCE_FILE, RESULTS_COLUMNS
+from validation.jobs.terminal import message_lines
 from validation.measure.noise import RELATIVE_NOISE
 from validation.nightly import history
 from validation.nightly.compare import COMPARE_COLUMNS
@@ -509,7 +510,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, arguments, says):
     assert main(argv) == EXIT_BAD_INPUT
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert len(captured.err.strip().splitlines()) == 1, captured.err
+    assert len(message_lines(captured.err)) == 1, captured.err
     assert says in captured.err and "Traceback" not in captured.err
     assert "hunter2" not in captured.err  # a password is never printed
     assert not (tmp_path / "missing.sqlite").exists()  # reading never creates a database

@@ -18,6 +18,7 @@ import pytest
 
 from validation.cli import BUNDLED_SCENARIOS
 from validation.jobs.output import history_name
+from validation.jobs.terminal import message_lines
 
 PROJECTILE = BUNDLED_SCENARIOS / "formulas" / "projectile.yaml"
 
@@ -94,13 +95,13 @@ def test_sigkill_mid_run_then_resume_gives_the_files_of_an_uninterrupted_run(tmp
     arguments = [str(scene), str(PROJECTILE), "--jobs", "1"]
     killed = physval("run", *arguments, "--out", "killed", cwd=tmp_path)
     deadline = time.monotonic() + RUN_TIMEOUT_S
-    while not list(tmp_path.glob(".killed-staging-*/journal/job-*.pickle")):
+    while not list(tmp_path.glob(".killed-staging-*/journal/job-*.zip")):
         assert killed.poll() is None, f"the run ended before a job finished: {killed.stderr.read()}"
         assert time.monotonic() < deadline, "no job finished in time"
         time.sleep(0.005)
     os.killpg(killed.pid, signal.SIGKILL)
     killed.wait()
-    committed = len(list(tmp_path.glob(".killed-staging-*/journal/job-*.pickle")))
+    committed = len(list(tmp_path.glob(".killed-staging-*/journal/job-*.zip")))
     assert 1 <= committed < planned_jobs(scene, PROJECTILE), committed
     assert not (tmp_path / "killed").exists(), "a killed run must not publish"
 
@@ -190,7 +191,7 @@ def test_two_concurrent_runs_on_one_out_end_without_a_traceback_and_one_report(t
     assert all("Traceback" not in err for _, _, err in ended), ended
     assert sorted(code for code, _, _ in ended) == [0, 2], ended
     loser = next(err for code, _, err in ended if code == 2)
-    assert len(loser.strip().splitlines()) == 1 and "another physval run" in loser, loser
+    assert len(message_lines(loser)) == 1 and "another physval run" in loser, loser
     assert {"results.csv", "report.html", "series.csv"} <= {
         p.name for p in (tmp_path / "out").iterdir()
     }
@@ -212,7 +213,7 @@ def test_out_a_file_or_a_symlink_exits_2_and_leaves_it(tmp_path, kind):
         out.symlink_to(elsewhere)
     code, _, err = run("run", str(PROJECTILE), "--dt", "0.01", "--out", str(out), cwd=tmp_path)
     assert code == 2, err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert len(message_lines(err)) == 1 and "Traceback" not in err, err
     assert target.read_text() == "keep me"
     assert list(elsewhere.iterdir()) == []
     assert kind != "symlink" or out.is_symlink()
@@ -245,7 +246,7 @@ def test_a_read_only_output_exits_2_before_any_engine_runs(tmp_path, read_only_f
         "run", str(PROJECTILE), "--out", str(out), "--jobs", "1", cwd=tmp_path, code=fail_if_run
     )
     assert code == 2, err
-    assert len(err.strip().splitlines()) == 1 and "cannot be written" in err, err
+    assert len(message_lines(err)) == 1 and "cannot be written" in err, err
 
 
 def test_run_folders_honour_the_umask_and_the_report_names_the_published_folder(tmp_path):
@@ -277,7 +278,7 @@ def test_a_full_disk_is_refused_before_any_engine_runs(tmp_path):
         code="import validation.jobs.output as output; output.MIN_FREE_BYTES = 2**62",
     )
     assert code == 2 and "MIN_FREE_BYTES" in err, err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert len(message_lines(err)) == 1 and "Traceback" not in err, err
 
 
 DISK_FULL_WHILE_WRITING = """
@@ -294,8 +295,8 @@ def test_a_write_failing_after_the_engines_ran_keeps_their_jobs_for_resume(tmp_p
     arguments = ("run", str(first), "--out", "out")
     code, _, err = run(*arguments, cwd=tmp_path, code=DISK_FULL_WHILE_WRITING)
     assert code == 2 and "No space left" in err and "--resume" in err, err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    assert len(list(tmp_path.glob(".out-staging-*/journal/job-*.pickle"))) == 1
+    assert len(message_lines(err)) == 1 and "Traceback" not in err, err
+    assert len(list(tmp_path.glob(".out-staging-*/journal/job-*.zip"))) == 1
     code, out, err = run("run", "--resume", "out", cwd=tmp_path)
     assert code == 0 and "1 of 1 jobs from the journal" in out, err
     assert set(pd.read_csv(tmp_path / "out" / "results.csv")["scenario"]) == {"first"}

@@ -41,10 +41,11 @@ def command_check(args: argparse.Namespace) -> int:
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
-    selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline, args.junit)
-    if args.resume is not None and (any(selection) or args.history):
+    selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
+    if args.resume is not None and any(selection):
         print(
-            f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs or --scheduler",
+            f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs, --scheduler and the "
+            "killed run's --junit and --history",
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import os
 import secrets
+import stat
 from pathlib import Path
+from typing import BinaryIO
 
 import pandas as pd
 
@@ -80,3 +82,27 @@ def folder_target_problem(path: Path, files: tuple[str, ...] = ()) -> str | None
         if (path / name).is_dir():
             return f"{path / name} is a folder; expected a file"
     return _blocked_folder(path.parent)
+
+
+def open_regular(path: Path) -> BinaryIO:
+    """``path`` opened for reading, never through a symlink (``O_NOFOLLOW``), never blocking
+    on a FIFO or a device; ``OSError`` unless it is a regular file. For files read back from
+    a folder that may come from elsewhere (a run folder, a journal)."""
+    descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    try:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            raise OSError(0, "not a regular file")
+        return os.fdopen(descriptor, "rb")
+    except BaseException:
+        os.close(descriptor)
+        raise
+
+
+def read_regular(path: Path, limit: int) -> bytes:
+    """The bytes of the regular file ``path`` (``open_regular``); ``ValueError`` when it holds
+    more than ``limit`` bytes (read no further)."""
+    with open_regular(path) as handle:
+        data = handle.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"larger than {limit} bytes")
+    return data

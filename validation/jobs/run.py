@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pydantic
 
 from validation.contract import (
     BAD_STATUSES,
@@ -40,7 +41,8 @@ from validation.csv_safe import csv_text
 from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
-from validation.jobs.journal import Journal, JournalError
+from validation.jobs.journal import HEADER_FILE, JobId, Journal, JournalError, Schema
+from validation.jobs.journal import RECORD_PATTERN as JOURNAL_RECORD
 from validation.jobs.nightly_run import (
     NightlyOptions,
     against_baseline,
@@ -55,6 +57,7 @@ from validation.jobs.nightly_run import (
 from validation.jobs.output import Output, claim
 from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
 from validation.jobs.sweep import (
+    SWEEP_METRICS,
     lost_sweep_job,
     reference_problems,
     sweep_cost,
@@ -65,6 +68,7 @@ from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
+from validation.measure.states import Series
 from validation.nightly.baseline import exit_failed
 from validation.nightly.known import apply_known
 from validation.redact import shown_argv, shown_command
@@ -204,6 +208,27 @@ JOB_KINDS = {"run": kept_job, "sweep": sweep_job}
 """Job kind -> the function a worker runs: a (scene, engine) run, or one scene's dt sweep."""
 
 
+SweepCell = str | bool | int | float | None
+"""A cell of a sweep row (``sweep.sweep_job``)."""
+
+JOURNAL_SCHEMA = Schema(
+    results={"run": tuple[EngineRun, list[Measurement]], "sweep": list[dict[str, SweepCell]]},
+    shapes={
+        Trajectory: {"t": ("samples",), "pos": ("samples", "bodies", 3)},
+        Series: {
+            "t": ("samples",),
+            "energy": ("samples",),
+            "momentum": ("samples", 3),
+            "angular_momentum": ("samples", 3),
+            "com": ("samples", 3),
+        },
+    },
+)
+"""What a journal record of each job kind holds (``JOB_KINDS``'s results, read back as
+these types and nothing else), and the shapes of its arrays: a trajectory's positions are
+(samples, the scene's bodies, 3), the series one row of each quantity per sample."""
+
+
 def _do(job: tuple[str, tuple]) -> object:
     """One tagged job (``kind, payload``) in a worker process."""
     kind, payload = job
@@ -261,6 +286,7 @@ def execute(
     its error rows in this run but is not committed: the cluster failed, not the job, so a
     ``--resume`` of this run (killed later) runs it again."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
+    ids = job_ids(plan)
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
     lost_jobs: list[tuple] = []  # the cluster lost them: their error rows are not journaled
@@ -272,7 +298,7 @@ def execute(
     def finished(position: int, result) -> None:
         index = todo[position]
         if journal is not None and not any(work[index] is job for job in lost_jobs):
-            journal.append(index, result)  # a lost job is run again by --resume
+            journal.append(ids[index], result)  # a lost job is run again by --resume
         done[index] = result
         kind, payload = work[index]
         scene, spec = payload[0], payload[1]
@@ -342,8 +368,11 @@ def render_html(folder: Path, shown_as: Path) -> str:
 DEFAULT_OUT = Path("reports") / "latest"
 """Where a run without ``--out`` publishes (and keeps a copy under ``reports/runs/``)."""
 
-RESUME_ALONE = "--resume takes the run's scenes, engines, --dt, --only and --out from its journal"
-"""Why --resume refuses other selection flags (only --jobs may change)."""
+RESUME_ALONE = (
+    "--resume takes the run's scenes, engines, --dt, --only, --baseline and --out from its journal"
+)
+"""Why --resume refuses other selection flags (only --jobs and --scheduler may change; the
+files it writes besides DIR, --junit and --history, are given again)."""
 
 
 def job_fingerprints(plan: Plan) -> list[dict]:
@@ -360,9 +389,24 @@ def job_fingerprints(plan: Plan) -> list[dict]:
     return found
 
 
+def job_ids(plan: Plan) -> list[JobId]:
+    """Each job of the plan, in plan order, as its journal record names it."""
+    kinds = ["run"] * len(plan.jobs) + ["sweep"] * len(_sweep_work(plan))
+    bodies = [len(s.scenario.bodies) for s, _ in plan.jobs]
+    bodies += [len(scenario.bodies) for scenario, _, _ in _sweep_work(plan)]
+    return [
+        JobId(index, kind, found["scene"], found["engine"], found["fingerprint"], count)
+        for index, (kind, found, count) in enumerate(
+            zip(kinds, job_fingerprints(plan), bodies, strict=True)
+        )
+    ]
+
+
 @dataclasses.dataclass(frozen=True)
 class RunRequest:
     """What a run was asked for: the journal's header holds it, so --resume can plan again."""
+
+    __pydantic_config__ = pydantic.ConfigDict(strict=True, extra="forbid")  # header.json
 
     paths: list[str]
     engines: str | None
@@ -403,24 +447,104 @@ def _header(request: RunRequest, plan: Plan) -> dict:
     }
 
 
-def _resumed(journal: Journal) -> tuple[RunRequest, Plan]:
-    """The request and plan of the journal's run, checked to be the same work and code."""
+class _JobFingerprint(pydantic.BaseModel):
+    """One job of a journal's header (``job_fingerprints``)."""
+
+    model_config = pydantic.ConfigDict(strict=True, extra="forbid")
+    scene: str
+    engine: str
+    fingerprint: str
+
+
+class _Header(pydantic.BaseModel):
+    """A journal's header (``_header``), as ``--resume`` accepts it: every field of its type,
+    no other field."""
+
+    model_config = pydantic.ConfigDict(strict=True, extra="forbid")
+    request: RunRequest
+    git_commit: str
+    jobs: list[_JobFingerprint]
+    journal_version: int
+
+
+def _read_header(journal: Journal) -> _Header:
+    """The journal's header, every field checked; ``BadInputError`` naming the first wrong
+    one."""
     try:
-        request = RunRequest(**journal.header["request"])
-    except (KeyError, TypeError) as error:
-        raise BadInputError(f"{journal.folder}: not a run's journal ({error})") from None
+        return _Header.model_validate_json(json.dumps(journal.header))
+    except pydantic.ValidationError as error:
+        first = error.errors()[0]
+        field = ".".join(str(part) for part in first["loc"]) or "header"
+        raise BadInputError(
+            f"{journal.folder / HEADER_FILE}: {field}: {first['msg']} (not a run's journal "
+            "this version can resume)"
+        ) from None
+
+
+def _resumed(
+    journal: Journal, destination: Path, junit: str | None, history: str | None
+) -> tuple[RunRequest, Plan]:
+    """The request and plan of the journal's run, checked to be the same work and code, and
+    as it may run now: its paths checked as a fresh run's flags are, writing only to
+    ``destination`` (``--resume DIR``) and to the ``junit`` and ``history`` given on this
+    command line (``_writes_only``)."""
+    header = _read_header(journal)
+    request = _writes_only(
+        header.request, journal.folder / HEADER_FILE, destination, junit, history
+    )
     plan = request.plan()
-    if job_fingerprints(plan) != journal.header.get("jobs"):
+    if [dict(job) for job in header.model_dump()["jobs"]] != job_fingerprints(plan):
         raise BadInputError(
             f"--resume: the scenes or engines changed since the killed run "
             f"({' '.join(shown_argv(request.argv)) or 'physval run'}); run it again without --resume"
         )
-    if journal.header.get("git_commit") != _git_commit():
+    if header.git_commit != _git_commit():
         raise BadInputError(
             f"--resume: the code changed since the killed run (commit "
-            f"{journal.header.get('git_commit')}, now {_git_commit()}); run it again"
+            f"{header.git_commit}, now {_git_commit()}); run it again"
         )
     return request, plan
+
+
+def _writes_only(
+    request: RunRequest, header: Path, destination: Path, junit: str | None, history: str | None
+) -> RunRequest:
+    """The journal's ``request`` as the resumed run executes it: its ``out`` must be
+    ``destination``, its JUnit file and history database those given again on this command
+    line (a journal never names a file to write); relative paths taken from its ``cwd``,
+    which must be an absolute folder. ``BadInputError`` naming the header's field otherwise."""
+    cwd = Path(request.cwd)
+    if not cwd.is_absolute() or not cwd.is_dir():
+        raise BadInputError(
+            f"{header}: request.cwd: expected an existing absolute folder; got {request.cwd!r}"
+        )
+    named = (cwd / (DEFAULT_OUT if request.out is None else Path(request.out))).resolve()
+    if named != destination.resolve():
+        raise BadInputError(
+            f"{header}: request.out: the journal is of a run on {named}, not --resume {destination}"
+        )
+    if _resolved(cwd, request.junit) != _resolved(Path.cwd(), junit):
+        raise BadInputError(
+            f"{header}: request.junit: the killed run wrote JUnit XML to {request.junit!r}; "
+            f"a resumed run writes only what its own command line names: give --junit "
+            f"{_resolved(cwd, request.junit) or 'none'} again"
+            if junit is None
+            else f"--junit {junit}: the killed run's was {request.junit!r} ({header}); give the same"
+        )
+    if (request.history or "default") != (history or "default"):
+        raise BadInputError(
+            f"--history: differs from the killed run's ({header}: request.history; "
+            "default: next to --out); a resumed run records only where its own command line "
+            "says: give the same --history again"
+        )
+    baseline = request.baseline
+    if baseline not in (None, "none"):
+        baseline = str(cwd / baseline)
+    return dataclasses.replace(request, out=str(destination), junit=junit, baseline=baseline)
+
+
+def _resolved(cwd: Path, path: str | None) -> Path | None:
+    return None if path is None else (cwd / path).resolve()
 
 
 def _finish(
@@ -430,10 +554,12 @@ def _finish(
     request: RunRequest,
     jobs: int,
     scheduler: str | None = None,
+    keep_copy: bool | None = None,
 ) -> int:
-    """Run what the journal lacks, write and publish the run folder; the exit code."""
+    """Run what the journal lacks, write and publish the run folder; the exit code.
+    ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``)."""
     options = request.nightly()
-    done = journal.finished()
+    done = _journaled(journal, plan)
     resumed = len(done)
     executed = execute(plan, jobs, journal, done, scheduler)  # Ctrl-C: Interrupted
     rows = executed.rows + _sweep_rows(plan, executed)
@@ -452,7 +578,7 @@ def _finish(
     write_ci_files(rows, options)
     note = render_html(output.run_folder, shown_as=output.destination)
     output.publish()
-    if request.out is None:  # the default run also keeps a copy with a unique stamp
+    if request.out is None if keep_copy is None else keep_copy:  # with a unique stamp
         output.keep_history()
     recorded = record_history(output.destination, options)
     print(summary(rows, color=sys.stdout.isatty()))
@@ -470,6 +596,64 @@ def _finish(
     if note:  # the record is published, but the page a reader opens is not: never exit 0
         return EXIT_BAD_INPUT
     return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+
+
+RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error")
+"""An engine run's statuses (``validation.measure.runner``)."""
+
+RECORDED_STATUSES = ("ok", "unstable")
+"""Statuses of a run that has a recording."""
+
+SWEEP_ROW_TEXT = ("scenario", "engine", "metric")
+"""Cells every sweep row has, as text (``nightly_run.sweep_result_rows`` reads them)."""
+
+
+def _journaled(journal: Journal, plan: Plan) -> dict:
+    """Index -> result of the plan's jobs the journal holds, each checked to be of its job
+    (``JournalError``, as ``BadInputError``, naming the record's file and field)."""
+    ids = job_ids(plan)
+    try:
+        done = journal.finished(ids)
+    except JournalError as error:
+        raise BadInputError(f"--resume: {error}") from None
+    for index, result in done.items():
+        problem = RESULT_CHECKS[ids[index].kind](ids[index], result)
+        if problem:
+            file = journal.folder / JOURNAL_RECORD.format(index=index)
+            raise BadInputError(f"--resume: {file}: {problem}")
+    return done
+
+
+def _run_problem(job: JobId, result: tuple[EngineRun, list[Measurement]]) -> str:
+    """What makes a run's record not its job's, or not a run that can be (empty if none)."""
+    run, _ = result
+    if (run.scenario, run.engine) != (job.scene, job.engine):
+        return f"[1][0]: a run of {run.scenario} in {run.engine}; the plan's job {job.index} is {job.scene} in {job.engine}"
+    if run.status not in RUN_STATUSES:
+        return f"[1][0].status: expected one of {', '.join(RUN_STATUSES)}; got {run.status!r}"
+    if (run.recording is not None) != (run.status in RECORDED_STATUSES):
+        return f"[1][0].recording: a run of status {run.status} {'has' if run.recording is None else 'has no'} recording"
+    return ""
+
+
+def _sweep_problem(job: JobId, rows: list[dict]) -> str:
+    """What makes a sweep's record not its job's (empty if none)."""
+    for i, row in enumerate(rows):
+        for key in SWEEP_ROW_TEXT:
+            if not isinstance(row.get(key), str):
+                return f"[1][{i}].{key}: expected text; got {row.get(key)!r}"
+        if row["scenario"] != job.scene:
+            return f"[1][{i}].scenario: expected {job.scene!r} (the plan's job {job.index}); got {row['scenario']!r}"
+        needs = "of" if row["metric"] in ("convergence_order", "reference_cross_check") else "dt"
+        if row["metric"] in SWEEP_METRICS or needs == "of":
+            kind = str if needs == "of" else (int, float)
+            if not isinstance(row.get(needs), kind) or isinstance(row.get(needs), bool):
+                return f"[1][{i}].{needs}: missing or of the wrong type; got {row.get(needs)!r}"
+    return ""
+
+
+RESULT_CHECKS = {"run": _run_problem, "sweep": _sweep_problem}
+"""Job kind -> what makes a journaled result of it not its job's (``_journaled``)."""
 
 
 def _sweep_rows(plan: Plan, executed: Executed) -> list[dict]:
@@ -501,7 +685,7 @@ def run_main(
     writing)."""
     try:
         if resume is not None:
-            return _resume_main(resume, jobs, scheduler)
+            return _resume_main(resume, jobs, scheduler, junit, history)
         request = RunRequest(
             [str(p) for p in paths],
             engines,
@@ -517,7 +701,8 @@ def run_main(
         request.nightly()  # the flags checked before any work
         plan = request.plan()
         with claim(request.destination) as output:
-            journal = Journal.create(output.journal_folder, _header(request, plan))
+            header = _header(request, plan)
+            journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
             return _finish(output, journal, plan, request, jobs, scheduler)
     except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
@@ -531,11 +716,20 @@ def run_main(
         return EXIT_BAD_INPUT
 
 
-def _resume_main(destination: Path, jobs: int, scheduler: str | None = None) -> int:
+def _resume_main(
+    destination: Path,
+    jobs: int,
+    scheduler: str | None = None,
+    junit: str | None = None,
+    history: str | None = None,
+) -> int:
+    """``--resume DIR``: the journal read, its header checked and its request run writing only
+    to DIR and to this command line's ``junit`` and ``history``, before any work."""
     with claim(destination, resume=True) as output:
         try:
-            journal = Journal.open(output.journal_folder)
+            journal = Journal.open(output.journal_folder, JOURNAL_SCHEMA)
         except JournalError as error:
             raise BadInputError(f"--resume {destination}: {error}") from None
-        request, plan = _resumed(journal)
-        return _finish(output, journal, plan, request, jobs, scheduler)
+        request, plan = _resumed(journal, destination, junit, history)
+        keep_copy = journal.header["request"]["out"] is None
+        return _finish(output, journal, plan, request, jobs, scheduler, keep_copy)

@@ -94,6 +94,12 @@ PROGRESS_PREFIX = "progress"
 so a log reader (or a test) can tell progress lines from messages."""
 
 
+def message_lines(log: str) -> list[str]:
+    """The lines of a captured stderr that are messages, not per-job progress lines (what a
+    reader or a test checks is "one line")."""
+    return [line for line in log.strip().splitlines() if not line.startswith(PROGRESS_PREFIX)]
+
+
 class Progress:
     """Progress on stderr: a bar on a terminal, a line per finished job in a log.
 

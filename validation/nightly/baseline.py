@@ -19,7 +19,6 @@ known finding) that the baseline does not have failing too.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import sys
 from pathlib import Path
@@ -41,7 +40,7 @@ from validation.csv_safe import csv_text, restored
 from validation.files import write_atomically
 from validation.measure.noise import moved_signed
 from validation.nightly.known import FIXED, KNOWN, outcome_of
-from validation.report.read import ReportInputError, read_results
+from validation.report.read import ReportInputError, read_provenance, read_results
 
 KEY = ("scenario", "engine", "metric")
 """What identifies a row across runs."""
@@ -201,11 +200,13 @@ def save_baseline(run_dir: Path, to: Path) -> int:
     atomically; the number of rows. ValueError naming the file when the run cannot be read."""
     try:
         results = read_results(run_dir / RESULTS_FILE)
-        provenance = json.loads((run_dir / PROVENANCE_FILE).read_text())
+        provenance = read_provenance(run_dir / PROVENANCE_FILE, [])
     except ReportInputError as error:
         raise ValueError(f"{run_dir}: {error}") from None
-    except (OSError, json.JSONDecodeError) as error:
-        raise ValueError(f"{run_dir / PROVENANCE_FILE}: cannot be read ({error})") from None
+    except OSError as error:
+        raise ValueError(f"{run_dir}: {RESULTS_FILE}: cannot be read ({error})") from None
+    if provenance is None:  # the scenes' hashes are the baseline's
+        raise ValueError(f"{run_dir / PROVENANCE_FILE}: missing (not a run folder)")
     scenes = provenance.get("scenes", {})
     hashes = {name: str(entry.get("sha256", "")) for name, entry in scenes.items()}
     table = baseline_table(results, hashes)

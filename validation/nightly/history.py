@@ -570,11 +570,11 @@ def read_run_folder(folder: Path) -> tuple[pd.DataFrame, dict]:
         raise HistoryInputError(f"{folder}: no such run folder")
     try:
         results = read_results(folder / RESULTS_FILE)
+        provenance = read_provenance(folder / PROVENANCE_FILE, []) or {}
     except FileNotFoundError:
         raise HistoryInputError(f"{folder}: no {RESULTS_FILE} (not a physval run folder)") from None
     except ReportInputError as error:
         raise HistoryInputError(f"{folder}: {error}") from None
-    provenance = read_provenance(folder / PROVENANCE_FILE, []) or {}
     return results, provenance
 
 

@@ -6,18 +6,25 @@
 - ``provenance.json`` (optional here, always written by the run): command, commit, machine,
   engine versions and settings.
 
-Only a missing or unreadable results.csv raises (``ReportInputError``); a malformed optional
-file becomes a warning printed on the page.
+A run folder may come from elsewhere (a CI cache, a downloaded artifact): its files are data.
+None is followed through a symlink or read when it is not a regular file, provenance.json is
+read only up to ``MAX_PROVENANCE_BYTES`` and checked field by field (``Provenance``). A
+missing or unreadable results.csv and a malformed provenance.json raise
+(``ReportInputError``: exit 2, one line); a malformed optional table becomes a warning
+printed on the page.
 """
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import pydantic
 
 from validation.contract import (
     BASELINE_FILE,
@@ -32,6 +39,7 @@ from validation.contract import (
     SWEEP_FILE,
 )
 from validation.csv_safe import restored
+from validation.files import open_regular, read_regular
 
 NUMERIC_RESULTS_COLUMNS = (
     "value",
@@ -73,11 +81,24 @@ class RunData:
 
 def _read_csv(path: Path, **options) -> pd.DataFrame:
     try:
-        return pd.read_csv(path, **options)
+        with open_regular(path) as handle:
+            return pd.read_csv(handle, **options)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        raise ReportInputError(f"{path.name}: cannot be read as CSV ({error})") from error
-    except OSError as error:  # permissions, a folder of that name, an I/O error
-        raise ReportInputError(f"{path.name}: cannot be read ({error.strerror or error})") from None
+        raise ReportInputError(f"{path.name}: cannot be read as CSV ({_one_line(error)})") from None
+    except OSError as error:  # missing, a symlink, a folder of that name, permissions, an I/O error
+        raise ReportInputError(f"{path.name}: cannot be read ({_why(error)})") from None
+
+
+def _one_line(error: Exception) -> str:
+    """An error's message on one line (pandas' parser errors end with a newline)."""
+    return " ".join(str(error).split())
+
+
+def _why(error: OSError) -> str:
+    """What an ``OSError`` of ``open_regular`` means for a run folder's file."""
+    if error.errno == errno.ELOOP:
+        return "a symlink; a run folder's files are never followed"
+    return error.strerror or str(error)
 
 
 def _parse_passed(text: str) -> bool | None:
@@ -108,9 +129,12 @@ def read_results(path: Path) -> pd.DataFrame:
 def _read_optional_table(
     path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...], warnings: list[str]
 ) -> pd.DataFrame | None:
-    """A table that may be absent; a malformed one becomes a warning on the page, not a crash."""
-    if not path.is_file():
+    """A table that may be absent; a malformed one becomes a warning on the page, not a crash
+    (a symlink is refused: ``ReportInputError``)."""
+    if not os.path.lexists(path):
         return None
+    if path.is_symlink():
+        raise ReportInputError(f"{path.name}: cannot be read ({_why(OSError(errno.ELOOP, ''))})")
     try:
         table = _read_csv(path, dtype=dict.fromkeys(text_columns, str), keep_default_na=False)
     except ReportInputError as error:
@@ -127,31 +151,74 @@ def _read_optional_table(
     return table
 
 
+MAX_PROVENANCE_BYTES = 16 * 1024 * 1024
+"""provenance.json larger than this is refused unread: the library's run writes about 0.1 MB
+(every engine spec's settings and one hash per scene), so 16 MiB is over 100 times that."""
+
+
+class _Strict(pydantic.BaseModel):
+    """Fields of their declared type (no coercion); other fields allowed (newer runs)."""
+
+    model_config = pydantic.ConfigDict(strict=True, extra="allow")
+
+
+class EngineProvenance(_Strict):
+    """One engine spec's entry of provenance.json (``run._provenance``)."""
+
+    engine: str = ""
+    version: str = ""
+    settings: dict[str, Any] | str = {}
+    notes: list[str] = []
+
+
+class SceneHash(_Strict):
+    """One scene's entry of provenance.json: its file and the sha256 of its bytes."""
+
+    file: str = ""
+    sha256: str = ""
+
+
+class Provenance(_Strict):
+    """provenance.json as the pages, ``compare`` and ``baseline save`` read it: every field
+    optional (runs of earlier versions lack some), each of its type when present."""
+
+    command: str = ""
+    git_commit: str = ""
+    created: str = ""
+    machine: dict[str, str | int | float | bool | None] = {}
+    engines: dict[str, EngineProvenance] = {}
+    scenes: dict[str, SceneHash] = {}
+    selection: dict[str, Any] | None = None
+    resumed: dict[str, int] | None = None
+
+
 def read_provenance(path: Path, warnings: list[str]) -> dict[str, Any] | None:
-    """provenance.json as a dict, or None with a warning when absent or malformed."""
-    if not path.is_file():
+    """provenance.json as a dict, every field checked (``Provenance``); None with a warning
+    when absent. ``ReportInputError`` (one line naming the field) when it is not a regular
+    file, too large, not JSON or not of the run's layout."""
+    if not os.path.lexists(path):
         warnings.append(f"{path.name}: missing; engine versions and settings come from results.csv")
         return None
     try:
-        provenance = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        warnings.append(f"{path.name}: not valid JSON ({error})")
-        return None
+        data = read_regular(path, MAX_PROVENANCE_BYTES)
+        Provenance.model_validate_json(data)
+        return json.loads(data)
+    except pydantic.ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ReportInputError(
+            f"{path.name}: {where + ': ' if where else ''}{first['msg']}"
+        ) from None
     except OSError as error:
-        warnings.append(f"{path.name}: cannot be read ({error.strerror or error})")
-        return None
-    if not isinstance(provenance, dict):
-        warnings.append(f"{path.name}: expected a JSON object")
-        return None
-    return provenance
+        raise ReportInputError(f"{path.name}: cannot be read ({_why(error)})") from None
+    except (ValueError, RecursionError) as error:
+        raise ReportInputError(f"{path.name}: cannot be read ({_one_line(error)})") from None
 
 
 def load_run(run_dir: Path) -> RunData:
     """Read every record file of ``run_dir``; only a missing or broken results.csv raises."""
     results_path = run_dir / RESULTS_FILE
-    if results_path.exists() and not results_path.is_file():
-        raise ReportInputError(f"{RESULTS_FILE}: not a regular file")
-    if not results_path.is_file():
+    if not os.path.lexists(results_path):
         raise ReportInputError(f"no {RESULTS_FILE} (not a physval run folder)")
     run = RunData(run_dir, read_results(results_path))
     run.series = _read_optional_table(
