@@ -178,3 +178,25 @@ def test_a_foreign_folder_that_recorded_a_password_is_masked_when_read(tmp_path)
     history.record_run(folder, url)
     stored = database_text(url)
     assert "hunter2" not in stored and "ci:***@db" in stored, stored
+
+
+def test_a_killed_runs_journal_keeps_no_password_and_resume_takes_it_again(tmp_path):
+    """The journal's header (in the staging folder a CI may cache or upload) holds the command
+    line and the history URL masked; ``--resume DIR --history URL`` matches the masked URL and
+    records with the one given again."""
+    from validation.jobs import run as run_module
+
+    url = "postgresql://ci:hunter2@db/physval"
+    scene = tmp_path / "fall.yaml"
+    scene.write_text(FALL)
+    request = run_module.RunRequest(
+        [str(scene)], None, None, None, str(tmp_path / "out"), ["run", "--history", url],
+        str(tmp_path), None, None, url,
+    )  # fmt: skip
+    header = run_module._header(request, request.plan())
+    assert "hunter2" not in json.dumps(header), header
+    kept = run_module.RunRequest(**header["request"])
+    resumed = run_module._writes_only(kept, tmp_path / "h.json", tmp_path / "out", None, url)
+    assert resumed.history == url  # the URL given again, password and all
+    with pytest.raises(run_module.BadInputError, match="--history: differs"):
+        run_module._writes_only(kept, tmp_path / "h.json", tmp_path / "out", None, "sqlite://")

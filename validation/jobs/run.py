@@ -71,7 +71,7 @@ from validation.measure.runner import EngineRun, run_engine
 from validation.measure.states import Series
 from validation.nightly.baseline import exit_failed
 from validation.nightly.known import apply_known
-from validation.redact import shown_argv, shown_command
+from validation.redact import shown_argv, shown_command, shown_url
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -440,8 +440,16 @@ class RunRequest:
 
 
 def _header(request: RunRequest, plan: Plan) -> dict:
+    """The journal's header; the command line and the history URL with their passwords masked
+    (a killed run's staging folder may be cached or uploaded; --resume is given --history
+    again, and uses that one)."""
+    kept = dataclasses.replace(
+        request,
+        argv=shown_argv(request.argv),
+        history=None if request.history is None else shown_url(request.history),
+    )
     return {
-        "request": dataclasses.asdict(request),
+        "request": dataclasses.asdict(kept),
         "git_commit": _git_commit(),
         "jobs": job_fingerprints(plan),
     }
@@ -531,7 +539,7 @@ def _writes_only(
             if junit is None
             else f"--junit {junit}: the killed run's was {request.junit!r} ({header}); give the same"
         )
-    if (request.history or "default") != (history or "default"):
+    if (request.history or "default") != (shown_url(history) if history else "default"):
         raise BadInputError(
             f"--history: differs from the killed run's ({header}: request.history; "
             "default: next to --out); a resumed run records only where its own command line "
@@ -540,7 +548,9 @@ def _writes_only(
     baseline = request.baseline
     if baseline not in (None, "none"):
         baseline = str(cwd / baseline)
-    return dataclasses.replace(request, out=str(destination), junit=junit, baseline=baseline)
+    return dataclasses.replace(
+        request, out=str(destination), junit=junit, baseline=baseline, history=history
+    )
 
 
 def _resolved(cwd: Path, path: str | None) -> Path | None:
