@@ -207,8 +207,8 @@ def test_step_detection_finds_an_injected_step_at_its_run():
     noisy = 1e-3 * (1 + 0.01 * rng.standard_normal(120))
     noisy[105:] += 5e-5  # 5 σ of the scatter, held by the last 15 runs
     bit_identical = np.full(120, 4e-6)
-    bit_identical[50:] = 4.1e-6  # +2.5 %: 10 noise floors, on a series with no scatter at all
-    steps = detect_steps(np.vstack([noisy, bit_identical]), np.array([0.01, 1e-5]))
+    bit_identical[50:] = 4.1e-6  # +2.5 %: 33 noise floors, on a series with no scatter at all
+    steps = detect_steps(np.vstack([noisy, bit_identical]))
     assert [(s.at, s.direction) for s in steps[0]] == [(105, 1)], steps[0]
     assert [(s.at, s.direction) for s in steps[1]] == [(50, 1)], steps[1]
     assert steps[0][0].before == pytest.approx(1e-3, rel=0.01)
@@ -223,7 +223,7 @@ def test_step_detection_finds_none_on_constant_or_noisy_series():
     with_gaps = constant.copy()
     with_gaps[::5] = np.nan
     values = np.vstack([noisy, within_floor, constant, with_gaps])
-    steps = detect_steps(values, np.full(values.shape[0], 0.01))
+    steps = detect_steps(values)
     assert [i for i, found in enumerate(steps) if found] == []
 
 
@@ -231,9 +231,9 @@ def test_a_step_is_placed_at_a_run_that_measured_the_series():
     # runs 4 and 5 did not measure the series (another selection, NaN): the level changes
     # between run 3 and run 6, and the run that measured the new level first is run 6
     values = np.array([[1e-3] * 4 + [np.nan] * 2 + [1.2e-3] * 4])
-    steps = detect_steps(values, np.array([0.01]))
+    steps = detect_steps(values)
     assert [(s.at, s.direction) for s in steps[0]] == [(6, 1)], steps[0]
-    three_runs = detect_steps(np.array([[1e-3, np.nan, 1.1e-3]]), np.array([0.01]))[0]
+    three_runs = detect_steps(np.array([[1e-3, np.nan, 1.1e-3]]))[0]
     assert [(s.at, s.direction) for s in three_runs] == [(2, 1)], three_runs
     assert steps[0][0].before == pytest.approx(1e-3) and steps[0][0].after == pytest.approx(1.2e-3)
 
@@ -247,7 +247,7 @@ def test_an_infinite_error_is_a_step_there_and_back():
             [np.inf] * 9,  # never finite: no step to place
         ]
     )
-    steps = detect_steps(values, np.array([0.01, 0.01, 0.01]))
+    steps = detect_steps(values)
     assert [(s.at, s.direction, s.after) for s in steps[0]] == [(4, 1, np.inf), (6, -1, finite)]
     assert steps[0][0].before == pytest.approx(finite)
     assert [(s.at, s.direction) for s in steps[1]] == [(6, 1)]

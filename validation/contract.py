@@ -108,9 +108,21 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 """physval's exit codes: nothing regressed and no new failure; a regression or a new failure
 (a failed check or an unstable, errored or mismatched run that is not known); bad input."""
 
-BASELINE_CLASSES = ("regressed", "new", "missing", "scene_changed", "improved", "unchanged")
-"""Every ``baseline`` class a results.csv row can carry, the news first (names fixed by issue
-12; ``validation.nightly.baseline`` defines them)."""
+BASELINE_CLASSES = (
+    "regressed",
+    "changed",
+    "new",
+    "missing",
+    "scene_changed",
+    "improved",
+    "reference_moved",
+    "unchanged",
+)
+"""Every ``baseline`` class a results.csv row can carry, the news first (``regressed`` ...
+``unchanged`` are the nightly's names; ``validation.nightly.baseline`` defines them, by the
+noise rule of ``validation.measure.noise``): ``changed`` a row without an error whose value
+moved (fails the run like ``regressed``), ``reference_moved`` a divergence row that moved with
+its scene's reference engine (not a failure)."""
 
 EXIT_INTERRUPTED = 130
 """Ctrl-C (128 + SIGINT, the shell's convention): every worker stopped, nothing published."""

@@ -7,13 +7,17 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
 
 - ``scene_changed``: the scene file's hash differs (the numbers may move; not a regression);
 - ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run;
-- ``regressed`` / ``improved``: the verdict got worse / better (passed -> failed, ok ->
-  unstable), or the error moved beyond noise (``validation.measure.noise``) up / down, or
-  (regressed) its size held while its sign or direction moved beyond noise;
-- ``unchanged``: none of these.
+- ``regressed`` / ``improved`` / ``changed`` / ``unchanged``: decided by the noise rule
+  (``validation.measure.noise.classify_change``, the one rule of baseline, compare and history):
+  the verdict got worse / better (passed -> failed, ok -> unstable), or the error moved beyond
+  noise up / down (finite -> inf up, inf -> finite down, a lost error up), or (regressed) its
+  size held while its sign or direction moved beyond noise; a row without an error (a fitted
+  order, a cross-check) whose value moved is ``changed``;
+- ``reference_moved``: a ``divergence`` row that moved because only its scene's reference
+  engine moved (``noise.attribute_divergence``).
 
-The run fails (exit 1) on a regression or a *new failure*: a failing row (bad status, not a
-known finding) that the baseline does not have failing too.
+The run fails (exit 1) on a regression, a ``changed`` row or a *new failure*: a failing row
+(bad status, not a known finding) that the baseline does not have failing too.
 """
 
 from __future__ import annotations
@@ -38,7 +42,13 @@ from validation.contract import (
 )
 from validation.csv_safe import csv_text, restored
 from validation.files import write_atomically
-from validation.measure.noise import moved_signed
+from validation.measure.noise import (
+    FAILS_A_RUN,
+    Reading,
+    attribute_divergence,
+    classify_change,
+    floor_for,
+)
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_provenance, read_results
 
@@ -103,7 +113,7 @@ def read_baseline(path: Path) -> pd.DataFrame:
     """A baseline file, its text cells as written (``csv_safe.restored``); ValueError naming
     the file and what is wrong when it is not one (columns missing, a key on two rows)."""
     try:
-        text = dict.fromkeys((*KEY, "scene_sha256"), str)  # names are text, whatever they look like
+        text = dict.fromkeys((*KEY, "scene_sha256", "engine_version"), str)  # "3.10" is no 3.1
         table = pd.read_csv(path, dtype=text, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
@@ -149,33 +159,51 @@ def signed_error(row: dict) -> np.ndarray | None:
     return np.array([scalar]) if math.isfinite(scalar) else None
 
 
+def reading(row: dict, outcome: str) -> Reading:
+    """A results or baseline row as the noise rule reads it, its verdict ``outcome``."""
+    return Reading(
+        error=_number(row.get("error")),
+        value=_number(row.get("value")),
+        signed=signed_error(row),
+        rank=VERDICT_RANK.get(outcome, 0),
+        verdict=outcome,
+    )
+
+
 def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
-    """The class of one row of the run against its baseline row (``before``, None if absent)."""
+    """The class of one row of the run against its baseline row (``before``, None if absent),
+    divergence attribution aside (``classify``)."""
     if before is None:
         return "new"
     if before["scene_sha256"] != scene_sha256:
         return "scene_changed"
-    rank_now = VERDICT_RANK.get(outcome_of(now), 0)
-    rank_before = VERDICT_RANK.get(str(before["outcome"]), 0)
-    if rank_now != rank_before:
-        return "regressed" if rank_now < rank_before else "improved"
-    tolerance = _number(now.get("tolerance"))
-    errors = (_number(before["error"]), _number(now.get("error")))
-    direction = moved_signed(signed_error(before), signed_error(now), *errors, tolerance)
-    return {1: "regressed", -1: "improved", 0: "unchanged"}[direction]
+    was = reading(before, str(before["outcome"]))
+    floor = floor_for(now.get("scenario"), now.get("metric"))
+    return classify_change(was, reading(now, outcome_of(now)), floor)
 
 
 def classify(
     rows: list[dict], baseline: pd.DataFrame, scene_hashes: dict[str, str]
 ) -> tuple[list[dict], list[dict]]:
     """The run's rows with a ``baseline`` class each, and the baseline's rows the run lacks
-    (class ``missing``) for the scenes the run ran."""
+    (class ``missing``) for the scenes the run ran. A moved divergence row whose reference
+    engine moved (and its own did not) reads ``reference_moved``."""
     index = {tuple(r[k] for k in KEY): r for r in baseline.to_dict("records")}
     classified = []
     for row in rows:
         before = index.pop(tuple(str(row[k]) for k in KEY), None)
         sha = scene_hashes.get(str(row["scenario"]), "")
-        classified.append({**row, "baseline": classify_row(row, before, sha)})
+        version_moved = before is not None and str(before.get("engine_version", "")) != str(
+            row.get("engine_version", "")
+        )
+        classified.append(
+            {**row, "baseline": classify_row(row, before, sha), "version_moved": version_moved}
+        )
+    attributed = attribute_divergence(classified, "baseline")
+    classified = [
+        {k: v for k, v in {**row, "baseline": change}.items() if k != "version_moved"}
+        for row, change in zip(classified, attributed, strict=True)
+    ]
     ran = {str(r["scenario"]) for r in rows}
     missing = [{**r, "baseline": "missing"} for r in index.values() if r["scenario"] in ran]
     return classified, missing
@@ -190,9 +218,9 @@ def is_new_failure(row: dict) -> bool:
 
 
 def exit_failed(rows: list[dict]) -> bool:
-    """Whether the run fails (exit 1): a regression, or a new failure (module docstring).
-    Without a baseline every failing row counts as new."""
-    return any(row.get("baseline") == "regressed" or is_new_failure(row) for row in rows)
+    """Whether the run fails (exit 1): a regression or a ``changed`` row (``FAILS_A_RUN``), or
+    a new failure (module docstring). Without a baseline every failing row counts as new."""
+    return any(row.get("baseline") in FAILS_A_RUN or is_new_failure(row) for row in rows)
 
 
 def save_baseline(run_dir: Path, to: Path) -> int:

@@ -4,10 +4,14 @@ Each run is a run folder (results.csv, provenance.json) or the id of a run in th
 (``--db``); an existing folder wins over a number. Rows are matched on (scenario, engine spec,
 metric) and classified by the noise rule (``validation.measure.noise``, defined there once):
 
-- ``regressed`` / ``improved``: the verdict got worse / better (a change of verdict is always a
-  move), or else the error grew / shrank beyond the noise floor;
-- ``changed``: a row without an error (no expected value) whose value moved beyond the floor,
-  or a verdict that changed within one rank (failed -> unstable) while the error did not move;
+- ``regressed`` / ``improved`` / ``changed``: decided by the noise rule
+  (``validation.measure.noise.classify_change``, the one rule of baseline, compare and
+  history): the verdict got worse / better, or the error grew / shrank beyond the noise floor
+  (finite -> inf grew, inf -> finite shrank, a lost error grew); ``changed`` a row without an
+  error whose value moved, or a verdict that changed within one rank (failed -> unstable)
+  while the numbers did not move;
+- ``reference_moved``: a ``divergence`` row that moved while only its scene's reference
+  engine moved (``noise.attribute_divergence``);
 - ``new`` / ``missing``: the row is only in run B / only in run A.
 
 Runs of different selections (``history.selection_key``: what each run was asked to run) are
@@ -33,10 +37,19 @@ from typing import Any
 
 import pandas as pd
 
-from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, EXIT_OK
+from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.csv_safe import csv_text
 from validation.files import folder_target_problem, write_atomically
-from validation.measure.noise import NOISE_RULE, moved, noise_floor
+from validation.measure.noise import (
+    NOISE_RULE,
+    REFERENCE_MOVED,
+    Reading,
+    attribute_divergence,
+    classify_change,
+    floor_for,
+    noise_floor,
+)
+from validation.nightly.baseline import VERDICT_RANK
 from validation.nightly.history import (
     KEY_COLUMNS,
     UNRECORDED,
@@ -49,7 +62,7 @@ from validation.nightly.history import (
     selection_key,
     valid_selection,
 )
-from validation.nightly.known import FIXED, KNOWN, outcome_of
+from validation.nightly.known import outcome_of
 from validation.nightly.pages import render_page
 from validation.report.build import format_number
 
@@ -75,19 +88,8 @@ COMPARE_COLUMNS = (
 )
 """compare.csv, in order: one row per moved row (``tolerance`` is run B's, else run A's)."""
 
-CHANGES = ("regressed", "improved", "changed", "new", "missing")
+CHANGES = ("regressed", "changed", "improved", REFERENCE_MOVED, "new", "missing")
 """The classes of a moved row, news first (the page's and the CSV's order)."""
-
-VERDICT_RANK = {
-    **dict.fromkeys(BAD_STATUSES, 2),
-    KNOWN: 1,
-    "unsupported": 1,
-    "passed": 0,
-    "no_tolerance": 0,
-    FIXED: 0,
-}
-"""How bad a verdict is: a bad status 2; a known failure or an unsupported row 1 (not news,
-not good); passed, measured without tolerance, or a fixed known finding 0."""
 
 ROW_FIELDS = ("value", "error", "tolerance", "verdict", "engine_version")
 """The columns of each run that the comparison keeps, suffixed ``_a`` / ``_b``."""
@@ -224,21 +226,30 @@ def judged(row: dict[str, Any]) -> tuple[float, float]:
     return row["error_a"], row["error_b"]
 
 
+def _reading(row: dict[str, Any], side: str) -> Reading:
+    verdict = row[f"verdict_{side}"]
+    return Reading(
+        error=row[f"error_{side}"],
+        value=row[f"value_{side}"],
+        rank=VERDICT_RANK.get(verdict, 0),
+        verdict=verdict,
+    )
+
+
 def classify(row: dict[str, Any]) -> str:
-    """The change of one matched row (``unchanged`` when it did not move)."""
+    """The change of one matched row (``unchanged`` when it did not move), divergence
+    attribution aside (``compare_runs``)."""
     if not isinstance(row["verdict_a"], str):
         return "new"
     if not isinstance(row["verdict_b"], str):
         return "missing"
-    rank_a, rank_b = (VERDICT_RANK.get(row[f"verdict_{s}"], 2) for s in "ab")
-    if rank_a != rank_b:
-        return "regressed" if rank_b > rank_a else "improved"
-    direction = moved(*judged(row), row["tolerance"])
-    if direction and math.isnan(row["error_a"]) and math.isnan(row["error_b"]):
-        return "changed"  # a value without an expected value: neither better nor worse
-    if direction:
-        return "regressed" if direction > 0 else "improved"
-    return "changed" if row["verdict_a"] != row["verdict_b"] else "unchanged"
+    floor = floor_for(row["scenario"], row["metric"])
+    return classify_change(_reading(row, "a"), _reading(row, "b"), floor)
+
+
+def _version_moved(row: dict[str, Any]) -> bool:
+    a, b = (row[f"engine_version_{s}"] for s in "ab")
+    return isinstance(a, str) and isinstance(b, str) and a != b
 
 
 def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
@@ -249,8 +260,17 @@ def compare_runs(a: RunSide, b: RunSide) -> pd.DataFrame:
             matched[f"{column}_{side}"] = matched[f"{column}_{side}"].astype(float)
     matched["tolerance"] = matched["tolerance_b"].fillna(matched["tolerance_a"])
     records = matched.to_dict("records")
-    matched["change"] = [classify(row) for row in records]
-    matched["noise_floor"] = [noise_floor(*judged(r), r["tolerance"]) for r in records]
+    changes = [classify(row) for row in records]
+    matched["change"] = attribute_divergence(
+        (
+            {**row, "change": change, "version_moved": _version_moved(row)}
+            for row, change in zip(records, changes, strict=True)
+        ),
+        "change",
+    )
+    matched["noise_floor"] = [
+        noise_floor(*judged(r), floor_for(r["scenario"], r["metric"])) for r in records
+    ]
     found = matched[matched["change"] != "unchanged"].copy()
     found["order"] = [CHANGES.index(change) for change in found["change"]]
     found = found.sort_values(["order", *KEY_COLUMNS], kind="stable")

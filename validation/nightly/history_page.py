@@ -32,9 +32,9 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
 from validation.files import file_target_problem, write_atomically
-from validation.measure.noise import NOISE_RULE
+from validation.measure.noise import FAILS_A_RUN, NOISE_RULE, floor_for
 from validation.nightly.history import (
     KEY_COLUMNS,
     SELECTION_RULES,
@@ -97,9 +97,6 @@ MARKER_PT = 3.0
 GAP_MARK = "x"
 """matplotlib's marker for a run without a number for the series (the sparkline draws a ×)."""
 
-BASELINE_CLASSES = ("regressed", "improved", "new", "missing", "scene_changed", "unchanged")
-"""The baseline classes of a run's ``baseline`` column (issue 12), news first."""
-
 VERSION_COLOUR, STEP_COLOUR, LINE_COLOUR, LEVEL_COLOUR = "#999999", "#c0392b", "#0072B2", "#D55E00"
 """Engine-version change marks (grey), a detected step (red), the trend (blue), fitted levels."""
 
@@ -146,7 +143,8 @@ class SeriesView:
 
     @property
     def regressed(self) -> bool:
-        return self.last.get("baseline") == "regressed"
+        """The latest run's row fails the run against its baseline (``noise.FAILS_A_RUN``)."""
+        return self.last.get("baseline") in FAILS_A_RUN
 
     @property
     def expanded(self) -> bool:
@@ -263,7 +261,9 @@ def build_series(history: History) -> list[SeriesView]:
     quantity = np.where(use_error[:, None], arrays["error"], arrays["value"])
     kinds = point_kinds(quantity, arrays["present"], arrays["ran"])
     tolerance = last_finite(arrays["tolerance"])
-    steps = detect_steps(quantity, tolerance)  # NaN: no number at that run, not counted
+    pairs = zip(keys["scenario"], keys["metric"], strict=True)
+    floors = [floor_for(scene, metric) for scene, metric in pairs]
+    steps = detect_steps(quantity, floors)  # NaN: no number at that run, not counted
     changes = version_changes(history.runs)
     spark_at = spark_positions(quantity)
     taken: set[str] = set()

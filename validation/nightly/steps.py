@@ -18,7 +18,8 @@ is the series' noise: the robust scatter of its run-to-run differences (MAD / 0.
 unaffected by a few steps), but never below half the noise rule's floor
 (``validation.measure.noise.noise_floor``), because physval's runs on one machine are bit-identical
 and their σ would otherwise be 0. The fit proposes steps; the noise rule disposes: neighbouring
-segments whose levels do not differ by more than the noise floor (``noise.moved`` == 0) are merged.
+segments whose levels the rule does not call a move (``noise.classify_change`` of the two
+levels is ``unchanged``: the rule of the baseline and of ``compare``) are merged.
 
 A series' points are the runs that measured it: a run without a number (NaN: the run did not
 select the scene, or its row has no value) is left out of the fit, so a step is always placed at
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from validation.measure.noise import moved, noise_floor
+from validation.measure.noise import REGULAR, Floor, Reading, classify_change, moved, noise_floor
 
 PENALTY_PER_LOG_RUN = 4.0
 """γ / (σ² ln n): BIC gives 2 per change point; asv's criterion counts 4 degrees of freedom per
@@ -60,20 +61,20 @@ class Step:
     """+1 the quantity grew beyond noise (an error: worse), -1 it shrank."""
 
 
-def noise_sigma(values: np.ndarray, tolerances: np.ndarray) -> np.ndarray:
+def noise_sigma(values: np.ndarray, floors: list[Floor]) -> np.ndarray:
     """σ per series (rows of ``values``, NaN missing): the robust scatter of consecutive
     differences, at least ``FLOOR_TO_SIGMA`` times the noise floor at the series' level."""
     sigma = np.zeros(values.shape[0])
-    floors = np.zeros(values.shape[0])
-    for i, (row, tolerance) in enumerate(zip(values, tolerances, strict=True)):
+    allowed = np.zeros(values.shape[0])
+    for i, (row, floor) in enumerate(zip(values, floors, strict=True)):
         finite = row[np.isfinite(row)]
         if finite.size == 0:
             continue
         level = float(np.median(np.abs(finite)))
-        floors[i] = noise_floor(level, level, float(tolerance))
+        allowed[i] = noise_floor(level, level, floor)
         if finite.size > 2:
             sigma[i] = MAD_TO_SIGMA * np.median(np.abs(np.diff(finite))) / np.sqrt(2.0)
-    return np.maximum(sigma, FLOOR_TO_SIGMA * floors)
+    return np.maximum(sigma, FLOOR_TO_SIGMA * allowed)
 
 
 def optimal_partition(values: np.ndarray, penalty: float | np.ndarray) -> np.ndarray:
@@ -122,7 +123,12 @@ def segment_levels(row: np.ndarray, starts: list[int]) -> list[float]:
     ]
 
 
-def merge_within_noise(row: np.ndarray, starts: list[int], tolerance: float) -> list[Step]:
+def level_moved(before: float, after: float, floor: Floor) -> bool:
+    """Whether the noise rule calls the change between two levels of a series a move."""
+    return classify_change(Reading(error=before), Reading(error=after), floor) != "unchanged"
+
+
+def merge_within_noise(row: np.ndarray, starts: list[int], floor: Floor) -> list[Step]:
     """The fit's boundaries that the noise rule calls a move, as steps (neighbouring segments
     whose levels are within noise are merged first, then the levels recomputed)."""
     starts = list(starts)
@@ -131,18 +137,18 @@ def merge_within_noise(row: np.ndarray, starts: list[int], tolerance: float) -> 
         still = [
             k
             for k in range(1, len(starts))
-            if moved(levels[k - 1], levels[k], tolerance) == 0 or np.isnan(levels[k])
+            if not level_moved(levels[k - 1], levels[k], floor) or np.isnan(levels[k])
         ]
         if not still:
             break
         del starts[still[0]]
     return [
-        Step(starts[k], levels[k - 1], levels[k], moved(levels[k - 1], levels[k], tolerance))
+        Step(starts[k], levels[k - 1], levels[k], moved(levels[k - 1], levels[k], floor))
         for k in range(1, len(starts))
     ]
 
 
-def within_noise(values: np.ndarray, tolerances: np.ndarray) -> np.ndarray:
+def within_noise(values: np.ndarray, floors: list[Floor]) -> np.ndarray:
     """Per series, True when its whole range is within the noise floor, so that no two levels
     of any fit can differ by a move (the usual nightly series: bit-identical runs). Exact: two
     levels lie in [low, high], and the floor at the smaller magnitude is the least of theirs."""
@@ -152,8 +158,8 @@ def within_noise(values: np.ndarray, tolerances: np.ndarray) -> np.ndarray:
     magnitude = np.where(low * high > 0, np.minimum(np.abs(low), np.abs(high)), 0.0)
     return np.array(
         [
-            not np.isfinite(hi - lo) or hi - lo <= noise_floor(m, m, float(t))
-            for lo, hi, m, t in zip(low, high, magnitude, tolerances, strict=True)
+            not np.isfinite(hi - lo) or hi - lo <= noise_floor(m, m, floor)
+            for lo, hi, m, floor in zip(low, high, magnitude, floors, strict=True)
         ],
         dtype=bool,
     )
@@ -170,26 +176,26 @@ def packed_finite(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return packed, order, counts
 
 
-def finite_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]:
+def finite_steps(values: np.ndarray, floors: list[Floor]) -> list[list[Step]]:
     """The steps of the finite values of each series (infinite and NaN runs left out), at
     run positions of ``values``: the fit runs on the packed finite values, so that no step
     falls on a run without one."""
     found: list[list[Step]] = [[] for _ in range(values.shape[0])]
     packed, order, counts = packed_finite(values)
-    fitted = np.nonzero((counts >= 2) & ~within_noise(packed, tolerances))[0]
+    fitted = np.nonzero((counts >= 2) & ~within_noise(packed, floors))[0]
     if fitted.size == 0:
         return found
     width = int(counts[fitted].max())
-    rows, tolerances = packed[fitted, :width], tolerances[fitted]
-    sigma = noise_sigma(rows, tolerances)
+    rows, fitted_floors = packed[fitted, :width], [floors[i] for i in fitted]
+    sigma = noise_sigma(rows, fitted_floors)
     centre = np.nanmedian(rows, axis=1)[:, None]  # every fitted row has a finite value
     scaled = (rows - centre) / sigma[:, None]  # sigma >= half the floor > 0
     penalty = PENALTY_PER_LOG_RUN * np.log(counts[fitted])  # the runs that measured it
     left = optimal_partition(scaled, penalty)
-    for index, row, left_row, tolerance in zip(fitted, rows, left, tolerances, strict=True):
+    for index, row, left_row, floor in zip(fitted, rows, left, fitted_floors, strict=True):
         count = int(counts[index])
         starts = [k for k in segment_starts(left_row) if k < count]  # a NaN tail adds no start
-        for step in merge_within_noise(row[:count], starts, float(tolerance)):
+        for step in merge_within_noise(row[:count], starts, floor):
             found[index].append(
                 Step(int(order[index, step.at]), step.before, step.after, step.direction)
             )
@@ -225,10 +231,11 @@ def infinite_steps(row: np.ndarray, steps: list[Step]) -> list[Step]:
     return sorted([*kept, *crossings.values()], key=lambda s: s.at)
 
 
-def detect_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]:
+def detect_steps(values: np.ndarray, floors: list[Floor] | None = None) -> list[list[Step]]:
     """The steps of each series: ``values (series, runs)`` with NaN where a run has no number
     for the series (did not measure it, or its row has no value), ±inf where the number is
-    infinite; ``tolerances (series,)`` (NaN without one). The finite values of a series are
+    infinite; ``floors (series,)`` each series' noise floor (``noise.floor_for`` of its scene
+    and metric; None: ``noise.REGULAR`` for all). The finite values of a series are
     fitted (``finite_steps``: fewer than 2 of them, or a range within noise, give none), and
     every crossing between finite and infinite values is a step (``infinite_steps``). Every
     step is at a run that measured the series."""
@@ -237,6 +244,6 @@ def detect_steps(values: np.ndarray, tolerances: np.ndarray) -> list[list[Step]]
         return []
     if values.shape[1] < 2:
         return [[] for _ in range(values.shape[0])]
-    tolerances = np.asarray(tolerances, dtype=float)
-    found = finite_steps(values, tolerances)
+    floors = list(floors) if floors is not None else [REGULAR] * values.shape[0]
+    found = finite_steps(values, floors)
     return [infinite_steps(row, steps) for row, steps in zip(values, found, strict=True)]

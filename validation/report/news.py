@@ -1,7 +1,9 @@
 """What report.html leads with (issue 12): the news since the baseline, and a scene's own sweep.
 
-The news, in the page's order: regressions since the baseline, new failures, fixed findings,
-then the unchanged rows and the known findings (collapsed). Each entry links to its scene's
+The news, in the page's order: regressions since the baseline, rows without an error whose
+value changed, large improvements (``noise.LARGE_IMPROVEMENT``: unexplained until someone
+explains them), new failures, fixed findings, then the divergence rows that moved with their
+reference engine, the missing and unchanged rows and the known findings (collapsed). Each entry links to its scene's
 card. A scene that declares ``sweep:`` gets its error-against-run-time plots in its card.
 """
 
@@ -12,6 +14,12 @@ from typing import Any
 import pandas as pd
 from markupsafe import Markup
 
+from validation.measure.noise import (
+    FAILS_A_RUN,
+    LARGE_IMPROVEMENT,
+    REFERENCE_MOVED,
+    large_improvement,
+)
 from validation.report.sweep_page import UNITS, sweep_chart, sweep_orders
 
 FAILING = ("error", "model_mismatch", "unstable", "failed")
@@ -19,8 +27,26 @@ FAILING = ("error", "model_mismatch", "unstable", "failed")
 
 NEWS_SECTIONS = (
     ("regressed", "Regressions since the baseline", True),
+    (
+        "changed",
+        "Changed (a row without an error whose value moved, an error that appeared, or a "
+        "verdict that changed within its rank: fails the run)",
+        True,
+    ),
+    (
+        "large_improvements",
+        f"Large improvements (error {LARGE_IMPROVEMENT:g}x smaller or more, or no longer "
+        "infinite: explain them before saving the baseline again)",
+        True,
+    ),
     ("new_failures", "New failures", True),
     ("fixed", "Fixed (a known finding that passes: its entry can go)", True),
+    (
+        REFERENCE_MOVED,
+        "Moved with the reference engine (divergence rows whose scene's reference engine "
+        "moved and whose own engine did not: not a failure)",
+        False,
+    ),
     ("missing", "Missing (in the baseline, not in this run)", False),
     ("unchanged", "Unchanged since the baseline", False),
     ("known", "Known findings", False),
@@ -47,10 +73,36 @@ def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]
             "metric": r["metric"],
             "outcome": r.get("outcome", ""),
             "error": _shown_error(r.get("error")),
-            "note": str(r.get("known", "") or r.get("message", "") or ""),
+            "note": str(r.get("news_note", "") or r.get("known", "") or r.get("message", "") or ""),
         }
         for _, r in rows.head(MAX_NEWS_ROWS).iterrows()
     ]
+
+
+def _numbers(table: pd.DataFrame, column: str) -> pd.Series:
+    """A column as numbers (NaN where absent or not a number: baseline.csv is read as text)."""
+    if column not in table:
+        return pd.Series(float("nan"), index=table.index)
+    return pd.to_numeric(table[column], errors="coerce")
+
+
+def large_improvements(baseline: pd.DataFrame | None) -> pd.DataFrame:
+    """The ``improved`` rows of a run's baseline.csv whose error shrank at least
+    ``LARGE_IMPROVEMENT`` times (or from inf to finite), each with a note of both errors."""
+    if baseline is None or "baseline" not in baseline:
+        return pd.DataFrame(columns=["scenario", "engine", "metric"])
+    before, now = _numbers(baseline, "baseline_error"), _numbers(baseline, "error")
+    large = [
+        cls == "improved" and large_improvement(a, b)
+        for cls, a, b in zip(baseline["baseline"], before, now, strict=True)
+    ]
+    found = baseline[large].copy()
+    found["news_note"] = [
+        f"error {a:.4g} in the baseline, {b:.4g} now; the engine's version and the scene file "
+        "are the baseline's"
+        for a, b in zip(before[large], now[large], strict=True)
+    ]
+    return found
 
 
 def _selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[str, pd.DataFrame]:
@@ -61,8 +113,11 @@ def _selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[str,
     )
     return {
         "regressed": table[classes == "regressed"],
-        "new_failures": table[failing & (classes != "unchanged") & (classes != "regressed")],
+        "changed": table[classes == "changed"],
+        "large_improvements": large_improvements(baseline),
+        "new_failures": table[failing & (classes != "unchanged") & ~classes.isin(FAILS_A_RUN)],
         "fixed": table[table["outcome"] == "fixed"],
+        REFERENCE_MOVED: table[classes == REFERENCE_MOVED],
         "missing": missing,
         "unchanged": table[classes == "unchanged"],
         "known": table[table["outcome"] == "known"],
