@@ -27,6 +27,8 @@ PACKAGES = ("mini_engine", "validation")
 WINGS: dict[str, int] = {
     "mini_engine": 0,
     "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
+    "validation.csv_safe": 0,  # spreadsheet-safe CSV cells: imported by every CSV writer and reader
+    "validation.redact": 0,  # passwords masked in URLs and command lines: imported by every output
     "validation.contract": 1,
     "validation.files": 1,
     "validation.signals": 2,  # imports contract; imported by jobs, cli and entry

@@ -11,6 +11,8 @@ from typing import BinaryIO
 
 import pandas as pd
 
+from validation.csv_safe import csv_text
+
 
 def sync_folder(folder: Path) -> None:
     """fsync a folder, so that the names created or renamed in it survive a crash."""
@@ -46,9 +48,40 @@ def write_atomically(path: Path, data: str | bytes) -> None:
 
 
 def write_table(rows: list[dict], path: Path) -> None:
-    """A CSV of ``rows`` written atomically (``files.write_atomically``)."""
+    """A spreadsheet-safe CSV (``csv_safe``) of ``rows`` written atomically
+    (``files.write_atomically``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(path, pd.DataFrame(rows).to_csv(index=False))
+    write_atomically(path, csv_text(pd.DataFrame(rows)))
+
+
+def _blocked_folder(folder: Path) -> str | None:
+    """Why ``folder`` cannot be created or written into: a file where it (or the nearest of
+    its parents that exists) must be a folder; None when it can."""
+    for parent in (folder, *folder.parents):
+        if parent.exists():
+            return None if parent.is_dir() else f"{parent} is a file; expected a folder"
+    return None
+
+
+def file_target_problem(path: Path) -> str | None:
+    """Why a command cannot write the file ``path`` (a folder is there, or a file where one of
+    its folders must be); None when it can. Checked before any work, so nothing of the
+    user's is overwritten and no run is lost at its end."""
+    if path.is_dir():
+        return f"{path} is a folder; expected a file"
+    return _blocked_folder(path.parent)
+
+
+def folder_target_problem(path: Path, files: tuple[str, ...] = ()) -> str | None:
+    """Why a command cannot write ``files`` into the folder ``path`` (a file is there or
+    where one of its parents must be, or a folder where one of ``files`` must be); None when
+    it can."""
+    if path.exists() and not path.is_dir():
+        return f"{path} is a file; expected a folder"
+    for name in files:
+        if (path / name).is_dir():
+            return f"{path / name} is a folder; expected a file"
+    return _blocked_folder(path.parent)
 
 
 def open_regular(path: Path) -> BinaryIO:

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from validation.contract import BASELINE_FILE, SWEEP_CROSS_CHECK, SWEEP_ERROR, SWEEP_ORDER
+from validation.csv_safe import csv_text
 from validation.files import write_atomically
 from validation.jobs.plan import BadInputError, Plan
 from validation.jobs.sweep import SWEEP_METRICS
@@ -22,9 +23,10 @@ from validation.nightly.baseline import (
     read_baseline,
     scene_hash,
 )
-from validation.nightly.history import record_run
+from validation.nightly.history import HistoryInputError, check_database, record_run
 from validation.nightly.junit import write_junit
 from validation.nightly.known import outcome_of
+from validation.redact import shown_url
 from validation.scenario import BUNDLED_SCENARIOS
 from validation.scenario.engine_spec import parse_engine_spec, split_engine_list
 
@@ -57,7 +59,8 @@ def nightly_options(
 ) -> NightlyOptions:
     """The flags resolved and checked: the baseline read (``none`` turns the default off), the
     JUnit file's folder present, the history URL (``none``: not recorded; default: next to
-    the run folder). BadInputError naming the flag otherwise."""
+    the run folder) recordable into (``_check_history``). BadInputError naming the flag
+    otherwise."""
     path = _baseline_path(baseline)
     table = None
     if path is not None:
@@ -72,7 +75,22 @@ def nightly_options(
         url = f"sqlite:///{(destination.parent / HISTORY_FILE).resolve()}"
     else:
         url = None if history == "none" else history
+    _check_history(url, given=history is not None, destination=destination)
     return NightlyOptions(path, junit_path, url, table)
+
+
+def _check_history(url: str | None, given: bool, destination: Path) -> None:
+    """The history database checked before any work (``history.check_database``: connected,
+    the tables created and rolled back): a bad ``--history`` is exit 2, not a note after the
+    run. An SQLite file may be in a folder the run makes (one that holds ``--out``: the
+    default ``reports/history.sqlite``, or a CI cache's before its first run)."""
+    if url is None:
+        return
+    made = tuple(destination.resolve().parents)
+    try:
+        check_database(url, "--history" if given else "the history database", made)
+    except HistoryInputError as error:
+        raise BadInputError(str(error)) from None
 
 
 def _baseline_path(baseline: str | None) -> Path | None:
@@ -143,7 +161,7 @@ def against_baseline(
     comparison = pd.DataFrame(
         [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
     )
-    write_atomically(folder / BASELINE_FILE, comparison.to_csv(index=False))
+    write_atomically(folder / BASELINE_FILE, csv_text(comparison))
     return classified, comparison
 
 
@@ -181,7 +199,7 @@ def record_history(folder: Path, options: NightlyOptions) -> str:
     try:
         run_id = record_run(folder, options.history)
     except Exception as error:  # a locked or unreachable database must not fail the run
-        return f"history not recorded ({type(error).__name__}: {error})"
+        return f"history not recorded ({type(error).__name__}: {shown_url(error)})"
     return f"history run {run_id}"
 
 

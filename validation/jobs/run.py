@@ -39,6 +39,7 @@ from validation.contract import (
     TRACE_COLUMNS,
     TRACE_FILE,
 )
+from validation.csv_safe import csv_text
 from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
@@ -71,6 +72,7 @@ from validation.measure.runner import EngineRun, run_engine
 from validation.measure.states import Series
 from validation.nightly.baseline import exit_failed
 from validation.nightly.known import apply_known
+from validation.redact import shown_argv, shown_command, shown_url
 from validation.report.closed_form import expectation_records, trace_rows, traced
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
@@ -208,7 +210,7 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
                 "notes": p.notes,
             }
     return {
-        "command": " ".join(["physval", *argv]),
+        "command": shown_command(argv),
         "git_commit": _git_commit(),
         "created": dt_module.datetime.now(dt_module.UTC).isoformat(timespec="seconds"),
         "machine": {
@@ -369,17 +371,13 @@ def _label(spec: EngineSpec | None) -> str:
 
 def write_run(folder: Path, rows, series, impacts, provenance: dict, traces=()) -> None:
     """The record files of one run into ``folder`` (which must exist), each fsync'd."""
-    write_atomically(
-        folder / RESULTS_FILE, pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(index=False)
-    )
+    write_atomically(folder / RESULTS_FILE, csv_text(pd.DataFrame(rows, columns=list(COLUMNS))))
     frames = [f for f in series if not f.empty]
     if frames:
-        write_atomically(
-            folder / SERIES_FILE, pd.concat(frames, ignore_index=True).to_csv(index=False)
-        )
+        write_atomically(folder / SERIES_FILE, csv_text(pd.concat(frames, ignore_index=True)))
     write_atomically(
         folder / IMPACTS_FILE,
-        pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS)).to_csv(index=False),
+        csv_text(pd.DataFrame(impacts, columns=list(IMPACTS_COLUMNS))),
     )
     write_atomically(folder / PROVENANCE_FILE, json.dumps(provenance, indent=2, default=str))
     traced_frames = [f for f in traces if not f.empty]
@@ -478,8 +476,16 @@ class RunRequest:
 
 
 def _header(request: RunRequest, plan: Plan) -> dict:
+    """The journal's header; the command line and the history URL with their passwords masked
+    (a killed run's staging folder may be cached or uploaded; --resume is given --history
+    again, and uses that one)."""
+    kept = dataclasses.replace(
+        request,
+        argv=shown_argv(request.argv),
+        history=None if request.history is None else shown_url(request.history),
+    )
     return {
-        "request": dataclasses.asdict(request),
+        "request": dataclasses.asdict(kept),
         "git_commit": _git_commit(),
         "jobs": job_fingerprints(plan),
     }
@@ -534,7 +540,7 @@ def _resumed(
     if [dict(job) for job in header.model_dump()["jobs"]] != job_fingerprints(plan):
         raise BadInputError(
             f"--resume: the scenes or engines changed since the killed run "
-            f"({' '.join(request.argv) or 'physval run'}); run it again without --resume"
+            f"({' '.join(shown_argv(request.argv)) or 'physval run'}); run it again without --resume"
         )
     if header.git_commit != _git_commit():
         raise BadInputError(
@@ -569,7 +575,7 @@ def _writes_only(
             if junit is None
             else f"--junit {junit}: the killed run's was {request.junit!r} ({header}); give the same"
         )
-    if (request.history or "default") != (history or "default"):
+    if (request.history or "default") != (shown_url(history) if history else "default"):
         raise BadInputError(
             f"--history: differs from the killed run's ({header}: request.history; "
             "default: next to --out); a resumed run records only where its own command line "
@@ -578,7 +584,9 @@ def _writes_only(
     baseline = request.baseline
     if baseline not in (None, "none"):
         baseline = str(cwd / baseline)
-    return dataclasses.replace(request, out=str(destination), junit=junit, baseline=baseline)
+    return dataclasses.replace(
+        request, out=str(destination), junit=junit, baseline=baseline, history=history
+    )
 
 
 def _resolved(cwd: Path, path: str | None) -> Path | None:

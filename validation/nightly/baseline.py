@@ -40,6 +40,7 @@ from validation.contract import (
     SIGNED_ERROR_COLUMN,
     VECTOR_ERROR_COLUMNS,
 )
+from validation.csv_safe import csv_text, restored
 from validation.files import write_atomically
 from validation.measure.noise import (
     FAILS_A_RUN,
@@ -109,9 +110,10 @@ def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.Da
 
 
 def read_baseline(path: Path) -> pd.DataFrame:
-    """A baseline file; ValueError naming the file and what is missing when it is not one."""
+    """A baseline file, its text cells as written (``csv_safe.restored``); ValueError naming
+    the file and what is wrong when it is not one (columns missing, a key on two rows)."""
     try:
-        text = {"scene_sha256": str, "engine_version": str}  # "3.10" is no number 3.1
+        text = dict.fromkeys((*KEY, "scene_sha256", "engine_version"), str)  # "3.10" is no 3.1
         table = pd.read_csv(path, dtype=text, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: not a readable baseline CSV ({error})") from None
@@ -123,7 +125,22 @@ def read_baseline(path: Path) -> pd.DataFrame:
             table[column] = ""
     for column in ("value", "error", "tolerance", *SIGNED_COLUMNS):
         table[column] = pd.to_numeric(table[column], errors="coerce")
-    return table
+    return _one_row_per_key(restored(table), path)
+
+
+def _one_row_per_key(table: pd.DataFrame, path: Path) -> pd.DataFrame:
+    """``table``, or ValueError naming the first key (``KEY``) that has two rows and their
+    lines: which of two rows would a run be classified against?"""
+    twice = table[table.duplicated(list(KEY), keep=False)]
+    if twice.empty:
+        return table
+    keys = list(zip(*(twice[k] for k in KEY), strict=True))
+    key = keys[0]
+    lines = [i + 2 for i, found in zip(twice.index, keys, strict=True) if found == key]  # 1: header
+    raise ValueError(
+        f"{path}: not a baseline: lines {', '.join(map(str, lines))} are all the row "
+        f"({', '.join(map(str, key))}); a baseline has one row per (scenario, engine, metric)"
+    )
 
 
 def _number(value: object) -> float:
@@ -223,7 +240,7 @@ def save_baseline(run_dir: Path, to: Path) -> int:
     table = baseline_table(results, hashes)
     if not to.parent.is_dir() or to.is_dir():
         raise ValueError(f"--to: expected a file in an existing folder; got {to}")
-    write_atomically(to, table.to_csv(index=False))
+    write_atomically(to, csv_text(table))
     return len(table)
 
 

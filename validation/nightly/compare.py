@@ -38,7 +38,8 @@ from typing import Any
 import pandas as pd
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
-from validation.files import write_atomically
+from validation.csv_safe import csv_text
+from validation.files import folder_target_problem, write_atomically
 from validation.measure.noise import (
     NOISE_RULE,
     REFERENCE_MOVED,
@@ -53,6 +54,7 @@ from validation.nightly.history import (
     KEY_COLUMNS,
     UNRECORDED,
     HistoryInputError,
+    check_url,
     database_url,
     describe_selection,
     load_run,
@@ -393,13 +395,25 @@ def build_context(
     }
 
 
+def _check_flags(url: str | None, folder: Path) -> None:
+    """``--db`` (when given) a usable URL even if both runs are folders, and ``--out`` a
+    folder compare.csv and compare.html can be written into: HistoryInputError otherwise."""
+    if url is not None:
+        check_url(url, "--db")
+    problem = folder_target_problem(folder, (COMPARE_CSV, COMPARE_HTML))
+    if problem:
+        raise HistoryInputError(f"--out: {problem}")
+
+
 def compare_main(
     run_a: str, run_b: str, db: str | None, out: Path | None, selection: str | None = None
 ) -> int:
     """``physval compare``: writes compare.csv and compare.html; 0, or 2 and one line."""
     try:
         url = database_url(db)
-        rule = compare_rule(selection)  # the flag checked before any run is read
+        rule = compare_rule(selection)  # the flags checked before any run is read
+        folder = out or DEFAULT_OUT
+        _check_flags(url if db is not None else None, folder)
         shared = shared_rows(resolve_run(run_a, url), resolve_run(run_b, url), rule)
     except HistoryInputError as error:
         print(error, file=sys.stderr)
@@ -407,9 +421,8 @@ def compare_main(
     a, b = shared.a, shared.b
     every_row = classified_rows(a, b)
     moved_rows = every_row[every_row["change"] != "unchanged"].reset_index(drop=True)
-    folder = out or DEFAULT_OUT
     folder.mkdir(parents=True, exist_ok=True)
-    write_atomically(folder / COMPARE_CSV, moved_rows.to_csv(index=False))
+    write_atomically(folder / COMPARE_CSV, csv_text(moved_rows))
     unchanged = every_row[every_row["change"] == "unchanged"]
     context = {
         **build_context(a, b, moved_rows, unchanged),

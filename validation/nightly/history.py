@@ -35,12 +35,14 @@ JSON that is not the expected object reads as empty, a time that is not a time a
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt_module
 import hashlib
 import json
 import math
+import os
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from fnmatch import fnmatch
 from pathlib import Path
@@ -50,6 +52,7 @@ import pandas as pd
 import sqlalchemy as sa
 
 from validation.contract import PROVENANCE_FILE, RESULTS_FILE
+from validation.redact import shown_url
 from validation.report.read import ReportInputError, read_provenance, read_results
 
 DEFAULT_DATABASE = Path("reports") / "history.sqlite"
@@ -273,18 +276,6 @@ def chosen_selection(runs: pd.DataFrame, rule: str | None) -> str:
 
 # --- URLs --------------------------------------------------------------------------------
 
-PASSWORD_IN_URL = re.compile(r"(://[^/@:\s]*:)[^/\s]*@")
-"""``scheme://user:password@host``: the password part of a URL (that may not even parse)."""
-
-PASSWORD_IN_QUERY = re.compile(r"([?&](?:password|passwd|pwd)=)[^&\s]*", re.IGNORECASE)
-"""``...?password=...``: a password given as a URL's query parameter."""
-
-
-def shown_url(text: str) -> str:
-    """``text`` (a URL, or a message or command line holding one) as it may be printed: every
-    password in it replaced by ``***``."""
-    return PASSWORD_IN_QUERY.sub(r"\1***", PASSWORD_IN_URL.sub(r"\1***@", str(text)))
-
 
 def database_url(text: str | Path | None) -> str:
     """``--db``: a URL as given, a bare path as an SQLite file, nothing as the default."""
@@ -294,31 +285,81 @@ def database_url(text: str | Path | None) -> str:
     return text if "://" in text else f"sqlite:///{text}"
 
 
-def sqlite_file(url: str) -> Path | None:
-    """The file of an ``sqlite:///`` URL (None for other dialects and in-memory databases)."""
+CONNECT_SECONDS = 10
+"""How long connecting to a database server may take before it counts as unreachable: a
+server on the network answers within milliseconds, and without a limit the drivers wait for
+TCP's retries (minutes) while the run has not started."""
+
+CONNECT_TIMEOUT_ARGUMENT = {
+    "psycopg": "connect_timeout",
+    "psycopg2": "connect_timeout",
+    "pg8000": "timeout",
+    "pymysql": "connect_timeout",
+}
+"""Driver -> the connect argument that bounds its connection time (``CONNECT_SECONDS``); a URL
+that sets it itself keeps its own."""
+
+
+def sqlite_file(url: str, flag: str = "--db") -> Path | None:
+    """The file of an ``sqlite:///`` URL (None for other dialects and in-memory databases);
+    ``HistoryInputError`` naming ``flag`` when ``url`` is not a URL."""
     try:
         parsed = sa.engine.make_url(url)
-    except sa.exc.ArgumentError as error:
+    except sa.exc.ArgumentError:
         raise HistoryInputError(
-            f"--db {shown_url(url)}: not a database URL ({shown_url(str(error))})"
+            f"{flag} {shown_url(url)}: not a database URL (expected dialect://..., e.g. "
+            f"sqlite:///path/to/history.sqlite or postgresql://user@host/physval)"
         ) from None
     if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
         return None
     return Path(parsed.database)
 
 
-def open_database(url: str, create: bool) -> sa.Engine:
+def _first_line(error: BaseException) -> str:
+    """An error's first line, passwords hidden (a driver's message may quote the URL)."""
+    text = str(getattr(error, "orig", None) or error).strip()
+    return shown_url(text.splitlines()[0] if text else type(error).__name__)
+
+
+@contextlib.contextmanager
+def usable(url: str, flag: str) -> Iterator[None]:
+    """Whatever makes ``url`` unusable, as one ``HistoryInputError`` line naming ``flag`` and
+    the URL with its password hidden: an unknown dialect or a driver not installed, a server
+    that cannot be reached or refuses the login, a file that is not a database."""
+    try:
+        yield
+    except (sa.exc.ArgumentError, sa.exc.NoSuchModuleError, ModuleNotFoundError) as error:
+        raise HistoryInputError(
+            f"{flag} {shown_url(url)}: not a usable database URL ({_first_line(error)})"
+        ) from None
+    except sa.exc.DBAPIError as error:
+        raise HistoryInputError(
+            f"{flag} {shown_url(url)}: cannot open ({_first_line(error)})"
+        ) from None
+
+
+def create_engine(url: str) -> sa.Engine:
+    """An engine on ``url``, connecting within ``CONNECT_SECONDS`` where its driver allows."""
+    parsed = sa.engine.make_url(url)
+    argument = CONNECT_TIMEOUT_ARGUMENT.get(parsed.get_driver_name())
+    if argument is None or argument in parsed.query:
+        return sa.create_engine(url)
+    return sa.create_engine(url, connect_args={argument: CONNECT_SECONDS})
+
+
+def open_database(url: str, create: bool, flag: str = "--db") -> sa.Engine:
     """An engine on ``url`` with the schema in place (``create``), or on an existing database.
 
-    Reading never creates an empty SQLite file: a missing one is ``HistoryInputError``.
+    Reading never creates an empty SQLite file (nor its folder): a missing one is
+    ``HistoryInputError``.
     """
-    try:
-        path = sqlite_file(url)
+    with usable(url, flag):
+        path = sqlite_file(url, flag)
         if path is not None and not create and not path.is_file():
             raise HistoryInputError(f"{path}: no history database (physval run records one)")
-        if path is not None:
+        if path is not None and create:  # physval run checked it first (check_database)
             path.parent.mkdir(parents=True, exist_ok=True)
-        engine = sa.create_engine(url)
+        engine = create_engine(url)
         if create:
             METADATA.create_all(engine)
             add_missing_columns(engine)
@@ -326,19 +367,87 @@ def open_database(url: str, create: bool) -> sa.Engine:
             raise HistoryInputError(
                 f"{shown_url(url)}: not a physval history database (no runs table)"
             )
-    except (sa.exc.ArgumentError, sa.exc.NoSuchModuleError, ModuleNotFoundError) as error:
-        raise HistoryInputError(
-            f"--db {shown_url(url)}: not a usable database URL ({shown_url(str(error))})"
-        ) from None
-    except (sa.exc.OperationalError, sa.exc.DatabaseError) as error:
-        first = shown_url(str(error.orig)).splitlines()[0] if error.orig else "?"
-        raise HistoryInputError(f"--db {shown_url(url)}: cannot open ({first})") from None
     return engine
+
+
+def check_url(url: str, flag: str = "--db") -> None:
+    """``url`` parses and names a dialect whose driver is installed (no connection made)."""
+    with usable(url, flag):
+        sqlite_file(url, flag)
+        create_engine(url).dispose()
+
+
+def _transactional_sqlite(engine: sa.Engine) -> None:
+    """Make Python's sqlite3 driver run DDL inside the transaction (it commits ``CREATE
+    TABLE`` at once otherwise), so that a probe can roll it back: SQLAlchemy's recipe for
+    pysqlite (its "Serializable isolation / Savepoints / Transactional DDL" section), with
+    ``BEGIN IMMEDIATE``, which takes the write lock: a read-only or locked file fails here."""
+
+    @sa.event.listens_for(engine, "connect")
+    def _no_implicit_transactions(dbapi_connection, _record) -> None:
+        dbapi_connection.isolation_level = None
+
+    @sa.event.listens_for(engine, "begin")
+    def _explicit_begin(connection) -> None:
+        connection.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+def _missing_sqlite_file(path: Path, url: str, flag: str, made: tuple[Path, ...]) -> None:
+    """An SQLite file that does not exist yet: its folder must (nothing is created before the
+    run is recorded, and no folder but those of ``made``), and be writable."""
+    folder = path.parent
+    if folder.resolve() in made:
+        return  # the run makes it or checks it (a folder of its --out), and records into it
+    if not folder.is_dir():
+        raise HistoryInputError(
+            f"{flag} {shown_url(url)}: no folder {folder} (the database file is created in an "
+            "existing folder)"
+        )
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise HistoryInputError(f"{flag} {shown_url(url)}: folder {folder} is not writable")
+
+
+def check_database(url: str, flag: str = "--history", made: tuple[Path, ...] = ()) -> None:
+    """Before any work: the history at ``url`` can be recorded into. Connect, create the
+    tables and the missing columns, and roll it back (no run is inserted: a PostgreSQL
+    sequence is not rolled back, and the run ids would have gaps); a missing SQLite file is not
+    created (its folder is checked, ``_missing_sqlite_file``: it must exist, or be one of the
+    folders ``made`` by the run, resolved). One ``HistoryInputError`` line otherwise
+    (``usable``)."""
+    with usable(url, flag):
+        path = sqlite_file(url, flag)
+        if path is not None and path.is_dir():
+            raise HistoryInputError(f"{flag} {shown_url(url)}: {path} is a folder, not a file")
+        if path is not None and not path.exists():
+            _missing_sqlite_file(path, url, flag, made)
+            return
+        engine = create_engine(url)
+        if engine.dialect.name == "sqlite":
+            _transactional_sqlite(engine)
+        try:
+            with engine.connect() as connection:
+                transaction = connection.begin()
+                try:
+                    METADATA.create_all(connection)
+                    for name in ADDED_RUN_COLUMNS:
+                        if name not in run_columns(connection):
+                            connection.execute(sa.text(_column_ddl(connection, name)))
+                finally:
+                    transaction.rollback()
+        finally:
+            engine.dispose()
 
 
 def run_columns(connection: sa.Connection | sa.Engine) -> set[str]:
     """The columns the database's ``runs`` table has (an older one lacks ADDED_RUN_COLUMNS)."""
     return {column["name"] for column in sa.inspect(connection).get_columns(RUNS.name)}
+
+
+def _column_ddl(bind: sa.Connection | sa.Engine, name: str) -> str:
+    """``ALTER TABLE runs ADD COLUMN`` of one of ``ADDED_RUN_COLUMNS``, in ``bind``'s dialect."""
+    quote = bind.dialect.identifier_preparer.quote
+    column_type = RUNS.c[name].type.compile(dialect=bind.dialect)
+    return f"ALTER TABLE {quote(RUNS.name)} ADD COLUMN {quote(name)} {column_type}"
 
 
 def add_missing_columns(engine: sa.Engine) -> None:
@@ -348,15 +457,9 @@ def add_missing_columns(engine: sa.Engine) -> None:
     for name in ADDED_RUN_COLUMNS:
         if name in run_columns(engine):
             continue
-        column = RUNS.c[name]
-        quote = engine.dialect.identifier_preparer.quote
-        ddl = (
-            f"ALTER TABLE {quote(RUNS.name)} ADD COLUMN {quote(name)} "
-            f"{column.type.compile(dialect=engine.dialect)}"
-        )
         try:
             with engine.begin() as connection:
-                connection.execute(sa.text(ddl))
+                connection.execute(sa.text(_column_ddl(engine, name)))
         except sa.exc.DBAPIError:
             if name not in run_columns(engine):
                 raise
@@ -402,7 +505,7 @@ def run_record(folder: Path, provenance: dict) -> dict:
             for label, info in engines.items()
         },
         "machine": machine if isinstance(machine, dict) else {},
-        "command": str(provenance.get("command", "")),
+        "command": shown_url(provenance.get("command", "")),  # a foreign folder's too
         "folder": str(folder.resolve()),
         "complete": False,
         "selection": selection,

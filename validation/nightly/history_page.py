@@ -33,7 +33,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator, ScalarFormatter
 
 from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
-from validation.files import write_atomically
+from validation.files import file_target_problem, write_atomically
 from validation.measure.noise import FAILS_A_RUN, NOISE_RULE, floor_for
 from validation.nightly.history import (
     KEY_COLUMNS,
@@ -686,7 +686,11 @@ def history_main(
     on stderr."""
     try:
         url = database_url(db)
-        path, history = render_history(url, out or default_page(url), last, only, selection)
+        page = out or default_page(url)
+        problem = file_target_problem(page)  # before the history is read
+        if problem:
+            raise HistoryInputError(f"--out: {problem}")
+        path, history = render_history(url, page, last, only, selection)
     except HistoryInputError as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -28,6 +28,7 @@ from validation.measure.definitions import (
     SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
+from validation.redact import shown_url
 from validation.report.closed_form import closed_form_charts, read_expectations
 from validation.report.news import build_news, build_sweep_cards
 from validation.report.outcomes import (
@@ -330,7 +331,7 @@ def build_provenance(provenance: dict[str, Any] | None, table: pd.DataFrame) -> 
         )
     machine = provenance.get("machine", {})
     return {
-        "command": str(provenance.get("command", "")),
+        "command": shown_url(provenance.get("command", "")),  # a foreign folder's too
         "git_commit": str(provenance.get("git_commit", "")),
         "created": str(provenance.get("created", "")),
         "machine": [(str(k), str(v)) for k, v in machine.items()]

@@ -41,6 +41,7 @@ from validation.contract import (
     TRACE_COLUMNS,
     TRACE_FILE,
 )
+from validation.csv_safe import restored
 from validation.files import open_regular, read_regular
 
 NUMERIC_RESULTS_COLUMNS = (
@@ -120,6 +121,7 @@ def read_results(path: Path) -> pd.DataFrame:
     if missing:
         raise ReportInputError(f"{path.name}: missing columns {', '.join(missing)}")
     table = table.astype(object)
+    restored(table, [c for c in table.columns if c not in NUMERIC_RESULTS_COLUMNS])
     for column in NUMERIC_RESULTS_COLUMNS:
         table[f"{column}_text"] = table[column].str.strip()
         table[column] = pd.to_numeric(table[column].str.strip(), errors="coerce")
@@ -146,6 +148,7 @@ def _read_optional_table(
     if missing:
         warnings.append(f"{path.name}: missing columns {', '.join(missing)}; not shown")
         return None
+    restored(table, text_columns)
     for column in columns:
         if column not in text_columns:
             table[column] = pd.to_numeric(table[column], errors="coerce")
