@@ -1,4 +1,4 @@
-"""The Dask backend's speed-up (issue 13): 16 sweep jobs on a LocalCluster of 2 workers
+"""The Dask backend's speed-up: 16 sweep jobs on a LocalCluster of 2 workers
 against ``--jobs 1``.
 
 The jobs are those ``physval sweep`` sends: one (scene, engine) dt grid each, here 16

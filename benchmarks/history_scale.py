@@ -1,4 +1,4 @@
-"""The history store and history.html at a year of nightly runs (issue 12): 365 runs x 1,000 rows.
+"""The history store and history.html at a year of nightly runs: 365 runs x 1,000 rows.
 
 Writes 365 synthetic run folders (results.csv + provenance.json, the columns ``physval run``
 writes: 20 scenes x 5 engine specs x 10 metrics), records each with ``history.record_run`` (one

@@ -1,9 +1,9 @@
 """Per-step cost of mini_engine, MuJoCo and PyBullet on the same scenes, in one run, as ratios.
 
-Scenes (issues 2, 4 and 14):
+Scenes:
 
 0. **sphere_on_plane**: one sphere (r = 0.05 m, 1 kg) resting on a ground plane, dt = 2e-3 s:
-   the per-step fixed cost of each engine (issue 14 target: mini <= 20x MuJoCo). Timed over
+   the per-step fixed cost of each engine (target: mini <= 20x MuJoCo). Timed over
    ``SMALL_TIMED_STEPS`` per block, since one step of the reference engines takes microseconds.
 1. **pile_N**: N spheres (r = 0.05 m, 1 kg) poured in layers of 100 into a 1.2 m walled box
    (ground and walls are planes), dt = 2e-3 s, frictionless, e = 0. Each engine first

@@ -22,6 +22,7 @@ from validation.jobs.executor import BACKENDS, run_jobs
 from validation.jobs.journal import Journal
 from validation.jobs.plan import plan_run
 from validation.jobs.run import JOURNAL_SCHEMA, execute, job_ids
+from validation.jobs.terminal import PROGRESS_PREFIX
 
 distributed = pytest.importorskip("distributed")
 
@@ -307,7 +308,7 @@ def test_ctrl_c_with_a_local_cluster_is_one_line_and_leaves_no_dask_process(tmp_
     finally:
         if run.poll() is None:
             run.kill()
-    lines = [line for line in stderr.splitlines() if not line.startswith("pybullet build time")]
+    lines = [line for line in stderr.splitlines() if not line.startswith(PROGRESS_PREFIX)]
     assert run.returncode == 130, (run.returncode, stderr[-3000:])
     assert "Traceback" not in stderr, stderr[-3000:]
     assert len(lines) == 1 and lines[0].startswith("interrupted"), lines

@@ -1,4 +1,4 @@
-"""The expectation kinds of issue 10 (finding 10): each measures its closed form."""
+"""The expectation kinds beyond the first ones: each measures its closed form."""
 
 from __future__ import annotations
 

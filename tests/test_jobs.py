@@ -13,6 +13,7 @@ import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
 from validation.jobs.executor import Interrupted, run_jobs
+from validation.jobs.terminal import PROGRESS_PREFIX
 
 FOUR_SCENES = [
     BUNDLED_SCENARIOS / "formulas" / "oblique_impact_spin.yaml",
@@ -101,7 +102,7 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     except subprocess.TimeoutExpired:
         process.kill()
         raise
-    lines = [line for line in stderr.splitlines() if not line.startswith("pybullet build time")]
+    lines = [line for line in stderr.splitlines() if not line.startswith(PROGRESS_PREFIX)]
     assert process.returncode == 130, (process.returncode, stderr[-2000:])
     assert "Traceback" not in stderr, stderr[-2000:]
     assert len(lines) == 1 and "interrupted" in lines[0], lines

@@ -1,4 +1,4 @@
-"""CI integration (issue 12 item 5): the JUnit XML of result rows, and the pytest plugin.
+"""CI integration: the JUnit XML of result rows, and the pytest plugin.
 
 The scenes are tiny on purpose (0.1 s, mini and MuJoCo RK4): a throw that passes, the same
 throw with a tolerance semi-implicit Euler cannot meet (mini fails, RK4 passes), the same

@@ -1,4 +1,4 @@
-"""Scenes of 10,000+ bodies can be written and loaded (issue 13, item 3).
+"""Scenes of 10,000+ bodies can be written and loaded.
 
 The value cap scales with the file-size cap (``yaml_source.BYTES_PER_VALUE``): a file of
 plain values, however many bodies it lists, stays under ``MAX_VALUES`` as long as it is under

@@ -1,4 +1,4 @@
-"""Format v1 additions of issue 10 (finding 10): a tilted ground and constant applied loads,
+"""Format v1 additions: a tilted ground and constant applied loads,
 in all three engines, in the invariants and in the independent reference."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Memory bounded by the scene, not the duration (issue 13, item 4).
+"""Memory bounded by the scene, not the duration.
 
 The measured accumulation: the energy-growth check kept one window per 8 steps for the whole
 run and re-judged all of them after every batch (2,000,000 steps: 250,000 windows, and the

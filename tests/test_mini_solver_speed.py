@@ -1,4 +1,4 @@
-"""The contact solver's reuse of work from step to step (issue 14) changes no result.
+"""The contact solver's reuse of work from step to step changes no result.
 
 The contact graph (colouring, index work, pair values) is reused while the contacts join
 the same bodies in the same order, and the rows of a constraint direction while the

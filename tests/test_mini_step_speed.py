@@ -1,4 +1,4 @@
-"""The shortcuts of issue 14's per-step work (mini_engine) give exactly what the long way gives.
+"""The shortcuts of the per-step work (mini_engine) give exactly what the long way gives.
 
 Each shortcut skips or reorganises work on the promise of the same result bit for bit:
 sphere rotations are not gathered for the narrow phase, principal-axis inertia is applied

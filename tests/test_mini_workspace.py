@@ -1,4 +1,4 @@
-"""The per-model step workspace (issue 14): its caches are optimisations only.
+"""The per-model step workspace: its caches are optimisations only.
 
 Reusing the colouring while the contact graph is unchanged, the rotation matrices while the
 orientations are unchanged, and the broad phase's per-model plan must give bit-for-bit the

@@ -1,10 +1,10 @@
-"""MuJoCo at scale (issue 13, item 2): the matched profile's contacts in O(N).
+"""MuJoCo at scale: the matched profile's contacts in O(N).
 
 - a 2,000-sphere scene's MJCF holds no explicit pair (each pair's values come from MuJoCo's
   mixing of the two geoms'), passes the parity gate, and is built and compiled quickly;
 - the mixing is a faithful stand-in: a scene of every kind of contact class (restitutions,
   frictions, a fixed body, the ground, pair overrides, values mixing cannot give) steps
-  bit for bit as with one explicit pair per pair (the profile before issue 13), under both
+  bit for bit as with one explicit pair per pair (the profile before contacts were filtered in O(N)), under both
   restitution models;
 - two fixed bodies never touch (MuJoCo never collides geoms welded to the world).
 """
@@ -159,7 +159,7 @@ def mixed_scene() -> dict:
 
 
 def every_pair_explicit(scenario: Scenario, restitution: str) -> mjcf.ContactPlan:
-    """The matched profile before issue 13: one ``<pair>`` per pair that can touch, geoms
+    """The matched profile as it was before the O(N) contact filter: one ``<pair>`` per pair that can touch, geoms
     that collide with nothing."""
     pairs = mjcf.contact_pairs(scenario)
     geom = {"contype": "0", "conaffinity": "0", "condim": str(mjcf.FRICTIONLESS_CONDIM)}

@@ -1,4 +1,4 @@
-"""The nightly run's bookkeeping (issue 12): known findings and baselines, on rows."""
+"""The nightly run's bookkeeping: known findings and baselines, on rows."""
 
 from __future__ import annotations
 

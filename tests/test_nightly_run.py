@@ -1,4 +1,4 @@
-"""The nightly run end to end (issue 12): known findings, a baseline, regressions injected into
+"""The nightly run end to end: known findings, a baseline, regressions injected into
 mini_engine, JUnit XML and the history, through ``physval run`` in subprocesses."""
 
 from __future__ import annotations

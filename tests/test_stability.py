@@ -206,7 +206,7 @@ RK4_LIMIT = 2.0 * np.sqrt(2.0) / 1000.0
 """s: RK4's stability interval on the imaginary axis ends at ω·dt = 2√2 (|R(iωdt)| = 1)."""
 
 SYMPLECTIC_BAND, RK4_BAND = 0.01, 0.02
-"""Relative: how close the bisection must come to each limit (issue 10, finding 9)."""
+"""Relative: how close the bisection must come to each limit."""
 
 LIBRARY_OSCILLATOR = BUNDLED_SCENARIOS / "stiff" / "stiff_spring_oscillator.yaml"
 DURATIONS = (0.2, 2.0)

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS
+from validation.jobs.terminal import PROGRESS_PREFIX
 
 SCENES = [
     BUNDLED_SCENARIOS / "formulas" / "projectile.yaml",
@@ -102,7 +103,7 @@ def test_a_stop_signal_stops_every_worker_with_one_line(tmp_path, signum, target
     finally:
         if run.poll() is None:
             run.kill()
-    lines = [line for line in stderr.splitlines() if not line.startswith("pybullet build time")]
+    lines = [line for line in stderr.splitlines() if not line.startswith(PROGRESS_PREFIX)]
     name = signal.Signals(signum).name
     assert run.returncode == 128 + signum, (run.returncode, stderr[-3000:])
     assert "Traceback" not in stderr, stderr[-3000:]

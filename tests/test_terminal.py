@@ -7,10 +7,13 @@ import io
 import math
 import re
 
+import pytest
 from rich.console import Console
 
 from validation.contract import RESULTS_COLUMNS
-from validation.jobs.terminal import SCENE_MAX_WIDTH, Progress, summary
+from validation.jobs.terminal import PROGRESS_PREFIX, SCENE_MAX_WIDTH, Progress, summary
+from validation.nightly.known import outcome_of
+from validation.report.outcomes import outcome_label
 
 BARE_RUN_SCENES = [
     "gazebo_boxes_complex",
@@ -75,7 +78,7 @@ COUNTS_LINE = re.compile(r"^(\d+) rows: (.*)$", re.MULTILINE | re.DOTALL)
 
 def _row(scene, engine, metric, error, tolerance, status) -> dict:
     row = dict.fromkeys(RESULTS_COLUMNS)
-    passed = None if tolerance is None else error <= tolerance
+    passed = None if tolerance is None or math.isnan(tolerance) else error <= tolerance
     row.update(
         scenario=scene,
         engine=engine,
@@ -136,15 +139,15 @@ def test_bare_run_summary_fits_100_columns_and_names_every_scene_and_engine():
     assert header[1:] == list(legend), header  # every header label is explained, in order
 
 
-def test_failing_cell_shows_fail_and_its_ratio_and_is_the_only_highlight():
+def test_failing_cell_shows_failed_and_its_ratio_and_is_the_only_highlight():
     rows = [
         *_cell_rows("bounce_ladder", "mini", "ok", 0.5),
         *_cell_rows("bounce_ladder", "mujoco(integrator=RK4)", "failed", 3.4),
         *_cell_rows("bounce_ladder", "pybullet", "ok", 0.25),
     ]
     text = summary(rows)
-    assert "*FAIL 3.4" in text
-    assert "PASS 0.5" in text and "PASS 0.25" in text
+    assert "*failed 3.4" in text
+    assert "passed 0.5" in text and "passed 0.25" in text
     table = text[: text.index("engines:")]
     assert table.count("*") == 1  # only the worst cell of the scene is marked
 
@@ -156,33 +159,59 @@ def test_ratios_keep_two_significant_digits_in_narrow_columns():
         rows += _cell_rows("projectile", engine, "ok", 0.01234)
     text = summary(rows, width=100)
     assert "3.5e3" in text and "1.2e-4" in text and "0.012" in text
-    assert "FAIL" in text
+    assert "fail" in text
 
 
-def test_counts_line_equals_the_counts_of_the_rows():
+def test_counts_line_equals_the_outcomes_of_the_rows_in_the_reports_words():
     rows = bare_run_rows()
     text = summary(rows)
     found = COUNTS_LINE.search(text)
     assert found, text
     said = {name: int(n) for n, name in re.findall(r"(\d+) ([a-z_ ]+?)(?:,|$)", found.group(2))}
-
-    def ok(row) -> bool:
-        return row["status"] == "ok"
-
-    def checked(row) -> bool:
-        return row["tolerance"] is not None and not math.isnan(row["tolerance"])
-
-    expected = {
-        "passed": sum(ok(r) and checked(r) for r in rows),
-        "no tolerance": sum(ok(r) and not checked(r) for r in rows),
-        **{
-            status: sum(r["status"] == status for r in rows)
-            for status in ("failed", "unstable", "error", "model_mismatch", "unsupported")
-        },
-    }
+    outcomes = [outcome_of(row) for row in rows]
+    expected = {outcome_label(o): outcomes.count(o) for o in set(outcomes)}
     assert int(found.group(1)) == len(rows)
-    assert said == expected
-    assert all(expected.values())  # the synthetic run has every kind of row
+    assert said == expected, (said, expected)
+    assert len(expected) == 7, expected  # the synthetic run has every kind of row
+
+
+def _known(rows: list[dict]) -> list[dict]:
+    """The rows with the outcome a scene's known finding gives them (``apply_known``)."""
+    return [
+        {**row, "outcome": "known" if row["status"] == "failed" else outcome_of(row)}
+        for row in rows
+    ]
+
+
+def test_a_known_finding_is_never_shown_as_a_failure():
+    rows = [
+        *_known(_cell_rows("dzhanibekov_box", "mini", "failed", 3.4)),
+        *_cell_rows("dzhanibekov_box", "mujoco", "ok", 0.5),
+    ]
+    text = summary(rows)
+    table = text[: text.index("engines:")]
+    assert "*known 3.4" in table and "fail" not in table, table
+    assert "1 known" in text and "failed" not in text, text
+
+
+@pytest.mark.parametrize("status", ["unsupported", "error"])
+def test_sweep_rows_do_not_colour_the_scene(status):
+    rows = _cell_rows("projectile", "mini", "ok", 0.96)
+    sweep = _row("projectile", "mini", "sweep_order.orientation_error", None, None, status)
+    text = summary([*rows, sweep])
+    table = text[: text.index("engines:")]
+    assert "passed 0.96" in table and status[:5] not in table, table
+    assert f"1 {status}" in text  # counted all the same, as the report's chips count it
+    judged = summary([*rows, {**sweep, "metric": "orientation_error"}])
+    table = judged[: judged.index("engines:")]
+    assert ("error" in table) == (status == "error"), table  # unsupported ranks below passed
+
+
+def test_every_line_of_the_summary_and_its_key_fits_100_columns():
+    rows = bare_run_rows()
+    text = summary(rows, width=100)
+    assert max(len(line) for line in text.splitlines()) <= 100, max(text.splitlines(), key=len)
+    assert "number = largest |error|/(tolerance+band)" in text
 
 
 def test_colour_only_when_asked():
@@ -191,12 +220,18 @@ def test_colour_only_when_asked():
     assert "\x1b[" in summary(rows, color=True)
 
 
-def test_progress_is_silent_when_stderr_is_not_a_terminal(capsys):
+def test_progress_prints_a_line_per_job_when_stderr_is_not_a_terminal(capsys):
+    jobs = ("bounce_ladder · mujoco", "projectile · mini", "box_stack · pybullet")
     with Progress(3) as progress:
-        for label in ("bounce_ladder · mujoco", "projectile · mini", "box_stack · pybullet"):
-            progress.advance(label)
+        for label in jobs:
+            progress.advance(label, "ok 0.8 s")
     assert progress.done == 3
-    assert capsys.readouterr() == ("", "")
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert out == "" and len(lines) == 3, err
+    for done, (line, label) in enumerate(zip(lines, jobs, strict=True), start=1):
+        assert line.startswith(f"{PROGRESS_PREFIX} {done}/3 0:00:0"), line
+        assert line.endswith(f"{label} ok 0.8 s"), line
 
 
 def test_progress_draws_on_a_terminal_in_any_finishing_order():
@@ -211,9 +246,11 @@ def test_progress_draws_on_a_terminal_in_any_finishing_order():
     assert "3/3" in screen.getvalue()
 
 
-def test_progress_is_silent_on_an_injected_console_that_is_not_a_terminal():
+def test_progress_on_an_injected_console_that_is_not_a_terminal_prints_lines():
     screen = io.StringIO()
     with Progress(2, console=Console(file=screen, force_terminal=False)) as progress:
         progress.advance("projectile · mini")
         progress.advance("box_stack · pybullet")
-    assert screen.getvalue() == ""
+    lines = screen.getvalue().splitlines()
+    assert [line.split()[1] for line in lines] == ["1/2", "2/2"], lines
+    assert "\x1b[" not in screen.getvalue()  # no bar, no cursor codes in a log

@@ -22,6 +22,7 @@ from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.run import RESUME_ALONE, run_main
 from validation.jobs.stability_search import stability_main
 from validation.jobs.sweep import sweep_main
+from validation.listing import list_main, version_text
 from validation.nightly.baseline import BASELINE_ACTIONS, baseline_main
 from validation.nightly.compare import compare_main
 from validation.nightly.history_page import history_main
@@ -109,6 +110,11 @@ def command_baseline(args: argparse.Namespace) -> int:
     return baseline_main(args.action, args.run_dir, args.to)
 
 
+def command_list(args: argparse.Namespace) -> int:
+    """List the scenes, the engines with their versions and options, the metrics."""
+    return list_main(args.paths or default_scenario_paths())
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -122,6 +128,10 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "sweep": (command_sweep, "error against run time over a timestep sweep"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
+    "list": (
+        command_list,
+        "the scenes, the engines with their versions and options, the metrics and expectations",
+    ),
     "history": (command_history, "history.html: every metric's trend over the recorded runs"),
     "compare": (command_compare, "the rows that moved beyond noise between two runs"),
     "baseline": (
@@ -135,6 +145,7 @@ def parser() -> argparse.ArgumentParser:
     root = argparse.ArgumentParser(
         prog="physval", description="Reference-validated rigid-body physics harness."
     )
+    root.add_argument("--version", action="version", version=version_text())
     sub = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, help_text) in COMMANDS.items():
         command = sub.add_parser(name, help=help_text, description=help_text)
@@ -289,6 +300,7 @@ ARGUMENTS = {
     "stability": _stability_arguments,
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+    "list": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
     "history": _history_arguments,
     "compare": _compare_arguments,
     "baseline": _baseline_arguments,

@@ -88,6 +88,18 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
 """Every status a result row can carry, with its meaning. CI jobs and the report depend on
 these names; ``BAD_STATUSES`` decides the exit code."""
 
+SWEEP_ORDER = "sweep_order"
+SWEEP_ERROR = "sweep_error"
+SWEEP_CROSS_CHECK = "sweep_cross_check"
+"""Prefixes of the result rows a scene's sweep adds: ``sweep_order.<metric>`` (the fitted
+convergence order), ``sweep_error.<metric>@dt=<dt>`` (the error at one step) and
+``sweep_cross_check.<metric>`` (DOP853 against MuJoCo RK4); the history tracks them like
+every other row."""
+
+SWEEP_ROW_PREFIXES = (SWEEP_ORDER, SWEEP_ERROR, SWEEP_CROSS_CHECK)
+"""Every prefix of a sweep's result rows (``<prefix>.<metric>``): tracked, not judged, so
+they do not colour a scene's cells in the terminal matrix."""
+
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 """Row statuses that fail a row; ``physval run`` exits 1 on such a row unless it is a known
 finding of its scene or, against a baseline, failed there too (``nightly.baseline``)."""

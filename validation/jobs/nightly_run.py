@@ -1,4 +1,4 @@
-"""What ``physval run`` adds for the nightly job (issue 12): known findings, the baseline, the
+"""What ``physval run`` adds for the nightly job: known findings, the baseline, the
 scenes' own sweeps as rows, JUnit XML and the history store.
 
 Each function here is one phase of ``run._finish``; none runs an engine.
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from validation.contract import BASELINE_FILE
+from validation.contract import BASELINE_FILE, SWEEP_CROSS_CHECK, SWEEP_ERROR, SWEEP_ORDER
 from validation.files import write_atomically
 from validation.jobs.plan import BadInputError, Plan
 from validation.jobs.sweep import SWEEP_METRICS
@@ -36,14 +36,6 @@ DEFAULT_BASELINE = Path("baselines") / "default.csv"
 HISTORY_FILE = "history.sqlite"
 """The default history database, next to the run folder (``reports/history.sqlite`` for a
 default run)."""
-
-SWEEP_ORDER = "sweep_order"
-SWEEP_ERROR = "sweep_error"
-SWEEP_CROSS_CHECK = "sweep_cross_check"
-"""Prefixes of the result rows a scene's sweep adds: ``sweep_order.<metric>`` (the fitted
-convergence order), ``sweep_error.<metric>@dt=<dt>`` (the error at one step) and
-``sweep_cross_check.<metric>`` (DOP853 against MuJoCo RK4); the history tracks them like
-every other row."""
 
 
 @dataclass(frozen=True)

@@ -298,7 +298,12 @@ def execute(
         if journal is not None and not any(work[index] is job for job in lost_jobs):
             journal.append(ids[index], result)  # a lost job is run again by --resume
         done[index] = result
-        progress.advance(f"{work[index][1][0].name} · {_label(work[index][1][1])}")
+        kind, payload = work[index]
+        scene, spec = payload[0], payload[1]
+        progress.advance(
+            f"{scene.name} · {_label(spec)}" + (" sweep" if kind == "sweep" and spec else ""),
+            _how_it_ended(work[index][0], result),
+        )
 
     with Progress(len(todo)) as progress:
         run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, lost, _cost)
@@ -317,6 +322,17 @@ def execute(
         all_runs += runs
     sweep_rows = [row for index in range(position, len(work)) for row in done[index]]
     return Executed(rows, series, impacts, all_runs, sweep_rows)
+
+
+def _how_it_ended(kind: str, result) -> str:
+    """A finished job's ending for its progress line: a run's status and engine time, a sweep's
+    worst status (``ok`` when every point ran) and its number of rows."""
+    if kind == "sweep":
+        statuses = {str(row.get("status", "ok")) for row in result}
+        status = next((s for s in BAD_STATUSES if s in statuses), "ok")
+        return f"{status} {len(result)} sweep rows"
+    run, _ = result
+    return f"{run.status} {run.wall_time_s:.1f} s"
 
 
 def _label(spec: EngineSpec | None) -> str:

@@ -7,10 +7,13 @@ with short engine labels (E1..En) and a legend mapping them to the full engine s
 
 from __future__ import annotations
 
+import datetime
 import io
 import math
 import sys
 import threading
+import time
+from collections import Counter
 from collections.abc import Iterable
 from types import TracebackType
 
@@ -27,7 +30,9 @@ from rich.progress import Progress as RichProgress
 from rich.table import Column, Table
 from rich.text import Text
 
-from validation.contract import BAD_STATUSES
+from validation.contract import SWEEP_ROW_PREFIXES
+from validation.nightly.known import outcome_of
+from validation.report.outcomes import OUTCOME_ORDER, error_ratio, outcome_label
 
 BAR_WIDTH = 30
 """Characters of the progress bar itself (the old hand-drawn bar's width)."""
@@ -42,7 +47,7 @@ SCENE_MIN_WIDTH = 12
 """The scene column is never squeezed below this to make room for engine columns."""
 
 CELL_MIN_WIDTH = 6
-"""Narrowest engine column: an abbreviated status word with its marker ("*unst.") or a
+"""Narrowest engine column: an abbreviated outcome word with its marker ("*unst.") or a
 compact ratio ("3.4e-5") per line."""
 
 WORST_MARKER = "*"
@@ -51,58 +56,65 @@ WORST_MARKER = "*"
 NO_TOLERANCE = "-"
 """Cell word of a (scene, engine) whose rows ran fine but have no tolerance to check."""
 
-CELL_WORDS = {"failed": "FAIL", "ok": "PASS"}
-"""Cell words that differ from the status name; the other statuses are shown by name."""
+CELL_WORDS = {"no_tolerance": NO_TOLERANCE}
+"""Cell words that differ from the report's outcome words (``outcome_label``)."""
 
-SEVERITY = (NO_TOLERANCE, "PASS", "unsupported", "FAIL", "unstable", "model_mismatch", "error")
-"""Cell words from best to worst: a cell shows its worst row, a scene highlights its worst
-cell (ties broken by the larger error/tolerance ratio)."""
-
-ABBREVIATIONS = {"unstable": "unst.", "model_mismatch": "mism.", "unsupported": "unsup"}
+ABBREVIATIONS = {
+    "passed": "pass",
+    "failed": "fail",
+    "unstable": "unst.",
+    "model_mismatch": "mism.",
+    "unsupported": "unsup",
+}
 """Short cell words used when the full word does not fit the engine column (named in a key)."""
 
 STYLES = {
-    "PASS": "green",
-    "FAIL": "red",
-    "unstable": "magenta",
-    "model_mismatch": "yellow",
-    "error": "red",
+    "error": "bold red",
+    "model_mismatch": "red",
+    "unstable": "red",
+    "failed": "red",
+    "known": "dark_orange",
+    "fixed": "blue",
+    "passed": "green",
+    "no_tolerance": "dim",
     "unsupported": "dim",
-    NO_TOLERANCE: "dim",
 }
-"""Cell colours, used only when ``summary(..., color=True)``."""
+"""Cell colours per outcome, the report's colour families (red: needs a look; amber: a known
+finding; blue: a fixed one; green: passed; grey: nothing judged), used only when
+``summary(..., color=True)``."""
 
-TOLERANCE_FLOOR = 1e-300
-"""Divisor floor of error/tolerance, so a zero tolerance gives a huge ratio, not a division error."""
+RATIO_KEY = "number = largest |error|/(tolerance+band) of the cell's checked rows"
+"""What the number under a cell is, for the key line (the report's cells show the same)."""
 
-COUNT_NAMES = (
-    "passed",
-    "failed",
-    "unstable",
-    "error",
-    "model_mismatch",
-    "unsupported",
-    "no tolerance",
-)
-"""The counts line's categories, in order; each row falls in exactly one of them."""
+COUNT_ORDER = tuple(o for o in OUTCOME_ORDER if o != "not_run")
+"""The counts line's outcomes, worst first as the report's chips; each row has one of them."""
+
+PROGRESS_PREFIX = "progress"
+"""First word of the line per finished job printed when stderr is not a terminal (a CI log),
+so a log reader (or a test) can tell progress lines from messages."""
 
 
 class Progress:
-    """A progress bar on stderr: done/total, elapsed time, ETA and the last finished job's label.
+    """Progress on stderr: a bar on a terminal, a line per finished job in a log.
 
-    Use it as a context manager in the main process and call ``advance(label)`` each time a
-    job finishes, in whatever order the workers finish them (e.g. as futures complete). It is
-    silent, with no output at all, when stderr is not a terminal. ``console`` replaces the
-    stderr console (tests inject ``Console(force_terminal=True, file=...)``); the bar is then
-    drawn if that console is a terminal. With ``auto_refresh`` a background thread redraws the
-    clock every second; it is off by default because forking worker processes while such a
-    thread writes to stderr can deadlock the workers (the bar is redrawn on every ``advance``).
+    Use it as a context manager in the main process and call ``advance(label, detail)`` each
+    time a job finishes, in whatever order the workers finish them (e.g. as futures complete).
+    On a terminal it draws a bar (done/total, elapsed time, ETA, the last job's label). When
+    stderr is not a terminal (a CI log) it prints one line per finished job instead,
+    ``progress 12/240 0:01:05 bounce_ladder · mujoco ok 0.8 s``, so a long run is never
+    silent for longer than its longest job (a CI's no-output timeout kills silent jobs).
+    ``console`` replaces the stderr console (tests inject ``Console(force_terminal=..., file=
+    ...)``). With ``auto_refresh`` a background thread redraws the clock every second; it is
+    off by default because forking worker processes while such a thread writes to stderr can
+    deadlock the workers (the bar is redrawn on every ``advance``).
     """
 
     def __init__(self, total: int, console: Console | None = None, auto_refresh: bool = False):
         self.total, self.done = total, 0
         self._lock = threading.Lock()
-        self.active = console.is_terminal if console is not None else sys.stderr.isatty()
+        self._console = console if console is not None else Console(file=sys.stderr)
+        self.active = self._console.is_terminal
+        self._started = time.monotonic()
         self._bar: RichProgress | None = None
         if self.active:
             self._bar = RichProgress(
@@ -114,18 +126,29 @@ class Progress:
                 TextColumn(
                     "{task.fields[label]}", table_column=Column(no_wrap=True, overflow="ellipsis")
                 ),
-                console=console if console is not None else Console(file=sys.stderr),
+                console=self._console,
                 auto_refresh=auto_refresh,
             )
             self._task = self._bar.add_task("physval run", total=total, label="")
             self._bar.start()
 
-    def advance(self, label: str) -> None:
-        """One job finished; ``label`` names it (e.g. "bounce_ladder · mujoco")."""
+    def advance(self, label: str, detail: str = "") -> None:
+        """One job finished; ``label`` names it (e.g. "bounce_ladder · mujoco"), ``detail``
+        says how it ended (e.g. "ok 0.8 s"; shown in a log's line)."""
         with self._lock:
             self.done += 1
             if self._bar is not None:
                 self._bar.update(self._task, advance=1, label=label, refresh=True)
+            elif self.total:
+                self._console.file.write(self.line(label, detail) + "\n")
+                self._console.file.flush()
+
+    def line(self, label: str, detail: str) -> str:
+        """The log line of the job just finished (``PROGRESS_PREFIX`` first)."""
+        elapsed = datetime.timedelta(seconds=round(time.monotonic() - self._started))
+        width = len(str(self.total))
+        parts = [PROGRESS_PREFIX, f"{self.done:>{width}}/{self.total}", str(elapsed), label]
+        return " ".join([*parts, detail] if detail else parts)
 
     def close(self) -> None:
         """Stop drawing and leave the final bar on its own line; safe to call twice."""
@@ -146,43 +169,45 @@ class Progress:
         self.close()
 
 
-def _missing(value) -> bool:
-    """True for None, NaN and anything that is not a number (an empty CSV cell)."""
+def _number(value) -> float:
+    """A cell of a row as a float: NaN for None, an empty CSV cell or text."""
     try:
-        return value is None or math.isnan(float(value))
+        return math.nan if value is None else float(value)
     except (TypeError, ValueError):
-        return True
+        return math.nan
 
 
-def _band(row: dict) -> float:
-    """The row's discretization band (0 when it has none)."""
-    band = row.get("band")
-    return 0.0 if _missing(band) else float(band)
+def _ratio(row: dict) -> float:
+    """The row's |error| / (tolerance + band), as the report computes it (NaN unchecked)."""
+    band = _number(row.get("band"))
+    allowance = _number(row.get("tolerance")) + (0.0 if math.isnan(band) else band)
+    return error_ratio(_number(row.get("error")), allowance)
+
+
+def is_sweep_row(row: dict) -> bool:
+    """Whether a row is one of a scene's sweep rows (``SWEEP_ROW_PREFIXES``)."""
+    return str(row.get("metric", "")).split(".", 1)[0] in SWEEP_ROW_PREFIXES
 
 
 def _cell(group: list[dict]) -> tuple[str, float | None]:
-    """The worst outcome of one (scene, engine)'s rows and its worst finite error/tolerance."""
-    statuses = {row["status"] for row in group}
-    checked = [row for row in group if not _missing(row["tolerance"])]
-    ratios = [
-        float(row["error"]) / max(float(row["tolerance"]) + _band(row), TOLERANCE_FLOOR)
-        for row in checked
-        if not _missing(row["error"])
-    ]
-    finite = [ratio for ratio in ratios if math.isfinite(ratio)]
-    bad = [CELL_WORDS.get(status, status) for status in BAD_STATUSES if status in statuses]
-    if bad:
-        word = max(bad, key=SEVERITY.index)
-    elif "unsupported" in statuses:
-        word = "unsupported"
-    else:
-        word = "PASS" if checked else NO_TOLERANCE
-    return word, (max(finite) if finite else None)
+    """The worst outcome of one (scene, engine)'s rows (the report's order, ``OUTCOME_ORDER``)
+    and the largest error/tolerance of its checked rows, as the report's cell shows them."""
+    outcome = min((outcome_of(row) for row in group), key=OUTCOME_ORDER.index)
+    ratios = [ratio for ratio in map(_ratio, group) if not math.isnan(ratio)]
+    return outcome, (max(ratios) if ratios else None)
+
+
+def _word(outcome: str) -> str:
+    """The cell word of an outcome: the report's word, ``-`` for no tolerance."""
+    return CELL_WORDS.get(outcome, outcome_label(outcome))
 
 
 def _ratio_text(ratio: float) -> str:
     """Two significant digits, the shorter of fixed and compact-exponent spelling:
-    0.34, 12, 1.2e3, 1.2e-4 (never wider than a narrow column for ordinary ratios)."""
+    0.34, 12, 1.2e3, 1.2e-4 (never wider than a narrow column for ordinary ratios); ``inf``
+    for an error against a zero tolerance."""
+    if not math.isfinite(ratio):
+        return "inf"
     mantissa, _, exponent = f"{ratio:.2g}".partition("e")
     fixed = f"{mantissa}e{int(exponent)}" if exponent else mantissa
     mantissa, _, exponent = f"{ratio:.1e}".partition("e")
@@ -225,15 +250,10 @@ def _packed(entries: Iterable[str], width: int, prefix: str, sep: str = "  ") ->
 
 
 def counts(rows: list[dict]) -> dict[str, int]:
-    """Rows per category of ``COUNT_NAMES``: passed (ok and checked), the bad statuses,
-    unsupported, and no tolerance (ok but unchecked); the categories add up to ``len(rows)``."""
-    found = dict.fromkeys(COUNT_NAMES, 0)
-    for row in rows:
-        if row["status"] != "ok":
-            found[row["status"]] += 1
-        else:
-            found["no tolerance" if _missing(row["tolerance"]) else "passed"] += 1
-    return found
+    """Rows per outcome (``outcome_of``: known findings applied), worst first, only the
+    outcomes that occur: the report's summary chips, adding up to ``len(rows)``."""
+    found = Counter(outcome_of(row) for row in rows)
+    return {outcome: found[outcome] for outcome in COUNT_ORDER if found[outcome]}
 
 
 def engine_labels(rows: list[dict]) -> dict[str, str]:
@@ -245,27 +265,31 @@ def engine_labels(rows: list[dict]) -> dict[str, str]:
 
 
 def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -> str:
-    """Scenes x engines as text at most ``width`` columns wide, then the legend and counts.
+    """Scenes x engines as text at most ``width`` columns wide, then the legend, the key and
+    the counts.
 
-    Each cell is the worst outcome of that (scene, engine) — PASS, FAIL, unstable, error,
-    model_mismatch, unsupported or "-" (no tolerance) — with its worst error/tolerance ratio
-    (two significant digits); the worst cell of each scene is bold and marked ``*``. Engine
-    columns are headed E1..En, named in the legend. ``color`` adds ANSI colours (pass
-    ``sys.stdout.isatty()`` to colour only on a terminal); otherwise the text is plain.
+    Each cell is the worst outcome of that (scene, engine), in the report's words and order
+    (error, model_mismatch, unstable, failed, known, fixed, passed, "-" for no tolerance,
+    unsupported), with the largest error/tolerance of its checked rows (two significant
+    digits); a scene's sweep rows are tracked, not judged, and do not colour its cells. The
+    worst cell of each scene is bold and marked ``*``. Engine columns are headed E1..En, named
+    in the legend. ``color`` adds ANSI colours (pass ``sys.stdout.isatty()`` to colour only on
+    a terminal); otherwise the text is plain.
     """
     if not rows:
         return "(no rows)"
-    labels = engine_labels(rows)
+    judged = [row for row in rows if not is_sweep_row(row)] or rows
+    labels = engine_labels(judged)
     engines = list(labels)
     scenes = list(dict.fromkeys(row["scenario"] for row in rows))
     groups: dict[tuple[str, str], list[dict]] = {}
-    for row in rows:
+    for row in judged:
         groups.setdefault((row["scenario"], row["engine"]), []).append(row)
     cells = {key: _cell(group) for key, group in groups.items()}
 
     def rank(key):
-        word, ratio = cells[key]
-        return SEVERITY.index(word), -math.inf if ratio is None else ratio
+        outcome, ratio = cells[key]
+        return -OUTCOME_ORDER.index(outcome), -math.inf if ratio is None else ratio
 
     worst = set()
     for scene in scenes:
@@ -277,7 +301,7 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
     scene_width = min(SCENE_MAX_WIDTH, max(len(s) for s in [*scenes, "scene"]))
     natural = max(
         max(len(label) for label in labels.values()),
-        *(len(_cell_text(*cells[key], key in worst, None)) for key in cells),
+        *(len(_cell_text(_word(o), r, key in worst, None)) for key, (o, r) in cells.items()),
     )
     room = (width - scene_width - len(engines)) // len(engines)  # one space between columns
     if natural <= room:
@@ -305,11 +329,12 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
             if key not in cells:
                 line.append(Text(""))
                 continue
-            word, ratio = cells[key]
+            outcome, ratio = cells[key]
+            word = _word(outcome)
             if _shown_word(word, key in worst, fit) != word:
                 used.add(word)
             text = _cell_text(word, ratio, key in worst, fit)
-            style = STYLES.get(word, "") + (" bold" if key in worst else "")
+            style = STYLES.get(outcome, "") + (" bold" if key in worst else "")
             line.append(Text(text, style=style.strip()))
         table.add_row(*line)
 
@@ -323,10 +348,12 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
     console.print(table)
     legend = _packed((f"{labels[e]}={e}" for e in engines), width, "engines:")
     key = [f"{ABBREVIATIONS[word]}={word}" for word in ABBREVIATIONS if word in used]
-    key += [f"{WORST_MARKER} worst cell of its scene", f"{NO_TOLERANCE} no tolerance"]
-    found = counts(rows)
+    key += [f"{WORST_MARKER} worst cell of its scene", f"{NO_TOLERANCE} no tolerance", RATIO_KEY]
     tally = _packed(
-        (f"{found[name]} {name}" for name in COUNT_NAMES), width, f"{len(rows)} rows:", ", "
+        (f"{n} {outcome_label(o)}" for o, n in counts(rows).items()),
+        width,
+        f"{len(rows)} rows:",
+        ", ",
     )
     for line in [*legend, *_packed(key, width, "key:"), *tally]:
         console.print(line, highlight=False, markup=False, soft_wrap=False)

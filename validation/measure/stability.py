@@ -88,7 +88,7 @@ class StabilityChecks:
     """Largest |E - E0| / scale seen in each growth window from ``window_offset`` on: the
     windows judged already are dropped but the last ``GROWTH_WINDOWS_IN_A_ROW`` (a run of
     growth ending in a later window needs them), so the memory and the time of a check are
-    bounded by the scene, not the duration (issue 13: before, 2,000,000 steps kept 250,000
+    bounded by the scene, not the duration (before, 2,000,000 steps kept 250,000
     windows and re-judged all of them after every batch)."""
     window_offset: int = 0
     """Absolute index of the window ``window_error[0]`` holds."""

@@ -16,7 +16,7 @@ from validation.scenario.engine_spec import parse_engine_spec
 from validation.scenario.schema import ANY_METRIC, KnownFinding, Scenario
 
 KNOWN, FIXED = "known", "fixed"
-"""The two outcomes a known finding gives a row (names fixed by issue 12)."""
+"""The two outcomes a known finding gives a row (CI jobs and scene files depend on the names)."""
 
 
 def row_verdict(status: str, passed: object) -> str:

@@ -19,8 +19,15 @@ from pydantic import (
 )
 
 from validation.scenario.checks import document_problems
+from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.physics import initial_overlaps
-from validation.scenario.problems import Problem, ScenarioError, _found, _schema_problem
+from validation.scenario.problems import (
+    Problem,
+    ScenarioError,
+    _found,
+    _schema_problem,
+    merged,
+)
 from validation.scenario.schema import (
     Scenario,
 )
@@ -28,6 +35,7 @@ from validation.scenario.yaml_source import (
     BYTES_PER_VALUE,
     MAX_BYTES,
     MAX_VALUES,
+    SourceMap,
     YamlSourceError,
     read_yaml,
 )
@@ -65,9 +73,27 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:
         problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
+        problems = merged(problems) + raw_engine_problems(data, file, source)
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
     problems = document_problems(scenario, file, source)
     return (None if any(not p.warning for p in problems) else scenario), problems
+
+
+def raw_engine_problems(data: dict, file: str, source: SourceMap) -> list[Problem]:
+    """The ``engines`` list's bad specs, found even when the rest of the file fails the schema
+    (so every problem of a file shows in one pass); the whole-document rules check them again
+    once the file is valid."""
+    engines = data.get("engines")
+    problems = []
+    for i, text in enumerate(engines if isinstance(engines, list) else []):
+        if not isinstance(text, str):
+            continue  # the schema reports it
+        try:
+            parse_engine_spec(text)
+        except EngineSpecError as error:
+            position = source.locate(("engines", i))
+            problems.append(Problem(file, f"engines[{i}]", str(error), *(position or (None, None))))
+    return problems
 
 
 def _warn(problem: Problem) -> None:

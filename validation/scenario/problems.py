@@ -4,7 +4,8 @@ with pydantic's errors translated into that form (and a "did you mean")."""
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, replace
 from typing import Any
 
 from validation.scenario.schema import (
@@ -66,13 +67,25 @@ def _has(node: Any, part: str | int) -> bool:
     )
 
 
+UNION_MEMBER = re.compile(r"[\[\]\-,]|^(float|int|str|bool|list|dict|tuple)$")
+"""How pydantic names the member of a plain union in an error's location
+(``constrained-float``, ``dict[str,constrained-float]``): not a field of the file."""
+
+
+def _is_union_member(node: Any, part: str | int) -> bool:
+    return isinstance(part, str) and not _has(node, part) and bool(UNION_MEMBER.search(part))
+
+
 def _clean_loc(data: Any, loc: tuple) -> tuple[str | int, ...]:
     """Drop what pydantic adds to a location that is not a field: the tag of a tagged
-    union (``shape.sphere.radius`` -> ``shape.radius``) and validator names."""
+    union (``shape.sphere.radius`` -> ``shape.radius``), the member of a plain union
+    (``checks.x.constrained-float`` -> ``checks.x``) and validator names."""
     clean: list[str | int] = []
     node = data
     for part in loc:
         if isinstance(part, str) and part.startswith("function-"):
+            continue
+        if _is_union_member(node, part):
             continue
         if (
             isinstance(node, dict)
@@ -115,6 +128,53 @@ def _allowed_keys(data: Any, loc: tuple) -> list[str]:
     return [k for k in model.model_fields if k != "source"] if model else []
 
 
+SHAPE_EXAMPLE = (
+    "{type: sphere, radius: 0.1}, {type: box, half_extents: [0.1, 0.1, 0.1]} or "
+    "{type: capsule, radius: 0.05, half_length: 0.2}"
+)
+TOLERANCE_EXAMPLE = "a number such as 1.0e-3, or per engine: {default: 1.0e-3, mujoco: 1.0e-6}"
+MAPPING_HINTS = {
+    ("bodies", "#", "shape"): f"a mapping such as {SHAPE_EXAMPLE}",
+    ("ground",): "a mapping such as {normal: [0, 0, 1], restitution: 0.5, friction: 0.3} "
+    "(leave ground out for a scene with no ground)",
+    ("checks", "*"): TOLERANCE_EXAMPLE,
+    ("sweep",): "a mapping such as {dt: [4.0e-3, 2.0e-3, 1.0e-3]}",
+}
+"""What a field that takes a mapping (or a choice of forms) expects, in the file's own syntax:
+said instead of pydantic's type names when a value has the wrong form."""
+
+MAPPING_ERRORS = ("model_type", "model_attributes_type", "dict_type")
+"""pydantic's error types for "a mapping was expected here"."""
+
+
+def _hint_at(loc: tuple) -> str | None:
+    """The ``MAPPING_HINTS`` entry of a location (indices as ``#``, a ``checks`` key as ``*``)."""
+    pattern = tuple("#" if isinstance(p, int) else p for p in loc)
+    if len(pattern) == 2 and pattern[0] == "checks":
+        pattern = ("checks", "*")
+    return MAPPING_HINTS.get(pattern)
+
+
+def _text_number_hint(value: Any) -> str:
+    """A hint when a number was written as text (quoted): the usual YAML slip."""
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return ""
+        return f" (a quoted string: write {value.strip()} without quotes)"
+    return ""
+
+
+def _expected(error: dict, loc: tuple) -> str:
+    """What the field expects, in plain words: the location's hint for a value of the wrong
+    form, else pydantic's words."""
+    hint = _hint_at(loc)
+    if hint and (error["type"] in MAPPING_ERRORS or loc[:1] == ("checks",)):
+        return hint
+    return error["msg"].removeprefix("Input should be ").lower()
+
+
 def _schema_problem(error: dict, data: Any, file: str, source: SourceMap) -> Problem:
     """One pydantic error as a ``Problem`` with the field path, expectation and found value."""
     loc = _clean_loc(data, error["loc"])
@@ -139,6 +199,21 @@ def _schema_problem(error: dict, data: Any, file: str, source: SourceMap) -> Pro
     elif kind == "value_error":
         message = str(error["ctx"]["error"]) if "ctx" in error else error["msg"]
     else:
-        message = f"expected {error['msg'].removeprefix('Input should be ').lower()}; got {found}"
+        message = f"expected {_expected(error, loc)}; got {found}"
+        message += _text_number_hint(error.get("input"))
     position = source.locate(loc)
     return Problem(file, path_text(loc), message, *(position or (None, None)))
+
+
+def merged(problems: list[Problem]) -> list[Problem]:
+    """One problem per place: the errors pydantic gives for each member of a union at one
+    field (a tolerance that is neither a number nor a mapping) said once."""
+    by_place: dict[tuple, Problem] = {}
+    for problem in problems:
+        place = (problem.file, problem.path, problem.line, problem.column, problem.warning)
+        first = by_place.get(place)
+        if first is None:
+            by_place[place] = problem
+        elif problem.message != first.message and problem.message not in first.message:
+            by_place[place] = replace(first, message=f"{first.message}; {problem.message}")
+    return list(by_place.values())

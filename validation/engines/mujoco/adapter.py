@@ -108,8 +108,7 @@ FRICTION_IN_IMPACTS = (
     "friction-dominated impacts read mujoco(restitution=soft), whose friction is right and "
     "whose e is not"
 )
-"""The limit of the damper calibration with friction, measured as written (issue 10,
-finding 7); listed in the provenance of every run whose scene has frictional pairs."""
+"""The limit of the damper calibration with friction, measured as written; listed in the provenance of every run whose scene has frictional pairs."""
 
 
 class MujocoAdapter:

@@ -29,12 +29,15 @@ Profiles (``ENGINE_OPTIONS["pybullet"]``):
 
 from __future__ import annotations
 
+import importlib
 import importlib.metadata
 import math
+import os
+import sys
 from dataclasses import dataclass, field
+from types import ModuleType
 
 import numpy as np
-import pybullet
 
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
@@ -51,6 +54,24 @@ from validation.scenario.compiled import (
 )
 from validation.scenario.engine_spec import EngineSpec
 from validation.scenario.physics import PAIR_RULES, body_inertia, ground_pose
+
+
+def _import_quietly(name: str) -> ModuleType:
+    """``import name`` with file descriptor 2 pointed at /dev/null meanwhile: Bullet's C code
+    writes "pybullet build time: ..." to stderr at import, once in every process that loads it,
+    which would otherwise interleave with physval's own lines. An import error still raises."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            return importlib.import_module(name)
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+pybullet = _import_quietly("pybullet")
 
 # --- numbers and where they come from ---------------------------------------------------------
 
