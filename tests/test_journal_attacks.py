@@ -4,6 +4,7 @@ elsewhere), each on a copy of the session's real killed run (``conftest.real_run
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
@@ -17,8 +18,12 @@ import numpy as np
 import pytest
 
 from validation.cli import main
+from validation.engines.parity import Mismatch
+from validation.jobs import records
 from validation.jobs.journal import HEADER_FILE
+from validation.jobs.run import JOURNAL_SCHEMA
 from validation.jobs.terminal import message_lines
+from validation.measure.runner import EngineRun
 
 RECORDED_FILES = ("results.csv", "series.csv", "impacts.csv", "sweep.csv")
 """The files of a run folder computed from the jobs' results alone (provenance.json holds the
@@ -296,3 +301,16 @@ def test_the_killed_runs_junit_file_is_written_when_this_command_names_it(
     code, _, err = resume(tmp_path, monkeypatch, capsys, "--junit", "junit.xml")
     assert code == 0, err
     assert "<testsuite" in (tmp_path / "junit.xml").read_text()
+
+
+def test_a_model_mismatch_run_reads_back_as_it_was_written():
+    """A run the parity gate stopped holds free-form values (an engine's value and the
+    scenario's: arrays, tuples, numbers): read back equal, their printed form included."""
+    mismatch = Mismatch("inertia", 0, np.array([[1.0, 0.0], [0.0, 2.5]]), (1.0, 2.0), 0.25)
+    run = EngineRun("scene", "mini", "model_mismatch", str(mismatch), None, [mismatch])
+    kind = JOURNAL_SCHEMA.results["run"]
+    back, measured = records.loads(records.dumps((run, []), kind), kind)
+    assert measured == [] and str(back.mismatches[0]) == str(mismatch)
+    assert back.mismatches[0].engine_value.tolist() == mismatch.engine_value.tolist()
+    assert back.mismatches[0].expected == (1.0, 2.0)
+    assert dataclasses.replace(back, mismatches=[]) == dataclasses.replace(run, mismatches=[])

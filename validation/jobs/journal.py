@@ -110,7 +110,7 @@ class Journal:
     def append(self, job: JobId, result: Any) -> None:
         """Commit the ``result`` of ``job``; durable when this returns."""
         kind = tuple[JobId, self.schema.results[job.kind]]
-        write_atomically(self._path(job), records.dumps((job, result), kind))
+        write_atomically(self.record_path(job), records.dumps((job, result), kind))
 
     def finished(self, jobs: Iterable[JobId]) -> dict[int, Any]:
         """Index -> result of every job of ``jobs`` (the plan's) with a record; only their
@@ -118,7 +118,7 @@ class Journal:
         not a regular file, not a record, not of its job, or not of its declared type."""
         found: dict[int, Any] = {}
         for job in jobs:
-            path = self._path(job)
+            path = self.record_path(job)
             try:
                 found[job.index] = self._read(path, job)
             except FileNotFoundError:
@@ -129,7 +129,8 @@ class Journal:
                 raise JournalError(f"{path}: cannot be read ({error.strerror or error})") from None
         return found
 
-    def _path(self, job: JobId) -> Path:
+    def record_path(self, job: JobId) -> Path:
+        """The file of ``job``'s record."""
         return self.folder / RECORD_PATTERN.format(index=job.index)
 
     def _read(self, path: Path, job: JobId) -> Any:

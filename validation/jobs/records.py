@@ -144,8 +144,9 @@ def _encode(value: Any, kind: Any, field: str, arrays: list[np.ndarray]) -> Any:
     if kind is np.ndarray:
         return _encode_array(value, field, arrays)
     if origin in (list, tuple) or kind in (list, tuple):
-        if not isinstance(value, origin or kind):
-            raise TypeError(f"{field}: expected {kind}; got {type(value).__name__}")
+        fixed = _fixed_length(kind)
+        if not isinstance(value, origin or kind) or fixed not in (None, len(value)):
+            raise TypeError(f"{field}: expected {kind}; got {type(value).__name__} {value!r:.40}")
         return [
             _encode(item, _item_kind(kind, i), f"{field}[{i}]", arrays)
             for i, item in enumerate(value)
@@ -205,13 +206,21 @@ def _shallow_match(value: Any, kind: Any) -> bool:
     return isinstance(value, origin)
 
 
+def _fixed_length(kind: Any) -> int | None:
+    """The length of a fixed tuple type (``tuple[float, float, float]``); None otherwise."""
+    args = typing.get_args(kind)
+    if typing.get_origin(kind) is tuple and args and not (len(args) == 2 and args[1] is Ellipsis):
+        return len(args)
+    return None
+
+
 def _item_kind(kind: Any, index: int) -> Any:
     """The type of item ``index`` of a list or tuple type (``Any`` when bare)."""
     args = typing.get_args(kind)
     if not args:
         return Any
     if typing.get_origin(kind) is tuple and not (len(args) == 2 and args[1] is Ellipsis):
-        return args[index] if index < len(args) else None
+        return args[index] if index < len(args) else None  # None: past a fixed tuple's end
     return args[0]
 
 
@@ -287,14 +296,9 @@ class _Reader:
     def _sequence(self, tree: Any, kind: Any, field: str) -> Any:
         if not isinstance(tree, list):
             raise RecordError(field, f"expected a list; got {_kind_of(tree)}")
-        args = typing.get_args(kind)
-        fixed = (
-            typing.get_origin(kind) is tuple
-            and args
-            and not (len(args) == 2 and args[1] is Ellipsis)
-        )
-        if fixed and len(tree) != len(args):
-            raise RecordError(field, f"expected {len(args)} items; got {len(tree)}")
+        fixed = _fixed_length(kind)
+        if fixed is not None and len(tree) != fixed:
+            raise RecordError(field, f"expected {fixed} items; got {len(tree)}")
         items = [self.decode(v, _item_kind(kind, i), f"{field}[{i}]") for i, v in enumerate(tree)]
         return tuple(items) if (typing.get_origin(kind) or kind) is tuple else items
 

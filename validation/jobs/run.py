@@ -44,7 +44,6 @@ from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.journal import HEADER_FILE, JobId, Journal, JournalError, Schema
-from validation.jobs.journal import RECORD_PATTERN as JOURNAL_RECORD
 from validation.jobs.nightly_run import (
     NightlyOptions,
     against_baseline,
@@ -537,7 +536,7 @@ def _resumed(
         header.request, journal.folder / HEADER_FILE, destination, junit, history
     )
     plan = request.plan()
-    if [dict(job) for job in header.model_dump()["jobs"]] != job_fingerprints(plan):
+    if header.model_dump()["jobs"] != job_fingerprints(plan):
         raise BadInputError(
             f"--resume: the scenes or engines changed since the killed run "
             f"({' '.join(shown_argv(request.argv)) or 'physval run'}); run it again without --resume"
@@ -673,8 +672,7 @@ def _journaled(journal: Journal, plan: Plan) -> dict:
     for index, result in done.items():
         problem = RESULT_CHECKS[ids[index].kind](ids[index], result)
         if problem:
-            file = journal.folder / JOURNAL_RECORD.format(index=index)
-            raise BadInputError(f"--resume: {file}: {problem}")
+            raise BadInputError(f"--resume: {journal.record_path(ids[index])}: {problem}")
     return done
 
 
