@@ -36,7 +36,6 @@ from validation.contract import (
     SERIES_FILE,
     SWEEP_FILE,
 )
-from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.journal import Journal, JournalError
@@ -71,8 +70,8 @@ from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
 MAX_SAMPLES = 5000
-"""Trajectory samples kept per run (series and plots): every step of the library's short
-scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
+"""Samples kept per run (the series the metrics and plots read): every step of the library's
+short scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
@@ -122,34 +121,13 @@ def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
 
 
 def run_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
-    """One (scene, engine spec): the run and its own metrics (in a worker process)."""
+    """One (scene, engine spec): the run and its own metrics (in a worker process), as the run
+    keeps it (and journals it): the recording's trajectory holds what divergence compares
+    across engines, positions over time (``recording.KEEP``); the series, impacts and every
+    metric stay whole."""
     scene, spec = job
-    run = run_engine(scene, spec, _sample_every(scene))
+    run = run_engine(scene, spec, _sample_every(scene), keep="positions")
     return run, measure_run(scene, run)
-
-
-def _positions_only(trajectory: Trajectory) -> Trajectory:
-    """``trajectory`` with its times and positions, orientations and velocities dropped (zero
-    width): 3 of its 13 numbers per body and sample, all that the run's files still need."""
-    return dataclasses.replace(
-        trajectory,
-        quat=trajectory.quat[..., :0],
-        vel=trajectory.vel[..., :0],
-        ang_vel=trajectory.ang_vel[..., :0],
-    )
-
-
-def kept_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
-    """``run_job`` as the run keeps it (and journals it): the recording's trajectory reduced
-    to what divergence compares across engines, positions over time; the series, impacts and
-    every metric stay whole."""
-    run, measured = run_job(job)
-    if run.recording is not None:
-        slim = _positions_only(run.recording.trajectory)
-        run = dataclasses.replace(
-            run, recording=dataclasses.replace(run.recording, trajectory=slim)
-        )
-    return run, measured
 
 
 def _git_commit() -> str:
@@ -198,7 +176,7 @@ def _sweep_work(plan: Plan) -> list[tuple]:
     return with_cross_checks(plan.sweeps)
 
 
-JOB_KINDS = {"run": kept_job, "sweep": sweep_job}
+JOB_KINDS = {"run": run_job, "sweep": sweep_job}
 """Job kind -> the function a worker runs: a (scene, engine) run, or one scene's dt sweep."""
 
 
