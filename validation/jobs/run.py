@@ -39,6 +39,7 @@ from validation.contract import (
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.journal import Journal, JournalError
+from validation.jobs.memory import check_memory
 from validation.jobs.nightly_run import (
     NightlyOptions,
     against_baseline,
@@ -61,6 +62,7 @@ from validation.jobs.sweep import (
 )
 from validation.jobs.terminal import Progress, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
+from validation.measure.definitions import MAX_SAMPLES, MAX_SERIES_POINTS
 from validation.measure.metrics import Measurement
 from validation.measure.runner import EngineRun, run_engine
 from validation.nightly.baseline import exit_failed
@@ -68,13 +70,6 @@ from validation.nightly.known import apply_known
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
-
-MAX_SAMPLES = 5000
-"""Samples kept per run (the series the metrics and plots read): every step of the library's
-short scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
-
-MAX_SERIES_POINTS = 1000
-"""Points per (scene, engine) written to series.csv for the report's plots."""
 
 
 def _sample_every(scene: CompiledScene) -> int:
@@ -480,6 +475,8 @@ def run_main(
         )
         request.nightly()  # the flags checked before any work
         plan = request.plan()
+        if scheduler is None:  # on a cluster the workers' memory is the cluster's
+            check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
             journal = Journal.create(output.journal_folder, _header(request, plan))
             return _finish(output, journal, plan, request, jobs, scheduler)
@@ -502,4 +499,6 @@ def _resume_main(destination: Path, jobs: int, scheduler: str | None = None) -> 
         except JournalError as error:
             raise BadInputError(f"--resume {destination}: {error}") from None
         request, plan = _resumed(journal)
+        if scheduler is None:
+            check_memory(plan, jobs, _sample_every)
         return _finish(output, journal, plan, request, jobs, scheduler)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from validation.engines.base import EngineAdapter, Snapshot
+from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
 from validation.measure.measurement import Measurement
 from validation.measure.restitution import restitution_band
@@ -70,12 +71,6 @@ BATCH_BODY_STATES = BATCH_OBSERVATIONS * 1024
 ``BATCH_OBSERVATIONS`` states of scenes up to 1,024 bodies (every scene of the library) and
 fewer of larger ones, so that a batch's arrays (13 numbers per body state, and the few copies
 the impact detector makes) stay near 30 MB whatever the scene: 25 states of 10,000 bodies."""
-
-MAX_KEPT_POSITIONS = 2**23
-"""Numbers of the positions a run keeps for ``divergence`` (3 per body and kept sample:
-67 MB): every kept sample while samples x bodies x 3 fit (the library's largest scene, 216
-bodies at 5,001 samples, keeps 3.2 million), every k-th kept sample beyond, the same k in
-every engine of a scene (``position_stride``)."""
 
 CONTEXT_OBSERVATIONS = 2
 """States of the previous batch kept for the next one: the state before a touch (the velocity
