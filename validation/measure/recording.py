@@ -77,7 +77,7 @@ CONTEXT_OBSERVATIONS = 2
 before) and the one before that (the approach acceleration)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ImpactEvent:
     """One impact of two bodies (or a body and the ground).
 
