@@ -10,8 +10,8 @@ job's series and positions until the run is written. The estimate is that, summe
 ``--jobs`` largest jobs running at once, plus the command's process; the constants are peak
 RSS measured with ``benchmarks/scale.py`` (the sphere grids, every engine), rounded up.
 
-Impact events grow with the work (one record per impact, about 1 KB): they are not in the
-estimate, which says what the run needs at least.
+Impact events grow with the work (one record per impact, about 760 bytes): they are not in
+the estimate, which says what the run needs besides them.
 """
 
 from __future__ import annotations
@@ -33,14 +33,16 @@ from validation.scenario.engine_spec import EngineSpec
 MB = 1 << 20
 """Bytes in a MiB (what the messages print)."""
 
-PROCESS_BYTES = 400 * MB
-"""A worker process with every engine imported, before any scene (measured: 250 to 330 MB of
-peak RSS for a 1,000-sphere grid of 5 steps, MuJoCo and PyBullet alike), rounded up."""
+PROCESS_BYTES = 250 * MB
+"""A worker process with every engine imported and a small scene loaded (measured with
+``benchmarks/scale.py``: 173, 197 and 208 MB of peak RSS for 100 spheres over 10 steps in mini,
+MuJoCo and PyBullet), rounded up."""
 
-ENGINE_BYTES_PER_BODY = {"mini": 20_000, "mujoco": 60_000, "pybullet": 20_000}
-"""Bytes per body of the engine's model and its collision structures (measured: the peak RSS
-of the 10,000-sphere grid over 5 steps less ``PROCESS_BYTES``, per body, rounded up); an engine
-not listed counts as the largest."""
+ENGINE_BYTES_PER_BODY = {"mini": 40_000, "mujoco": 60_000, "pybullet": 50_000}
+"""Bytes per body of the scene as loaded, the engine's model and its collision structures
+(measured: the peak RSS of the 1,000-sphere grid over 10 steps less the 100-sphere one, per
+body: 31, 43 and 46 KB, a batch of 11 states included), rounded up; an engine not listed
+counts as the largest."""
 
 BYTES_PER_BODY_STATE = 13 * 8 * 12
 """Bytes per body and observed state of a batch being measured: 13 float64 numbers, and about
