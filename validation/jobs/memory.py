@@ -83,7 +83,7 @@ def run_estimate(estimates: list[Estimate], jobs: int) -> tuple[int, Estimate]:
     process holding every job's kept numbers (without workers, ``jobs`` 1: in that process)."""
     ordered = sorted(estimates, key=lambda e: e.worker, reverse=True)
     running = sum(e.worker for e in ordered[: max(jobs, 1)])
-    parent = PROCESS_BYTES + sum(e.kept for e in estimates)
+    parent = (PROCESS_BYTES if jobs > 1 else 0) + sum(e.kept for e in estimates)
     return running + parent, ordered[0]
 
 
