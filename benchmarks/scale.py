@@ -17,6 +17,13 @@ Prints a table and writes ``benchmarks/results/scale.csv``. Not a test: wall-clo
 depend on the machine and its load (2 shared cores here).
 
     python benchmarks/scale.py [--sizes 1000 4000 10000] [--engines mini mujoco pybullet]
+
+The duration axis (``--durations``): the same grids run for each duration at dt = 1e-3 s,
+peak RSS per (N, duration, engine), against the targets of ``DURATION_TARGETS_MB`` (10,000
+spheres for 5 s within 2 GB, 1,000 for 30 s within 1 GB); writes
+``benchmarks/results/scale_duration.csv``.
+
+    python benchmarks/scale.py --sizes 200 1000 --durations 1 5 --engines mini
 """
 
 from __future__ import annotations
@@ -51,12 +58,19 @@ TARGET_RSS_MB = 2_000
 """The issue's target: each engine at 10,000 spheres within 2 GB of peak RSS."""
 RESULTS = Path(__file__).parent / "results" / "scale.csv"
 MEMORY_RESULTS = Path(__file__).parent / "results" / "scale_memory.csv"
+DURATION_RESULTS = Path(__file__).parent / "results" / "scale_duration.csv"
+DURATION_DT = 1e-3
+"""s: the step of the duration axis (``--durations``), the issue's measurement of memory
+bounded by the work (5,000 steps for 5 s)."""
+DURATION_TARGETS_MB = {(10_000, 5.0): 2_000, (1_000, 30.0): 1_000}
+"""(spheres, s) -> MB of peak RSS the duration axis must stay within, every engine."""
 MEMORY_DT = 1e-4
 """s: item 4's step, so that 2,000,000 steps (200 s) stay under the scene format's MAX_STEPS."""
 
 
-def sphere_grid(count: int) -> dict:
-    """The benchmark scene of ``count`` spheres, as the YAML document's mapping."""
+def sphere_grid(count: int, duration: float = DURATION, dt: float = DT) -> dict:
+    """The benchmark scene of ``count`` spheres run for ``duration`` s at ``dt``, as the YAML
+    document's mapping."""
     side = math.ceil(math.sqrt(count / LAYERS))
     bodies = []
     for k in range(count):
@@ -79,8 +93,8 @@ def sphere_grid(count: int) -> dict:
     return {
         "name": f"sphere_grid_{count}",
         "description": "benchmarks/scale.py: a grid of spheres dropping onto the ground",
-        "dt": DT,
-        "duration": DURATION,
+        "dt": dt,
+        "duration": duration,
         "engines": list(ENGINES),
         "ground": {"restitution": 0.5},
         "bodies": bodies,
@@ -192,6 +206,37 @@ def memory_by_duration(step_counts: list[int], engines: list[str]) -> None:
     print(f"wrote {MEMORY_RESULTS}")
 
 
+def memory_by_work(sizes: list[int], durations: list[float], engines: list[str]) -> None:
+    """The duration axis: peak RSS of the sphere grid of each size run for each duration at
+    ``DURATION_DT``, every case in its own child process; flat in the duration when the
+    memory is bounded by the work, not by bodies x samples."""
+    rows = []
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch)
+        for duration in durations:
+            stem = f"sphere_grid_{duration:g}s"
+            for count in sizes:
+                scene = sphere_grid(count, duration, DURATION_DT)
+                path = folder / f"{stem}_{count}.yaml"
+                path.write_text(yaml.safe_dump(scene, default_flow_style=None))
+        for duration in durations:
+            for count in sizes:
+                for engine in engines:
+                    row = measure(count, engine, folder, f"sphere_grid_{duration:g}s")
+                    row["duration_s"] = duration
+                    target = DURATION_TARGETS_MB.get((count, duration))
+                    row["target_mb"] = target
+                    row["within"] = None if target is None else row["peak_rss_mb"] <= target
+                    rows.append(row)
+                    print(json.dumps(rows[-1]), flush=True)
+    table = pd.DataFrame(rows)
+    RESULTS.parent.mkdir(exist_ok=True)
+    table.to_csv(DURATION_RESULTS, index=False)
+    shown = ["bodies", "duration_s", "engine", "status", "job_s", "peak_rss_mb", "target_mb"]
+    print(table[[c for c in shown if c in table]].to_string(index=False))
+    print(f"wrote {DURATION_RESULTS}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
@@ -202,6 +247,13 @@ def main() -> None:
         nargs="+",
         help="instead: item 4, the one-ball drop at these step counts (e.g. 200000 2000000)",
     )
+    parser.add_argument(
+        "--durations",
+        type=float,
+        nargs="+",
+        help="instead: the duration axis, each --sizes grid run for these durations (s) at "
+        f"dt = {DURATION_DT:g} s, e.g. --sizes 1000 10000 --durations 5 30",
+    )
     parser.add_argument("--worker", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -210,6 +262,9 @@ def main() -> None:
         return
     if args.memory_steps:
         memory_by_duration(args.memory_steps, args.engines)
+        return
+    if args.durations:
+        memory_by_work(args.sizes, args.durations, args.engines)
         return
     rows = []
     with tempfile.TemporaryDirectory() as scratch:

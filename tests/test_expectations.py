@@ -10,6 +10,7 @@ import pytest
 from validation.cli import BUNDLED_SCENARIOS
 from validation.jobs.run import run_job
 from validation.measure.comparator import compare_scene
+from validation.measure.runner import run_engine
 from validation.scenario import Scenario, ScenarioError, load_scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
@@ -170,7 +171,8 @@ def test_velocity_after_a_soft_impact_is_read_once_the_contact_has_ended():
     event = next(e for e in run.recording.impacts if "ball" in (e.body_a, e.body_b))
     assert event.time_end - event.time_start > 3 * scenario.dt, "the contact should last steps"
     rows = {m.metric: m for m in measured}
-    trajectory = run.recording.trajectory
+    # the run keeps positions only (``recording.KEEP``): the velocities from a run keeping states
+    trajectory = run_engine(scene, parse_engine_spec(SOFT_CONTACT)).recording.trajectory
     apart = int(np.flatnonzero(trajectory.t >= event.time_end - 1e-12)[0])
     leaving = trajectory.vel[apart, 0, 2] + 9.81 * (event.time_end - event.time_impulse)
     row = rows["velocity_after_impact.ball"]

@@ -44,6 +44,7 @@ from validation.engines.base import Trajectory
 from validation.files import write_atomically, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.journal import HEADER_FILE, JobId, Journal, JournalError, Schema
+from validation.jobs.memory import check_memory
 from validation.jobs.nightly_run import (
     NightlyOptions,
     against_baseline,
@@ -66,7 +67,9 @@ from validation.jobs.sweep import (
 )
 from validation.jobs.terminal import SUMMARY_WIDTH, Progress, news, packed_lines, summary
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
+from validation.measure.definitions import MAX_KEPT_POSITIONS, MAX_SAMPLES, MAX_SERIES_POINTS
 from validation.measure.metrics import Measurement
+from validation.measure.recording import kept_samples
 from validation.measure.runner import EngineRun, run_engine
 from validation.measure.states import Series
 from validation.nightly.baseline import exit_failed
@@ -77,12 +80,8 @@ from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
 
-MAX_SAMPLES = 5000
-"""Trajectory samples kept per run (series and plots): every step of the library's short
-scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
-
-MAX_SERIES_POINTS = 1000
-"""Points per (scene, engine) written to series.csv for the report's plots."""
+STATE_NUMBERS = 13
+"""Numbers of one body's kept state: position 3, quaternion 4, velocity 3, angular velocity 3."""
 
 TRACE_FORMAT = "%.7g"
 """trace.csv's numbers: 7 significant digits, finer than the charts' narrowest axis
@@ -133,9 +132,12 @@ def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
 
 
 def run_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
-    """One (scene, engine spec): the run and its own metrics (in a worker process)."""
+    """One (scene, engine spec): the run and its own metrics (in a worker process), as the run
+    keeps it (and journals it): the recording's trajectory holds what divergence compares
+    across engines, positions over time (``recording.KEEP``); the series, impacts and every
+    metric stay whole."""
     scene, spec = job
-    run = run_engine(scene, spec, _sample_every(scene))
+    run = run_engine(scene, spec, _sample_every(scene), keep="positions")
     return run, measure_run(scene, run)
 
 
@@ -151,10 +153,16 @@ def _positions_only(trajectory: Trajectory) -> Trajectory:
 
 
 def kept_job(job: tuple[CompiledScene, EngineSpec]) -> tuple[EngineRun, list[Measurement]]:
-    """``run_job`` as the run keeps it (and journals it): the recording's trajectory reduced
-    to what divergence compares across engines, positions over time; the series, impacts and
-    every metric stay whole."""
-    run, measured = run_job(job)
+    """``run_job`` as the run keeps it (and journals it), with the thin trace of the bodies
+    the scene's expectations test (trace.csv, the report's closed-form charts): where the
+    scene has such bodies and its whole states fit ``MAX_KEPT_POSITIONS`` numbers, the run
+    keeps them, takes the trace, and keeps positions only (what divergence compares across
+    engines); elsewhere (no expectation, or a scene too large) ``run_job``, no trace."""
+    scene, spec = job
+    if not traced(scene.scenario.expect) or not _states_fit(scene):
+        return run_job(job)
+    run = run_engine(scene, spec, _sample_every(scene))
+    measured = measure_run(scene, run)
     if run.recording is not None:
         trajectory = run.recording.trajectory
         slim = _positions_only(trajectory)
@@ -180,6 +188,14 @@ def _trace(scene: CompiledScene, engine: str, trajectory: Trajectory) -> dict[st
         else [str(text) for text in frame[column]]
         for column in TRACE_COLUMNS
     }
+
+
+def _states_fit(scene: CompiledScene) -> bool:
+    """Whether a run's whole kept states (13 numbers per body and sample) fit the budget of
+    the positions it keeps (``MAX_KEPT_POSITIONS``): the library's scenes do; a 10,000-body
+    scene does not, and keeps positions only from the start."""
+    samples = kept_samples(scene.scenario.steps, _sample_every(scene))
+    return samples * scene.count * STATE_NUMBERS <= MAX_KEPT_POSITIONS
 
 
 def _git_commit() -> str:
@@ -752,6 +768,8 @@ def run_main(
         )
         request.nightly()  # the flags checked before any work
         plan = request.plan()
+        if scheduler is None:  # on a cluster the workers' memory is the cluster's
+            check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
             header = _header(request, plan)
             journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
@@ -783,5 +801,7 @@ def _resume_main(
         except JournalError as error:
             raise BadInputError(f"--resume {destination}: {error}") from None
         request, plan = _resumed(journal, destination, junit, history)
+        if scheduler is None:
+            check_memory(plan, jobs, _sample_every)
         keep_copy = journal.header["request"]["out"] is None
         return _finish(output, journal, plan, request, jobs, scheduler, keep_copy)

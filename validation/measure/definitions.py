@@ -82,6 +82,30 @@ SIGNED_ERROR_DEFINITION = (
 )
 """The legend's line for the signed-error columns."""
 
+MAX_SAMPLES = 5000
+"""Samples kept per run (the series the metrics and plots read): every step of the library's
+short scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
+
+MAX_SERIES_POINTS = 1000
+"""Points per (scene, engine) written to series.csv for the report's plots."""
+
+MAX_KEPT_POSITIONS = 2**23
+"""Numbers of the positions a run keeps for ``divergence`` (3 per body and kept sample:
+67 MB): every kept sample while samples x bodies x 3 fit (the library's largest scene, 216
+bodies at 5,001 samples, keeps 3.2 million), every k-th kept sample beyond, the same k in
+every engine of a scene (``recording.position_stride``)."""
+
+SAMPLING_DEFINITION = (
+    f"every step is observed and measured (impacts, stability, expectations); the series the "
+    f"metrics read keep at most {MAX_SAMPLES:,} samples per run (every step of a run of up to "
+    f"{MAX_SAMPLES:,} steps, every k-th step of a longer one, k = ceil(steps / {MAX_SAMPLES:,}), "
+    f"and the last); plots show at most {MAX_SERIES_POINTS:,} of them per series and engine, "
+    f"evenly spaced; divergence compares the positions at every kept sample, or every m-th "
+    f"kept sample (and the last) where samples x bodies x 3 exceed {MAX_KEPT_POSITIONS:,} "
+    f"numbers (m the least that fits, the same in every engine of the scene)"
+)
+"""How series are thinned, for the legend and the README."""
+
 EXPECTED_KINDS = ("analytic", "conserved", "engine")
 """What a row was compared against: a closed form, a conserved quantity (value its drift,
 expected 0), or another engine (written ``engine:<spec>``)."""

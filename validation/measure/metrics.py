@@ -19,6 +19,7 @@ import numpy as np
 
 from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
+from validation.measure.states import farthest
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.definability import scene_traits, why_undefined
 
@@ -51,19 +52,16 @@ def _conserved(name: str, drift: float, signed: tuple[float, ...], message: str)
 
 def energy_scale(ctx: Context) -> tuple[float, float, float]:
     """(E_scale, motion, weight) J: the scale of ``energy_drift``, the sum of ``motion``, the
-    largest kinetic plus spring energy over the samples, and ``weight``, Σ m |g + F/m| r over
-    the moving bodies (each body's weight, with its constant applied force, over its bounding
-    radius r). Neither depends on where the origin is or where a potential is zero: the
-    kinetic and spring energies have a physical zero, and a weight times a size is the energy
-    scale of a body that rests (a resting stack has no motion, but sinking by its own size
-    would release this much)."""
-    trajectory = ctx.trajectory
-    motion = ctx.scene.kinetic_energy(trajectory.quat, trajectory.vel, trajectory.ang_vel)
-    motion = motion + ctx.scene.spring_energy(trajectory.pos, trajectory.quat)
+    largest kinetic plus spring energy over the samples (``Series.motion``), and ``weight``,
+    Σ m |g + F/m| r over the moving bodies (each body's weight, with its constant applied
+    force, over its bounding radius r). Neither depends on where the origin is or where a
+    potential is zero: the kinetic and spring energies have a physical zero, and a weight times
+    a size is the energy scale of a body that rests (a resting stack has no motion, but sinking
+    by its own size would release this much)."""
     pull = np.linalg.norm(ctx.scene.acceleration, axis=1)  # g + F/m, zero for fixed bodies
     radius = ctx.scene.bound_radius[: ctx.scene.count]
     weight = float(np.sum(ctx.scene.mass * pull * radius))
-    largest = float(np.max(motion, initial=0.0))
+    largest = float(np.max(ctx.series.motion, initial=0.0))
     return largest + weight, largest, weight
 
 
@@ -113,34 +111,24 @@ def linear_momentum_drift(ctx: Context) -> Measurement:
     return _impulse_balance(ctx, ctx.series.momentum, rate, "linear_momentum_drift")
 
 
-def _ballistic(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
-    """Analytic positions and velocities (s, n, 3) of free flight (a scene where nothing can
-    touch and no spring acts: ``definability``)."""
-    t = ctx.trajectory.t[:, None, None]
-    x0 = np.array([b.position for b in ctx.scenario.bodies])[None]
-    v0 = np.array([b.velocity for b in ctx.scenario.bodies])[None]
-    a = ctx.scene.acceleration[None]  # g + F/m, zero for fixed bodies
-    return x0 + v0 * t + 0.5 * a * t**2, v0 + a * t
-
-
-def _largest_distance(name: str, difference: np.ndarray, expected_kind: str) -> Measurement:
-    """The largest norm over samples and bodies of ``difference (s, n, 3)``, with that
-    difference's components as the signed error."""
-    distance = np.linalg.norm(difference, axis=2)
-    sample, body = np.unravel_index(int(np.argmax(distance)), distance.shape)
-    value = float(distance[sample, body])
-    signed = tuple(float(x) for x in difference[sample, body])
+def _largest_offset(name: str, offset: np.ndarray, expected_kind: str) -> Measurement:
+    """The largest norm over samples of ``offset (s, 3)`` (each sample's farthest body:
+    ``states.farthest``), with that offset's components as the signed error."""
+    distance = np.linalg.norm(offset, axis=1)
+    sample = int(np.argmax(distance))
+    value = float(distance[sample])
+    signed = tuple(float(x) for x in offset[sample])
     return Measurement(name, value, 0.0, expected_kind, value, signed=signed)
 
 
 def position_error(ctx: Context) -> Measurement:
-    analytic = _ballistic(ctx)
-    return _largest_distance("position_error", ctx.trajectory.pos - analytic[0], "analytic")
+    """From each sample's farthest body off the ballistic positions (``Series``)."""
+    return _largest_offset("position_error", ctx.series.position_offset, "analytic")
 
 
 def velocity_error(ctx: Context) -> Measurement:
-    analytic = _ballistic(ctx)
-    return _largest_distance("velocity_error", ctx.trajectory.vel - analytic[1], "analytic")
+    """From each sample's farthest body off the ballistic velocities (``Series``)."""
+    return _largest_offset("velocity_error", ctx.series.velocity_offset, "analytic")
 
 
 def requested_restitution(ctx: Context, body_a: str, body_b: str) -> float:
@@ -218,8 +206,8 @@ def divergence(ctx: Context, reference: Context, reference_label: str) -> Measur
     common = min(mine.t.size, theirs.t.size)
     if common == 0 or not np.allclose(mine.t[:common], theirs.t[:common]):
         return None
-    difference = mine.pos[:common] - theirs.pos[:common]
-    return _largest_distance("divergence", difference, f"engine:{reference_label}")
+    difference = farthest(mine.pos[:common] - theirs.pos[:common])
+    return _largest_offset("divergence", difference, f"engine:{reference_label}")
 
 
 def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measurement | None:

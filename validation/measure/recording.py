@@ -36,12 +36,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from validation.engines.base import EngineAdapter, Snapshot
+from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
 from validation.measure.measurement import Measurement
 from validation.measure.restitution import restitution_band
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
 from validation.scenario.compiled import CompiledScene, ObservedContacts
+from validation.scenario.definability import scene_traits, why_undefined
 from validation.scenario.physics import GROUND
 
 DETECTION_GAP = 1e-6
@@ -64,12 +66,18 @@ BATCH_OBSERVATIONS = 256
 less than the states' own observation; small enough that a run that explodes mid-batch is
 stopped within a few hundred steps of its first failing state."""
 
+BATCH_BODY_STATES = BATCH_OBSERVATIONS * 1024
+"""Body states (one body at one observed state) measured together at most: a batch holds
+``BATCH_OBSERVATIONS`` states of scenes up to 1,024 bodies (every scene of the library) and
+fewer of larger ones, so that a batch's arrays (13 numbers per body state, and the few copies
+the impact detector makes) stay near 30 MB whatever the scene: 25 states of 10,000 bodies."""
+
 CONTEXT_OBSERVATIONS = 2
 """States of the previous batch kept for the next one: the state before a touch (the velocity
 before) and the one before that (the approach acceleration)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ImpactEvent:
     """One impact of two bodies (or a body and the ground).
 
@@ -415,16 +423,42 @@ def _member(values: np.ndarray, sorted_codes: np.ndarray) -> np.ndarray:
     return sorted_codes[index] == values
 
 
+def batch_size(scene: CompiledScene) -> int:
+    """Observed states measured together for ``scene`` (``BATCH_BODY_STATES``)."""
+    return max(1, min(BATCH_OBSERVATIONS, BATCH_BODY_STATES // max(scene.count, 1)))
+
+
+def kept_samples(steps: int, sample_every: int) -> int:
+    """How many samples a complete run of ``steps`` steps keeps: every ``sample_every``-th
+    state from the first, and the last."""
+    return steps // sample_every + 1 + (steps % sample_every != 0)
+
+
+def position_stride(scene: CompiledScene, sample_every: int) -> int:
+    """Every how many kept samples a run that keeps positions only keeps one
+    (``MAX_KEPT_POSITIONS``); 1 when all fit."""
+    numbers = kept_samples(scene.scenario.steps, sample_every) * scene.count * 3
+    return max(1, -(-numbers // MAX_KEPT_POSITIONS))
+
+
+KEEP = ("states", "positions")
+"""What a recording's trajectory holds: every kept sample's whole state (``states``: the
+sweeps, the tests), or only the positions at every ``position_stride``-th kept sample, what
+``divergence`` compares across engines (``positions``: ``physval run``)."""
+
+
 @dataclass
 class Recording:
     """What one engine run produced."""
 
     trajectory: Trajectory
+    """The kept states (``KEEP``)."""
     impacts: list[ImpactEvent]
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     series: Series
-    """Energy and momenta at the trajectory's samples (computed once, for metrics and plots)."""
+    """Energy, momenta and the metrics' per-sample reductions at every kept sample (computed
+    as the run goes, for metrics and plots)."""
     expectations: list[Measurement] = field(default_factory=list)
     """The scene's expectations, evaluated online over every observed state (``expectations``)."""
     penetration_max: float | None = None
@@ -436,13 +470,18 @@ class Recording:
 @dataclass
 class _Measurer:
     """Measures the observed states of one run batch by batch: stability checks, contacts,
-    impacts and the deepest overlap; keeps the samples."""
+    impacts and the deepest overlap; the series at the kept samples, and the kept states
+    (``KEEP``)."""
 
     scene: CompiledScene
     sample_every: int
+    keep: str = "states"
     checks: StabilityChecks = field(init=False)
     detector: ImpactDetector = field(init=False)
     samples: list[Trajectory] = field(default_factory=list)
+    series: list[Series] = field(default_factory=list)
+    kept: int = 0
+    """Samples kept so far (the series' length)."""
     penetration: float = 0.0
     failure: str | None = None
     last_time: float = 0.0
@@ -452,15 +491,18 @@ class _Measurer:
         self.checks = StabilityChecks(self.scene)
         self.detector = ImpactDetector(self.scene)
         self.trackers = trackers(self.scene)
+        traits = scene_traits(self.scene)
+        self.free = why_undefined("position_error", traits) is None
+        self.states = self.keep == "states"
+        self.stride = 1 if self.states else position_stride(self.scene, self.sample_every)
 
     def recording(self, stepping_seconds: float) -> Recording:
         """What was measured, as the run's ``Recording``."""
-        trajectory = Trajectory.concat(*self.samples)
         return Recording(
-            trajectory=trajectory,
+            trajectory=Trajectory.concat(*self.samples),
             impacts=self.detector.events,
             stepping_seconds=stepping_seconds,
-            series=invariants(self.scene, trajectory),
+            series=Series.concat(*self.series),
             expectations=[tracker.result() for tracker in self.trackers],
             penetration_max=self.penetration if self.scene.can_touch else None,
             unstable=self.failure,
@@ -501,12 +543,34 @@ class _Measurer:
             keep[last] = not self.failure.startswith(
                 "non_finite"
             )  # a non-finite state is named, not kept
-        if keep.any() or not self.samples:  # one object per kept batch, not per batch:
-            # a 2,000,000-step run keeps 5,000 samples from 7,813 batches
-            self.samples.append(states.take(np.flatnonzero(keep)))
+        self._keep(states.take(np.flatnonzero(keep)), step_index[keep] == final)
         if counted >= 0:
             self.last_time = float(states.t[counted])
         return found is None
+
+    def _keep(self, kept: Trajectory, last: np.ndarray) -> None:
+        """The series at the batch's kept samples, and the states ``KEEP`` says (``last``:
+        which of them is the run's final state). One object per kept batch, not per batch (a
+        2,000,000-step run keeps 5,000 samples from 7,813 batches), and at least one."""
+        if len(kept) == 0 and self.series:
+            return
+        self.series.append(invariants(self.scene, kept, self.free))
+        ordinal = self.kept + np.arange(len(kept))
+        self.kept += len(kept)
+        if self.states:
+            self.samples.append(kept)
+            return
+        chosen = np.flatnonzero((ordinal % self.stride == 0) | last)
+        if chosen.size or not self.samples:
+            self.samples.append(_positions_only(kept.take(chosen)))
+
+
+def _positions_only(states: Trajectory) -> Trajectory:
+    """``states`` with their times and positions, orientations and velocities dropped (zero
+    width): 3 of the 13 numbers per body and state, all that divergence compares."""
+    return Trajectory(
+        states.t, states.pos, states.quat[..., :0], states.vel[..., :0], states.ang_vel[..., :0]
+    )
 
 
 def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
@@ -528,16 +592,19 @@ def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
     return deepest, radius
 
 
-def record(adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1) -> Recording:
+def record(
+    adapter: EngineAdapter, scene: CompiledScene, sample_every: int = 1, keep: str = "states"
+) -> Recording:
     """Run the loaded ``adapter`` for the scene's duration; keep every ``sample_every``-th state.
 
     Every state is observed and measured (impacts, stability, expectations, full time
-    resolution); only the kept samples make the trajectory (series and plots). Adapters that
+    resolution); only the kept samples make the series (metrics and plots) and, as ``keep``
+    says (``KEEP``), the trajectory. Adapters that
     observe a batch of steps at the cost of a copy (``advance_observed``: MuJoCo, PyBullet)
     do so; the others are observed after each step. The stability taxonomy judges a batch at
     a time; the first failing state ends the run (``Recording.unstable`` names its kind).
     """
-    measurer = _Measurer(scene, sample_every)
+    measurer = _Measurer(scene, sample_every, keep)
     steps_total = scene.scenario.steps
     if hasattr(adapter, "advance_observed"):
         stepping = _batched(adapter, measurer, steps_total)
@@ -555,6 +622,7 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> 
     """Advance one step at a time, observing after each; measure a batch at a time; stop at
     the first failing state. Returns the seconds spent in ``advance``."""
     batch, steps = [adapter.observe()], [0]
+    size = batch_size(measurer.scene)
     stepping = 0.0
     done = 0
     running = True
@@ -571,7 +639,7 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> 
         snap = adapter.observe()
         batch.append(snap)
         steps.append(done)
-        if len(batch) >= BATCH_OBSERVATIONS or done == steps_total or not _finite(snap):
+        if len(batch) >= size or done == steps_total or not _finite(snap):
             running = measurer.measure(Trajectory.stack(batch), steps, steps_total)
             batch, steps = [], []
     if batch:
@@ -591,8 +659,9 @@ def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> f
         return 0.0
     stepping = 0.0
     done = 0
+    size = batch_size(measurer.scene)
     while done < steps_total:
-        chunk = min(BATCH_OBSERVATIONS, steps_total - done)
+        chunk = min(size, steps_total - done)
         start = time.perf_counter()
         states = adapter.advance_observed(chunk)
         stepping += time.perf_counter() - start
@@ -606,8 +675,9 @@ def measure_trajectory(scene: CompiledScene, states: Trajectory) -> Recording:
     """The recording of states already observed (consecutive, every one kept), measured as
     ``record`` measures a run, batch by batch."""
     measurer = _Measurer(scene, 1)
-    for first in range(0, len(states), BATCH_OBSERVATIONS):
-        batch = states.take(slice(first, first + BATCH_OBSERVATIONS))
+    size = batch_size(scene)
+    for first in range(0, len(states), size):
+        batch = states.take(slice(first, first + size))
         if not measurer.measure(batch, np.arange(first, first + len(batch)), len(states) - 1):
             break
     return measurer.recording(0.0)

@@ -49,8 +49,11 @@ class EngineRun:
     lists of text, float arrays), set by the run's job; None when the scene charts none."""
 
 
-def run_engine(scene: CompiledScene, spec: EngineSpec, sample_every: int = 1) -> EngineRun:
-    """Load, gate, record; every engine failure becomes a status, never an exception."""
+def run_engine(
+    scene: CompiledScene, spec: EngineSpec, sample_every: int = 1, keep: str = "states"
+) -> EngineRun:
+    """Load, gate, record (``keep``: what the recording's trajectory holds, ``recording.KEEP``);
+    every engine failure becomes a status, never an exception."""
     start = time.perf_counter()
     run = EngineRun(scene.name, spec.label, "error")
     adapter = create_adapter(spec)
@@ -63,7 +66,7 @@ def run_engine(scene: CompiledScene, spec: EngineSpec, sample_every: int = 1) ->
             run.message = "; ".join(str(m) for m in run.mismatches)
             return run
         with np.errstate(over="ignore", invalid="ignore"):  # an explosion is a status, not noise
-            run.recording = record(adapter, scene, sample_every)
+            run.recording = record(adapter, scene, sample_every, keep)
         run.status = "unstable" if run.recording.unstable else "ok"
         run.message = run.recording.unstable or ""
     except Exception as error:  # an engine's crash is a result for the report, not the harness's

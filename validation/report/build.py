@@ -25,6 +25,7 @@ from validation.measure.definitions import (
     EXPECTED_KINDS,
     INTERPOLATION_BOUND,
     METRIC_DEFINITIONS,
+    SAMPLING_DEFINITION,
     SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
@@ -297,6 +298,7 @@ def build_legend(table: pd.DataFrame) -> dict[str, Any]:
         "noise_rule": NOISE_RULE,
         "signed_error": SIGNED_ERROR_DEFINITION,
         "interpolation": INTERPOLATION_BOUND,
+        "sampling": SAMPLING_DEFINITION,
         "statuses": list(STATUS_DESCRIPTIONS.items()),
         "undefined": undefined,
     }
