@@ -9,28 +9,32 @@ through their ``divergence`` from mini):
 2. **false alarms**: ``--reruns`` (3) unchanged runs against that baseline: every row that
    reads ``regressed`` or is a new failure is a false alarm (target 0);
 3. **one run per sabotage** (``validation/engines/sabotage.py``; ``PHYSVAL_SABOTAGE=<name>``
-   in the run's environment, so every worker process inherits it) against the baseline. One
-   run answers both questions: **caught plainly** = its failing rows that are not known
-   findings (what a run without a baseline reports as new failures: the library's plain run
-   has none), **caught by the baseline** = its rows that read ``regressed``.
+   in the run's environment, so every worker process inherits it) against the baseline, on the
+   fast tier of scenes, then on the slow tier (``SLOW_SCENES``) only if the fast one caught
+   nothing plainly. One run answers both questions: **caught plainly** = its failing rows that
+   are not known findings (what a run without a baseline reports as new failures: the
+   library's plain run has none), **caught by the baseline** = its rows that read
+   ``regressed``. Every mini row must carry the sabotage's version mark.
 
 Prints the catch table (sabotage, what it breaks, where, the scenes that caught it plainly and
 by the baseline) and the total time, and writes ``benchmarks/results/mutation_score.csv``.
 Target: every sabotage caught plainly or by the baseline, 0 false alarms. CPU heavy: about
-as many library runs as sabotages + 4 (a few minutes each on 2 cores).
+4 library runs and a fifth of one per sabotage (a few minutes per library run on 2 cores).
 
 The mini-only scene copies (``mini_only``) keep each scene's mini specs (the plain mini and its
 variants: ``mini(gyroscopic=implicit)``, ...), their known findings and sweeps, and drop the
 other engines, their findings and the ``divergence`` checks (a scene left with mini alone has
 no second engine to diverge from; mini's variants diverge from mini by design).
 
-    python benchmarks/mutation_score.py [--sabotages NAME ...] [--only GLOB] [--jobs 2]
-                                        [--reruns 3] [--all-engines] [--work DIR]
+    python benchmarks/mutation_score.py [--sabotages NAME ...] [--only GLOB] [--skip GLOB ...]
+                                        [--jobs 2] [--reruns 3] [--all-engines]
+                                        [--work DIR [--resume]]
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import os
 import subprocess
 import sys
@@ -44,7 +48,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from validation.engines.sabotage import SABOTAGE_VARIABLE, SABOTAGES  # noqa: E402
+from validation.engines.sabotage import SABOTAGE_VARIABLE, SABOTAGES, VERSION_MARK  # noqa: E402
 from validation.nightly.baseline import FAILING  # noqa: E402
 from validation.scenario.schema import DEFAULT_ENGINES  # noqa: E402
 
@@ -60,6 +64,22 @@ DEFAULT_RERUNS = 3
 SHOWN_SCENES = 4
 """Scenes named per cell of the printed table (the CSV has them all)."""
 
+SLOW_SCENES = (
+    "simbenchmark_666_pile",
+    "box_stack",
+    "deep_initial_penetration",
+    "gazebo_boxes_complex",
+    "gazebo_boxes_simple",
+    "dzhanibekov_box",
+    "stable_major_axis_spin",
+    "torque_free_symmetric_top",
+)
+"""Scenes whose mini jobs took 10 s or more together in a library run on this 2-core machine
+(measured: 84, 29, 38, 20, 6, 18, 16 and 10 s of 264 s for all mini jobs): the slow tier. A
+sabotage runs in the fast tier (the other scenes, 43 s) and in the slow tier only when the
+fast tier caught nothing plainly, so the catch table costs about a fifth of full runs; its
+plainly-caught rows then name the fast tier's catching scenes only."""
+
 
 # --- the scenes ---------------------------------------------------------------------------
 
@@ -69,39 +89,47 @@ def is_mini(spec: str) -> bool:
     return spec.split("(")[0].strip() == "mini"
 
 
-def mini_only(source: Path, target: Path) -> None:
-    """A copy of every scene under ``source`` in ``target`` with mini's specs only (module
-    docstring); a scene without a mini spec is left out."""
+def library_copy(source: Path, target: Path, skip: list[str], all_engines: bool) -> None:
+    """A copy of every scene under ``source`` in ``target`` but those whose path matches a
+    ``skip`` glob, with mini's specs only (``mini_only``) unless ``all_engines``."""
     for path in sorted(source.rglob("*.yaml")):
-        scene = yaml.safe_load(path.read_text())
-        engines = [e for e in scene.get("engines", DEFAULT_ENGINES) if is_mini(e)]
-        if not engines:
+        if any(fnmatch.fnmatch(str(path.relative_to(source)), glob) for glob in skip):
             continue
-        scene["engines"] = engines
-        known = [
-            k
-            for k in scene.get("known", [])
-            if is_mini(k["engine"]) and k.get("metric") != "divergence"
-        ]
-        if known:
-            scene["known"] = known
-        else:
-            scene.pop("known", None)
-        checks = scene.get("checks", {})
-        checks.pop("divergence", None)
-        for metric, tolerance in checks.items():
-            if isinstance(tolerance, dict):
-                checks[metric] = {
-                    k: v for k, v in tolerance.items() if k == "default" or k in engines
-                }
-        sweep = scene.get("sweep")
-        if sweep and sweep.get("engines"):
-            sweep["engines"] = [e for e in sweep["engines"] if is_mini(e)]
-            if not sweep["engines"]:
-                scene.pop("sweep")
+        scene = yaml.safe_load(path.read_text())
+        if not all_engines:
+            scene = mini_only(scene)
+        if scene is None:
+            continue
         copy = target / path.relative_to(source)
         copy.parent.mkdir(parents=True, exist_ok=True)
         copy.write_text(yaml.safe_dump(scene, sort_keys=False, allow_unicode=True))
+
+
+def mini_only(scene: dict) -> dict | None:
+    """The scene with mini's specs only (module docstring); None without a mini spec."""
+    engines = [e for e in scene.get("engines", DEFAULT_ENGINES) if is_mini(e)]
+    if not engines:
+        return None
+    scene["engines"] = engines
+    known = [
+        k
+        for k in scene.get("known", [])
+        if is_mini(k["engine"]) and k.get("metric") != "divergence"
+    ]
+    scene.pop("known", None)
+    if known:
+        scene["known"] = known
+    checks = scene.get("checks", {})
+    checks.pop("divergence", None)
+    for metric, tolerance in checks.items():
+        if isinstance(tolerance, dict):
+            checks[metric] = {k: v for k, v in tolerance.items() if k == "default" or k in engines}
+    sweep = scene.get("sweep")
+    if sweep and sweep.get("engines"):
+        sweep["engines"] = [e for e in sweep["engines"] if is_mini(e)]
+        if not sweep["engines"]:
+            scene.pop("sweep")
+    return scene
 
 
 # --- running the library --------------------------------------------------------------------
@@ -122,26 +150,45 @@ def physval(*arguments: str, sabotage: str | None = None, cwd: Path) -> int:
 
 
 def run_library(
-    scenes: Path, out: Path, args, baseline: Path | None, sabotage: str | None = None
+    paths: list[Path], out: Path, args, baseline: Path | None, sabotage: str | None = None
 ) -> pd.DataFrame:
-    """One library run into ``out``; its results.csv."""
-    selection = ["--only", args.only] if args.only else []
-    physval(
-        "run",
-        str(scenes),
-        *selection,
-        "--jobs",
-        str(args.jobs),
-        "--out",
-        str(out),
-        "--baseline",
-        str(baseline) if baseline else "none",
-        "--history",
-        "none",
-        sabotage=sabotage,
-        cwd=out.parent,
-    )
+    """One library run of the scene files ``paths`` into ``out``; its results.csv (with
+    ``--resume``, a finished run already in ``out`` is read instead)."""
+    if not (args.resume and (out / "results.csv").exists()):
+        selection = ["--only", args.only] if args.only else []
+        physval(
+            "run",
+            *map(str, paths),
+            *selection,
+            "--jobs",
+            str(args.jobs),
+            "--out",
+            str(out),
+            "--baseline",
+            str(baseline) if baseline else "none",
+            "--history",
+            "none",
+            sabotage=sabotage,
+            cwd=out.parent,
+        )
     return pd.read_csv(out / "results.csv", keep_default_na=False)
+
+
+def tiers(scenes: Path) -> tuple[list[Path], list[Path]]:
+    """The copied scene files split into the fast tier and the slow one (``SLOW_SCENES``)."""
+    files = sorted(scenes.rglob("*.yaml"))
+    slow = [f for f in files if f.stem in SLOW_SCENES]
+    return [f for f in files if f.stem not in SLOW_SCENES], slow
+
+
+def sabotaged_runs(name: str, fast, slow, work: Path, args, baseline: Path):
+    """A sabotage's results: the fast tier, then the slow one only if the fast tier caught
+    nothing plainly; and whether the slow tier ran."""
+    results = run_library(fast, work / name, args, baseline, sabotage=name)
+    if len(new_failures(results)) or not slow:
+        return results, False
+    more = run_library(slow, work / f"{name}-slow", args, baseline, sabotage=name)
+    return pd.concat([results, more], ignore_index=True), True
 
 
 def new_failures(results: pd.DataFrame) -> pd.DataFrame:
@@ -176,19 +223,24 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--reruns", type=int, default=DEFAULT_RERUNS)
     parser.add_argument("--all-engines", action="store_true", help="every engine of each scene")
+    parser.add_argument(
+        "--skip", action="append", default=[], metavar="GLOB", help="leave out scenes (path glob)"
+    )
     parser.add_argument("--work", type=Path, default=None, help="folder for the runs (kept)")
+    parser.add_argument(
+        "--resume", action="store_true", help="reuse the finished runs already in --work"
+    )
     args = parser.parse_args()
     names = args.sabotages if args.sabotages is not None else list(SABOTAGES)
     work = args.work or Path(tempfile.mkdtemp(prefix="mutation-score-"))
     work.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
 
-    scenes = SCENES
-    if not args.all_engines:
-        scenes = work / "scenes"
-        mini_only(SCENES, scenes)
-        physval("check", str(scenes), cwd=work)
-    base = run_library(scenes, work / "base", args, None)
+    scenes = work / "scenes"
+    library_copy(SCENES, scenes, args.skip, args.all_engines)
+    physval("check", str(scenes), cwd=work)
+    fast, slow = tiers(scenes)
+    base = run_library([scenes], work / "base", args, None)
     print(f"baseline: {len(base)} rows, {len(new_failures(base))} new failures", flush=True)
     if len(new_failures(base)):
         print(new_failures(base)[["scenario", "engine", "metric"]].to_string(), file=sys.stderr)
@@ -198,7 +250,7 @@ def main() -> int:
     alarms: list[int] = []
 
     def rerun() -> None:  # one unchanged run against the baseline: its alarms are false
-        results = run_library(scenes, work / f"rerun{len(alarms)}", args, baseline)
+        results = run_library([scenes], work / f"rerun{len(alarms)}", args, baseline)
         alarms.append(len(regressions(results)) + len(new_failures(results)))
         print(f"rerun {len(alarms)}: {alarms[-1]} false alarms", flush=True)
 
@@ -206,8 +258,11 @@ def main() -> int:
         rerun()
     table = []
     for name in names:
-        results = run_library(scenes, work / name, args, baseline, sabotage=name)
-        marked = results["engine_version"].str.endswith("+sabotage." + name)
+        results, slow_ran = sabotaged_runs(name, fast, slow, work, args, baseline)
+        measured = results[results["engine"].str.startswith("mini") & (results["steps"] != "")]
+        unmarked = ~measured["engine_version"].str.endswith(VERSION_MARK + name)
+        if unmarked.any():
+            raise SystemExit(f"{name}: {int(unmarked.sum())} mini rows without the sabotage mark")
         plain, regressed = scenes_of(new_failures(results)), scenes_of(regressions(results))
         sabotage = SABOTAGES[name]
         table.append(
@@ -220,7 +275,7 @@ def main() -> int:
                 "plain_scenes": " ".join(plain),
                 "baseline_rows": len(regressions(results)),
                 "baseline_scenes": " ".join(regressed),
-                "marked_rows": int(marked.sum()),
+                "slow_tier": slow_ran,
             }
         )
         print(f"{name:26} plain {named(plain):60} baseline {named(regressed)}", flush=True)
