@@ -134,3 +134,13 @@ def test_a_sabotage_replaces_only_inside_its_block(name):
     after = [current(h, a, k) is o for h, a, o, r, k in sites]
     assert all(inside), f"{name}: not every site replaced inside the block"
     assert all(after), f"{name}: not every site restored after the block"
+
+
+def test_pytest_physval_refuses_an_unknown_sabotage(tmp_path):
+    scene = BUNDLED_SCENARIOS / "formulas" / "projectile.yaml"
+    environment = {**os.environ, SABOTAGE_VARIABLE: "no_such_bug", "PYTHONPATH": str(ROOT)}
+    command = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--physval", str(scene)]
+    done = subprocess.run(command, cwd=tmp_path, env=environment, capture_output=True, text=True)
+    errors = [line for line in done.stderr.splitlines() if SABOTAGE_VARIABLE in line]
+    assert done.returncode == pytest.ExitCode.USAGE_ERROR, (done.stdout, done.stderr)
+    assert len(errors) == 1 and "'no_such_bug'" in errors[0], done.stderr
