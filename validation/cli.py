@@ -16,6 +16,7 @@ from pathlib import Path
 
 from validation import signals
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.engines.sabotage import SabotageError, chosen
 from validation.jobs.check import check_main
 from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
@@ -313,6 +314,11 @@ def main(argv: list[str] | None = None) -> int:
     signals.install()  # SIGTERM and SIGHUP stop a command as Ctrl-C does
     args = parser().parse_args(argv)
     args.argv = argv
+    try:
+        chosen()  # PHYSVAL_SABOTAGE (validation.engines.sabotage) checked before any work
+    except SabotageError as error:
+        print(error, file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         if getattr(args, "scheduler", None) is not None and distributed_missing():
             print(distributed_missing(), file=sys.stderr)

@@ -47,8 +47,13 @@ def pytest_configure(config: pytest.Config) -> None:
     given = config.getoption(DEST)
     if given is None:
         return
+    from validation.engines.sabotage import SabotageError, chosen
     from validation.scenario import default_scenario_paths
 
+    try:
+        chosen()  # PHYSVAL_SABOTAGE (validation.engines.sabotage) checked before any scene
+    except SabotageError as error:
+        raise pytest.UsageError(str(error)) from None
     roots = [Path(p) for p in given] or default_scenario_paths()
     explicit = config.args if config.args_source == pytest.Config.ArgsSource.ARGS else []
     config.args = [str(root) for root in roots] + [a for a in explicit if a not in given]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 
 from validation.engines.base import EngineAdapter
+from validation.engines.sabotage import sabotaged
 from validation.scenario.engine_spec import EngineSpec
 
 ADAPTERS: dict[str, str] = {
@@ -17,6 +18,9 @@ engines it names."""
 
 
 def create_adapter(spec: EngineSpec) -> EngineAdapter:
-    """A new, unloaded adapter for ``spec`` (its name was checked when the spec was parsed)."""
+    """A new, unloaded adapter for ``spec`` (its name was checked when the spec was parsed);
+    a mini spec's wrapped in the sabotage ``PHYSVAL_SABOTAGE`` names, if any
+    (``validation.engines.sabotage``: test doubles of the library's power, marked in the
+    engine version)."""
     module_name, class_name = ADAPTERS[spec.name].split(":")
-    return getattr(importlib.import_module(module_name), class_name)(spec)
+    return sabotaged(getattr(importlib.import_module(module_name), class_name)(spec))
