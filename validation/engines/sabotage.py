@@ -208,13 +208,10 @@ def _capsule_without_parallel_axis(original):
 
     def unit_inertia(self):
         r, length = self.radius, 2.0 * self.half_length
-        volume_cylinder = np.pi * r**2 * length
-        volume_caps = 4.0 / 3.0 * np.pi * r**3
-        total = volume_cylinder + volume_caps
-        m_cylinder, m_cap = volume_cylinder / total, 0.5 * volume_caps / total
-        axial = m_cylinder * r**2 / 2.0 + 2.0 * m_cap * (2.0 / 5.0) * r**2
-        transverse = m_cylinder * (length**2 / 12.0 + r**2 / 4.0) + 2.0 * m_cap * (2.0 / 5.0) * r**2
-        return np.diag([transverse, transverse, axial])
+        volume_cylinder, volume_caps = np.pi * r**2 * length, 4.0 / 3.0 * np.pi * r**3
+        m_cap = 0.5 * volume_caps / (volume_cylinder + volume_caps)
+        shift = 2.0 * m_cap * (length**2 / 4.0 + 3.0 * length * r / 8.0)  # both caps' term
+        return original(self) - np.diag([shift, shift, 0.0])
 
     return unit_inertia
 
