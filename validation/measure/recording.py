@@ -26,6 +26,10 @@ batch come from one collision call (the states are independent worlds of one mod
 ``CompiledScene.contacts``) and serve impact detection, the overlap check and
 ``penetration_max`` alike. The stability checks judge each batch as it completes, and the
 run stops at its first failing state, as if it had been checked state by state.
+
+The detector keeps only the impacts still open; each closed one goes to the run's
+``ImpactLog`` (``validation.measure.impact_log``), which counts every impact and keeps a
+bounded set of records (all of them up to ``MAX_SAMPLED_IMPACTS``), and to the expectations.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ import numpy as np
 from validation.engines.base import EngineAdapter, Snapshot
 from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
+from validation.measure.impact_log import ImpactLog
 from validation.measure.measurement import Measurement
 from validation.measure.restitution import restitution_band
 from validation.measure.stability import StabilityChecks
@@ -198,7 +203,9 @@ class ImpactDetector:
     """Finds impacts in batches of observed states of one scene (any engine)."""
 
     scene: CompiledScene
-    events: list[ImpactEvent] = field(default_factory=list)
+    new_events: list[ImpactEvent] = field(default_factory=list)
+    """The impacts the last ``update`` closed, in closing order (the run's ``ImpactLog``
+    keeps what it needs of them: the detector keeps none)."""
 
     def __post_init__(self) -> None:
         self.bodies = self.scene.model.n_bodies
@@ -247,7 +254,7 @@ class ImpactDetector:
             self.open[impact.key] = impact
             self._follow(kinematics, offset, impact, obs, count, touching_at)
         self.closed.sort(key=lambda item: (item[0], item[1]))
-        self.events += [event for _, _, event in self.closed]
+        self.new_events = [event for _, _, event in self.closed]
         self.closed = []
         self.context = ext.take(slice(len(ext) - min(CONTEXT_OBSERVATIONS, len(ext)), None))
         last_keys = touching.key[touching.observation == count - 1]
@@ -454,6 +461,8 @@ class Recording:
     trajectory: Trajectory
     """The kept states (``KEEP``)."""
     impacts: list[ImpactEvent]
+    """The kept impacts in closing order (``impact_log``: every one up to
+    ``MAX_SAMPLED_IMPACTS``, beyond an evenly spaced sample and the worst)."""
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     series: Series
@@ -465,6 +474,8 @@ class Recording:
     """m, the deepest overlap over every observed state (None when nothing can touch)."""
     unstable: str | None = None
     """Why the run failed (``kind: detail``, kinds in ``stability.KINDS``), or None."""
+    impact_count: int = 0
+    """Every impact the run had, kept in ``impacts`` or not."""
 
 
 @dataclass
@@ -478,6 +489,7 @@ class _Measurer:
     keep: str = "states"
     checks: StabilityChecks = field(init=False)
     detector: ImpactDetector = field(init=False)
+    impacts: ImpactLog = field(init=False)
     samples: list[Trajectory] = field(default_factory=list)
     series: list[Series] = field(default_factory=list)
     kept: int = 0
@@ -490,6 +502,7 @@ class _Measurer:
     def __post_init__(self) -> None:
         self.checks = StabilityChecks(self.scene)
         self.detector = ImpactDetector(self.scene)
+        self.impacts = ImpactLog(self.scene)
         self.trackers = trackers(self.scene)
         traits = scene_traits(self.scene)
         self.free = why_undefined("position_error", traits) is None
@@ -500,12 +513,13 @@ class _Measurer:
         """What was measured, as the run's ``Recording``."""
         return Recording(
             trajectory=Trajectory.concat(*self.samples),
-            impacts=self.detector.events,
+            impacts=self.impacts.events(),
             stepping_seconds=stepping_seconds,
             series=Series.concat(*self.series),
             expectations=[tracker.result() for tracker in self.trackers],
             penetration_max=self.penetration if self.scene.can_touch else None,
             unstable=self.failure,
+            impact_count=self.impacts.count,
         )
 
     def measure(self, states: Trajectory, steps, final: int) -> bool:
@@ -528,11 +542,12 @@ class _Measurer:
         # the states that count: up to the failing one (included when only the overlap failed:
         # its pose was measured before the check)
         counted = last if found is None or found[1].startswith("deep_penetration") else last - 1
-        closed = len(self.detector.events)
+        new_events: list[ImpactEvent] = []
         if touching is not None and counted >= 0:
             self.detector.update(states, touching, counted)
             self.penetration = max(self.penetration, float(deepest[: counted + 1].max(initial=0.0)))
-        new_events = self.detector.events[closed:]
+            new_events = self.detector.new_events
+        self.impacts.add(new_events)
         judged = states.take(slice(0, counted + 1))
         for tracker in self.trackers:
             tracker.update(judged, new_events)
