@@ -152,8 +152,9 @@ def restitution_error(ctx: Context) -> Measurement | None:
     bands = [band for _, band in found]
     worst = int(np.argmax([RANKINGS["beyond_band"](error, band) for error, band in found]))
     event = impacts[worst]
+    count = max(ctx.recording.impact_count, len(impacts))  # a recording made of events alone
     note = (
-        f"worst of {max(ctx.recording.impact_count, len(impacts))} impacts: {event.body_a}-{event.body_b} at t = "
+        f"worst of {count} impacts: {event.body_a}-{event.body_b} at t = "
         f"{event.time_start:.4g} s, |Δe| {errors[worst]:.3g}, band {bands[worst]:.3g} at "
         f"{abs(event.normal_velocity_before):.3g} m/s"
     )
