@@ -53,7 +53,7 @@ a dozen arrays of that size alive at once (the adapter's copy, the detector's co
 ground-padded copy, the kept states, the rotation matrices of the invariants, the contacts)."""
 
 IMPACT_BYTES = 2_000
-"""Bytes per kept impact record: an ``ImpactEvent`` (about 760 bytes) in the worker and in
+"""Bytes per kept impact record: an ``ImpactEvent`` (about 950 bytes) in the worker and in
 the command's process, and its impacts.csv row (a dict of 11 cells, about 1 KB) there,
 rounded up."""
 

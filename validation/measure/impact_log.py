@@ -1,7 +1,8 @@
-"""The impact records a run keeps: bounded by named constants, never by the number of impacts.
+"""Impact events, and the records of them a run keeps: bounded by named constants, never by
+the number of impacts (``ImpactEvent`` is found by ``recording.ImpactDetector``).
 
 A run may have millions of impacts (10,000 spheres bouncing for 5 s in PyBullet: 1.4
-million, about 760 bytes each as ``ImpactEvent``), and it keeps only what reads them needs:
+million, about 950 bytes each as ``ImpactEvent``: 1.4 GB), and it keeps what reads them need:
 ``restitution_error`` (the impact with the largest |Δe| beyond its band, and how many there
 were), impacts.csv, and the report's impacts table (the largest |Δe| per engine) and its
 e-against-speed chart (an even spread). As each impact closes, the log counts it and keeps:
@@ -27,15 +28,19 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from validation.measure.restitution import restitution_band
+
 if TYPE_CHECKING:
-    from validation.measure.recording import ImpactEvent
     from validation.scenario.compiled import CompiledScene
 
 MAX_SAMPLED_IMPACTS = 10_000
 """Impacts a run keeps in its evenly spaced sample (``ImpactLog``), every one up to this
 many: the library's busiest run (simbenchmark_666_pile in PyBullet) has 2,362 impacts, and
-10,000 records are about 8 MB (``ImpactEvent``s of about 760 bytes) in the worker and the
-command's process, and 1.5 MB of impacts.csv."""
+10,000 records are about 10 MB (``ImpactEvent``s of about 950 bytes with their per-body
+accelerations, measured with tracemalloc) in the worker and the command's process, and
+1.5 MB of impacts.csv."""
 
 MAX_WORST_IMPACTS = 100
 """Impacts kept per ranking of ``RANKINGS`` besides the sample: the worst ones, which the
@@ -43,6 +48,65 @@ report's table and ``restitution_error`` read, whatever the sample has thinned o
 
 KEPT_IMPACTS_BOUND = MAX_SAMPLED_IMPACTS + MAX_WORST_IMPACTS * 2
 """The most impact records a run keeps (the sample and both rankings' worst)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ImpactEvent:
+    """One impact of two bodies (or a body and the ground).
+
+    Attributes:
+        body_a, body_b: names (``ground`` for the plane); the normal points from A to B.
+        time_start: s, the first observation in contact. time_end: s, the first one apart
+            (for a plastic impact, e = 0: the observation that closed it while still touching).
+        normal: (3,) unit, world frame, at first contact.
+        normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
+        normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
+        time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
+        approach_acceleration: m/s², the relative normal acceleration before contact (what
+            acts besides the impulse: gravity, a support); step: s, between observations.
+        acceleration_a, acceleration_b: (3,) m/s², world frame, each body's acceleration
+            over the observed step before the contact (what acted on it then: g + F/m in free
+            flight, nothing net on a body resting on a support; zeros for the ground); None
+            when fewer than two states before the contact were observed.
+        angular_acceleration_a, angular_acceleration_b: (3,) rad/s², the same for ω.
+    """
+
+    body_a: str
+    body_b: str
+    time_start: float
+    time_end: float
+    time_impulse: float
+    normal: tuple[float, float, float]
+    normal_velocity_before: float
+    normal_velocity_after: float
+    approach_acceleration: float = 0.0
+    step: float = 0.0
+    acceleration_a: tuple[float, float, float] | None = None
+    acceleration_b: tuple[float, float, float] | None = None
+    angular_acceleration_a: tuple[float, float, float] | None = None
+    angular_acceleration_b: tuple[float, float, float] | None = None
+
+    def acceleration_of(self, body: str) -> np.ndarray | None:
+        """(3,) m/s², body ``body``'s observed acceleration before the contact (or None)."""
+        found = self.acceleration_a if body == self.body_a else self.acceleration_b
+        return None if found is None else np.array(found)
+
+    def angular_acceleration_of(self, body: str) -> np.ndarray | None:
+        """(3,) rad/s², body ``body``'s observed angular acceleration before the contact."""
+        found = self.angular_acceleration_a if body == self.body_a else self.angular_acceleration_b
+        return None if found is None else np.array(found)
+
+    @property
+    def restitution(self) -> float:
+        """Measured e = -(v_rel'·n)/(v_rel·n) (formulas.md section 5)."""
+        return -self.normal_velocity_after / self.normal_velocity_before
+
+    def band(self, requested: float) -> float:
+        """The discretization band of e_measured for a requested ``e`` (module docstring of
+        ``validation.measure.restitution``): ``(1 + e) |a·n| h / |v_before|``."""
+        return restitution_band(
+            requested, self.approach_acceleration, self.step, self.normal_velocity_before
+        )
 
 
 def restitution_error_of(event: ImpactEvent, requested: float) -> tuple[float, float]:

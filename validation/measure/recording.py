@@ -42,9 +42,8 @@ import numpy as np
 from validation.engines.base import EngineAdapter, Snapshot
 from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
-from validation.measure.impact_log import ImpactLog
+from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
-from validation.measure.restitution import restitution_band
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
 from validation.scenario.compiled import CompiledScene, ObservedContacts
@@ -80,65 +79,6 @@ the impact detector makes) stay near 30 MB whatever the scene: 25 states of 10,0
 CONTEXT_OBSERVATIONS = 2
 """States of the previous batch kept for the next one: the state before a touch (the velocity
 before) and the one before that (the approach acceleration)."""
-
-
-@dataclass(frozen=True, slots=True)
-class ImpactEvent:
-    """One impact of two bodies (or a body and the ground).
-
-    Attributes:
-        body_a, body_b: names (``ground`` for the plane); the normal points from A to B.
-        time_start: s, the first observation in contact. time_end: s, the first one apart
-            (for a plastic impact, e = 0: the observation that closed it while still touching).
-        normal: (3,) unit, world frame, at first contact.
-        normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
-        normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
-        time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
-        approach_acceleration: m/s², the relative normal acceleration before contact (what
-            acts besides the impulse: gravity, a support); step: s, between observations.
-        acceleration_a, acceleration_b: (3,) m/s², world frame, each body's acceleration
-            over the observed step before the contact (what acted on it then: g + F/m in free
-            flight, nothing net on a body resting on a support; zeros for the ground); None
-            when fewer than two states before the contact were observed.
-        angular_acceleration_a, angular_acceleration_b: (3,) rad/s², the same for ω.
-    """
-
-    body_a: str
-    body_b: str
-    time_start: float
-    time_end: float
-    time_impulse: float
-    normal: tuple[float, float, float]
-    normal_velocity_before: float
-    normal_velocity_after: float
-    approach_acceleration: float = 0.0
-    step: float = 0.0
-    acceleration_a: tuple[float, float, float] | None = None
-    acceleration_b: tuple[float, float, float] | None = None
-    angular_acceleration_a: tuple[float, float, float] | None = None
-    angular_acceleration_b: tuple[float, float, float] | None = None
-
-    def acceleration_of(self, body: str) -> np.ndarray | None:
-        """(3,) m/s², body ``body``'s observed acceleration before the contact (or None)."""
-        found = self.acceleration_a if body == self.body_a else self.acceleration_b
-        return None if found is None else np.array(found)
-
-    def angular_acceleration_of(self, body: str) -> np.ndarray | None:
-        """(3,) rad/s², body ``body``'s observed angular acceleration before the contact."""
-        found = self.angular_acceleration_a if body == self.body_a else self.angular_acceleration_b
-        return None if found is None else np.array(found)
-
-    @property
-    def restitution(self) -> float:
-        """Measured e = -(v_rel'·n)/(v_rel·n) (formulas.md section 5)."""
-        return -self.normal_velocity_after / self.normal_velocity_before
-
-    def band(self, requested: float) -> float:
-        """The discretization band of e_measured for a requested ``e`` (module docstring of
-        ``validation.measure.restitution``): ``(1 + e) |a·n| h / |v_before|``."""
-        return restitution_band(
-            requested, self.approach_acceleration, self.step, self.normal_velocity_before
-        )
 
 
 @dataclass
