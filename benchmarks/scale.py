@@ -160,7 +160,8 @@ def worker(count: int, engine: str, folder: Path, stem: str = "sphere_grid") -> 
         "message": run.message[:120],
         "load_s": round(loaded - start, 2),
         "job_s": round(done - ran, 2),
-        "impacts": len(run.recording.impacts) if run.recording else 0,
+        "impacts": run.recording.impact_count if run.recording else 0,
+        "kept_impacts": len(run.recording.impacts) if run.recording else 0,
         "metrics": len(measured),
         **extra,
     }

@@ -4,6 +4,7 @@ before any work."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import fields
 
 import numpy as np
@@ -11,13 +12,14 @@ import pytest
 
 from validation.jobs import memory
 from validation.jobs.run import run_job, run_main
-from validation.measure import metrics
+from validation.measure import impact_log, metrics
 from validation.measure import recording as recording_module
 from validation.measure.metrics import Context
 from validation.measure.states import Series, Trajectory, ballistic, invariants
 from validation.scenario import Scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
+from validation.scenario.physics import GROUND
 
 BODIES = 6
 DT = 0.01
@@ -204,3 +206,189 @@ def test_available_memory_falls_back_when_meminfo_says_nothing(tmp_path, monkeyp
     monkeypatch.setattr(memory, "MEMINFO", meminfo)
     found = memory.available_memory()
     assert found is None or found > 0, found
+
+
+SAMPLED_IMPACTS = 8
+WORST_IMPACTS = 2
+"""The impact log's bounds made small (``impact_log.MAX_SAMPLED_IMPACTS``,
+``MAX_WORST_IMPACTS``), so that runs of a few dozen impacts exceed them."""
+IMPACTS_BOUND = SAMPLED_IMPACTS + WORST_IMPACTS * len(impact_log.RANKINGS)
+"""The most impact records a run may keep under those bounds."""
+
+
+@pytest.fixture
+def small_impact_bounds(monkeypatch):
+    monkeypatch.setattr(impact_log, "MAX_SAMPLED_IMPACTS", SAMPLED_IMPACTS)
+    monkeypatch.setattr(impact_log, "MAX_WORST_IMPACTS", WORST_IMPACTS)
+
+
+def bouncing_balls(balls: int, duration: float) -> Scenario:
+    """``balls`` spheres 0.5 m apart dropped from 0.1 m and up onto the ground, each with its
+    own e (0.8 and up, ground 0.9): a few impacts each per second, never one another."""
+    return Scenario.model_validate(
+        {
+            "name": f"bouncing_{balls}_{duration:g}",
+            "dt": 2e-3,
+            "duration": duration,
+            "engines": ["mini"],
+            "ground": {"restitution": 0.9},
+            "bodies": [
+                {
+                    "name": f"b{k}",
+                    "shape": {"type": "sphere", "radius": 0.05},
+                    "mass": 1.0,
+                    "position": [0.5 * k, 0.0, 0.1 + 0.02 * k],
+                    "restitution": 0.8 + 0.01 * k,
+                }
+                for k in range(balls)
+            ],
+        }
+    )
+
+
+BALLS = 12
+SHORT_BOUNCING_S = 0.5
+LONG_BOUNCING_S = 1.5
+"""s: 19 impacts, and 72 (measured in mini), both over ``IMPACTS_BOUND``."""
+
+
+def _restitution_row(measured: list) -> tuple:
+    (row,) = [m for m in measured if m.metric == "restitution_error"]
+    return (row.value, row.expected, row.error, row.band, row.signed, row.message)
+
+
+def test_impact_records_stay_within_their_bound_however_many_impacts(small_impact_bounds):
+    """Three times the duration, about four times the impacts: the records a run keeps stay
+    within the bound, the count is every impact."""
+    counts, kept = {}, {}
+    for duration in (SHORT_BOUNCING_S, LONG_BOUNCING_S):
+        run, _ = run_job(
+            (compile_scene(bouncing_balls(BALLS, duration)), parse_engine_spec("mini"))
+        )
+        counts[duration] = run.recording.impact_count
+        kept[duration] = len(run.recording.impacts)
+    assert counts[LONG_BOUNCING_S] > 3 * counts[SHORT_BOUNCING_S] > 3 * IMPACTS_BOUND, counts
+    assert max(kept.values()) <= IMPACTS_BOUND, (kept, IMPACTS_BOUND)
+
+
+def test_restitution_error_from_the_kept_impacts_equals_the_one_from_every_impact(monkeypatch):
+    """The same run keeping every impact and keeping a bounded set: restitution_error's row
+    (the worst impact, its count) and the largest |Δe| are the same; the kept impacts are some
+    of every impact, in the same order, and reach the end of the run."""
+    scene = compile_scene(bouncing_balls(BALLS, LONG_BOUNCING_S))
+    every_run, every_measured = run_job((scene, parse_engine_spec("mini")))
+    monkeypatch.setattr(impact_log, "MAX_SAMPLED_IMPACTS", SAMPLED_IMPACTS)
+    monkeypatch.setattr(impact_log, "MAX_WORST_IMPACTS", WORST_IMPACTS)
+    kept_run, kept_measured = run_job((scene, parse_engine_spec("mini")))
+    every, kept = every_run.recording.impacts, kept_run.recording.impacts
+    assert len(every) == every_run.recording.impact_count == kept_run.recording.impact_count
+    assert len(kept) <= IMPACTS_BOUND < len(every), (len(kept), len(every))
+    assert _restitution_row(kept_measured) == _restitution_row(every_measured)
+    positions = [every.index(event) for event in kept]
+    assert positions == sorted(positions), positions
+    assert positions[-1] >= len(every) - len(every) // SAMPLED_IMPACTS * 2, positions
+
+    def largest_delta(events) -> float:
+        return max(
+            abs(e.restitution - scene.pair_value(e.body_a, e.body_b, "restitution")) for e in events
+        )
+
+    assert largest_delta(kept) == largest_delta(every)
+
+
+SYNTHETIC_IMPACTS = 5_000
+PLANTED = {"beyond_band": 3_333, "delta_e": 4_999, "nan": 2_717}
+"""Ordinals of the planted worst impacts (odd: off every stride of the sample)."""
+
+
+def _synthetic_impacts(scene) -> list:
+    """``SYNTHETIC_IMPACTS`` ground impacts of body ``b`` (e 0.5) with |Δe| up to 0.05 and a
+    band, at t = ordinal ms; planted: the one furthest beyond its band (a small band), the
+    largest |Δe| (a large band), then a NaN e (what ``np.argmax`` picks over them all)."""
+    rng = np.random.default_rng(3)
+    events = []
+    for k in range(SYNTHETIC_IMPACTS):
+        before = -float(rng.uniform(0.5, 3.0))
+        measured = 0.5 + float(rng.uniform(-0.05, 0.05))
+        if k == PLANTED["beyond_band"]:
+            before, measured = -50.0, 0.6  # |Δe| 0.1, band 3e-4
+        if k == PLANTED["delta_e"]:
+            before, measured = -0.01, 0.7  # |Δe| 0.2, band 1.5
+        if k == PLANTED["nan"]:
+            measured = np.nan
+        events.append(
+            recording_module.ImpactEvent(
+                GROUND,
+                "b",
+                k * 1e-3,
+                k * 1e-3,
+                k * 1e-3,
+                (0.0, 0.0, 1.0),
+                before,
+                -measured * before,
+                approach_acceleration=-9.81,
+                step=1e-3,
+            )
+        )
+    return events
+
+
+def _one_ball() -> Scenario:
+    """Ball ``b`` (e 0.5) over the ground (e 0.5): the pair of the synthetic impacts."""
+    return Scenario.model_validate(
+        {
+            "name": "one_ball",
+            "dt": 1e-3,
+            "duration": 0.01,
+            "engines": ["mini"],
+            "ground": {"restitution": 0.5},
+            "bodies": [
+                {
+                    "name": "b",
+                    "shape": {"type": "sphere", "radius": 0.05},
+                    "mass": 1.0,
+                    "position": [0.0, 0.0, 1.0],
+                    "restitution": 0.5,
+                }
+            ],
+        }
+    )
+
+
+def _restitution_error_of(scene, impacts: list, count: int) -> str:
+    """restitution_error over ``impacts`` of ``count`` (the metric reads only the impacts and
+    their count), as text: a NaN row equals itself."""
+    recording = recording_module.Recording(None, impacts, 0.0, None, impact_count=count)
+    return repr(metrics.restitution_error(Context(scene, recording)))
+
+
+@pytest.mark.parametrize("with_nan", [False, True], ids=["numbers", "a_nan"])
+def test_the_impact_log_keeps_an_even_sample_and_every_worst(small_impact_bounds, with_nan):
+    """5,000 impacts fed to the log in two parts: at most the bound kept; an evenly spaced
+    sample over the whole run (every s-th impact, at least half the sample's bound); the worst
+    of each ranking, and restitution_error's pick over every impact (the NaN when there is
+    one), kept although none of them is on the sample's stride."""
+    scene = compile_scene(_one_ball())
+    events = _synthetic_impacts(scene)
+    if not with_nan:
+        nan = PLANTED["nan"]
+        exact = -0.5 * events[nan].normal_velocity_before  # e 0.5 as requested
+        events[nan] = dataclasses.replace(events[nan], normal_velocity_after=exact)
+    log = impact_log.ImpactLog(scene)
+    log.add(events[:1_234])
+    log.add(events[1_234:])
+    kept = log.events()
+    assert log.count == SYNTHETIC_IMPACTS, log.count
+    assert len(kept) <= IMPACTS_BOUND, len(kept)
+    ordinals = [round(e.time_start * 1e3) for e in kept]
+    assert ordinals == sorted(ordinals), ordinals
+    sample = list(range(0, SYNTHETIC_IMPACTS, log.stride))
+    assert SAMPLED_IMPACTS // 2 <= len(sample) <= SAMPLED_IMPACTS, (log.stride, len(sample))
+    assert set(sample) <= set(ordinals), (sample, ordinals)
+    planted = [PLANTED["beyond_band"], PLANTED["delta_e"]] + [PLANTED["nan"]] * with_nan
+    assert set(planted) <= set(ordinals), (planted, ordinals)
+    found = _restitution_error_of(scene, kept, log.count)
+    every = _restitution_error_of(scene, events, len(events))
+    assert found == every, (found, every)
+    worst = PLANTED["nan"] if with_nan else PLANTED["beyond_band"]
+    assert f"at t = {worst * 1e-3:.4g} s" in found, found

@@ -77,8 +77,10 @@ IMPACTS_COLUMNS = (
     "delta_e",
     "band",
 )
-"""impacts.csv: one row per impact event; ``delta_e`` = e_measured - e_requested and its
-discretization ``band`` (``validation.measure.restitution``)."""
+"""impacts.csv: one row per kept impact event (every one of a run up to
+``impact_log.MAX_SAMPLED_IMPACTS``; beyond, an evenly spaced sample and the worst);
+``delta_e`` = e_measured - e_requested and its discretization ``band``
+(``validation.measure.restitution``)."""
 
 TRACE_COLUMNS = ("scenario", "engine", "body", "quantity", "t", "x", "y", "z")
 """trace.csv: a body's ``quantity`` (pos m, vel m/s, ang_vel rad/s world frame, body_ang_vel

@@ -35,9 +35,9 @@ HEADER_FILE = "header.json"
 RECORD_PATTERN = "job-{index:06d}.zip"
 """One file per finished job, named by its index in the plan (six digits: sorted by name)."""
 
-JOURNAL_VERSION = 2
+JOURNAL_VERSION = 3
 """Bumped when the record layout changes; a journal of another version is not resumed
-(version 1 stored pickles)."""
+(version 1 stored pickles; version 2 had no ``Recording.impact_count``)."""
 
 MAX_HEADER_BYTES = 16 * 1024 * 1024
 """A header larger than this is refused unread: it holds the request and one short

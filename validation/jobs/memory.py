@@ -10,8 +10,10 @@ job's series and positions until the run is written. The estimate is that, summe
 ``--jobs`` largest jobs running at once, plus the command's process; the constants are peak
 RSS measured with ``benchmarks/scale.py`` (the sphere grids, every engine), rounded up.
 
-Impact events grow with the work (one record per impact, about 760 bytes): they are not in
-the estimate, which says what the run needs besides them.
+A run keeps at most ``impact_log.KEPT_IMPACTS_BOUND`` impact records (``IMPACT_BYTES``
+each), however many impacts it has: they are in the worker's estimate of every scene that
+can touch. The command's process holds each run's kept impacts too; its estimate leaves them
+out, since most scenes have few (every run of the library together: 8,352, about 17 MB).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from validation.jobs.plan import BadInputError, Plan
+from validation.measure.impact_log import KEPT_IMPACTS_BOUND
 from validation.measure.recording import (
     MAX_KEPT_POSITIONS,
     batch_size,
@@ -49,6 +52,11 @@ BYTES_PER_BODY_STATE = 13 * 8 * 12
 a dozen arrays of that size alive at once (the adapter's copy, the detector's context and
 ground-padded copy, the kept states, the rotation matrices of the invariants, the contacts)."""
 
+IMPACT_BYTES = 2_000
+"""Bytes per kept impact record: an ``ImpactEvent`` (about 950 bytes) in the worker and in
+the command's process, and its impacts.csv row (a dict of 11 cells, about 1 KB) there,
+rounded up."""
+
 SERIES_NUMBERS = 18
 """float64 numbers per kept sample of a series (t, energy, motion; momentum, angular momentum,
 centre of mass, the two ballistic offsets: 3 each)."""
@@ -72,9 +80,10 @@ def job_estimate(scene: CompiledScene, spec: EngineSpec, sample_every: int) -> E
     stride = position_stride(scene, sample_every)
     positions = min(-(-samples // stride) * bodies * 3, MAX_KEPT_POSITIONS) * 8
     kept = samples * SERIES_NUMBERS * 8 + positions
+    impacts = KEPT_IMPACTS_BOUND * IMPACT_BYTES if scene.can_touch else 0
     per_body = ENGINE_BYTES_PER_BODY.get(spec.name, max(ENGINE_BYTES_PER_BODY.values()))
     batch = batch_size(scene) * bodies * BYTES_PER_BODY_STATE
-    worker = PROCESS_BYTES + bodies * per_body + batch + 2 * kept  # kept, then concatenated
+    worker = PROCESS_BYTES + bodies * per_body + batch + 2 * kept + impacts  # 2: concatenated
     return Estimate(scene, spec.label, worker, kept)
 
 

@@ -111,6 +111,10 @@ def _series_rows(scene: CompiledScene, run: EngineRun) -> pd.DataFrame:
 
 
 def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
+    """impacts.csv's rows of one run: its kept impacts (``impact_log``), in closing order."""
+    impacts = run.recording.impacts
+    pairs = {(e.body_a, e.body_b) for e in impacts}
+    lookup = {pair: scene.pair_value(*pair, "restitution") for pair in pairs}
     return [
         {
             "scenario": scene.name,
@@ -125,9 +129,7 @@ def _impact_rows(scene: CompiledScene, run: EngineRun) -> list[dict]:
             "delta_e": event.restitution - requested,
             "band": event.band(requested),
         }
-        for event, requested in (
-            (e, scene.pair_value(e.body_a, e.body_b, "restitution")) for e in run.recording.impacts
-        )
+        for event, requested in ((e, lookup[e.body_a, e.body_b]) for e in impacts)
     ]
 
 

@@ -6,6 +6,8 @@ contract, kept apart so that a report can be rendered without importing any engi
 
 from __future__ import annotations
 
+from validation.measure.impact_log import MAX_SAMPLED_IMPACTS, MAX_WORST_IMPACTS
+
 METRIC_DEFINITIONS: dict[str, str] = {
     "energy_drift": "max over t of |E(t) - E(0)| / E_scale, E = kinetic (translational + "
     "rotational) + gravitational potential + spring energy + the applied forces' potential -F·x; "
@@ -102,9 +104,14 @@ SAMPLING_DEFINITION = (
     f"and the last); plots show at most {MAX_SERIES_POINTS:,} of them per series and engine, "
     f"evenly spaced; divergence compares the positions at every kept sample, or every m-th "
     f"kept sample (and the last) where samples x bodies x 3 exceed {MAX_KEPT_POSITIONS:,} "
-    f"numbers (m the least that fits, the same in every engine of the scene)"
+    f"numbers (m the least that fits, the same in every engine of the scene); impacts.csv and "
+    f"the impacts tables keep every impact of a run up to {MAX_SAMPLED_IMPACTS:,}, beyond that "
+    f"an evenly spaced sample of them (every s-th impact, s a power of two: "
+    f"{MAX_SAMPLED_IMPACTS // 2:,} to {MAX_SAMPLED_IMPACTS:,}) and the {MAX_WORST_IMPACTS:,} "
+    f"worst by |Δe| beyond the band and by |Δe| (restitution_error still judges the worst of "
+    f"every impact and its message counts them all)"
 )
-"""How series are thinned, for the legend and the README."""
+"""How series and impacts are thinned, for the legend and the README."""
 
 EXPECTED_KINDS = ("analytic", "conserved", "engine")
 """What a row was compared against: a closed form, a conserved quantity (value its drift,

@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from validation.measure.impact_log import RANKINGS, restitution_error_of
 from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
 from validation.measure.states import farthest
@@ -137,17 +138,23 @@ def requested_restitution(ctx: Context, body_a: str, body_b: str) -> float:
 
 def restitution_error(ctx: Context) -> Measurement | None:
     """The impact with the largest |Δe| beyond its discretization band (``restitution``):
-    value its e_measured, expected its e, error |Δe|, band its band."""
+    value its e_measured, expected its e, error |Δe|, band its band. The recording keeps that
+    impact whatever it thins (``impact_log``: the worst by ``beyond_band`` are kept, ties to
+    the earlier, as ``np.argmax`` picks); the note counts every impact."""
     impacts = ctx.recording.impacts
     if not impacts:
         return None
-    requested = [requested_restitution(ctx, i.body_a, i.body_b) for i in impacts]
-    errors = [abs(i.restitution - e) for i, e in zip(impacts, requested, strict=True)]
-    bands = [i.band(e) for i, e in zip(impacts, requested, strict=True)]
-    worst = int(np.argmax(np.array(errors) - np.array(bands)))
+    pairs = {(i.body_a, i.body_b) for i in impacts}
+    lookup = {pair: requested_restitution(ctx, *pair) for pair in pairs}
+    requested = [lookup[i.body_a, i.body_b] for i in impacts]
+    found = [restitution_error_of(i, e) for i, e in zip(impacts, requested, strict=True)]
+    errors = [error for error, _ in found]
+    bands = [band for _, band in found]
+    worst = int(np.argmax([RANKINGS["beyond_band"](error, band) for error, band in found]))
     event = impacts[worst]
+    count = max(ctx.recording.impact_count, len(impacts))  # a recording made of events alone
     note = (
-        f"worst of {len(impacts)} impacts: {event.body_a}-{event.body_b} at t = "
+        f"worst of {count} impacts: {event.body_a}-{event.body_b} at t = "
         f"{event.time_start:.4g} s, |Δe| {errors[worst]:.3g}, band {bands[worst]:.3g} at "
         f"{abs(event.normal_velocity_before):.3g} m/s"
     )

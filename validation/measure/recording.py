@@ -26,6 +26,10 @@ batch come from one collision call (the states are independent worlds of one mod
 ``CompiledScene.contacts``) and serve impact detection, the overlap check and
 ``penetration_max`` alike. The stability checks judge each batch as it completes, and the
 run stops at its first failing state, as if it had been checked state by state.
+
+The detector keeps only the impacts still open; each closed one goes to the run's
+``ImpactLog`` (``validation.measure.impact_log``), which counts every impact and keeps a
+bounded set of records (all of them up to ``MAX_SAMPLED_IMPACTS``), and to the expectations.
 """
 
 from __future__ import annotations
@@ -38,8 +42,8 @@ import numpy as np
 from validation.engines.base import EngineAdapter, Snapshot
 from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
+from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
-from validation.measure.restitution import restitution_band
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
 from validation.scenario.compiled import CompiledScene, ObservedContacts
@@ -75,65 +79,6 @@ the impact detector makes) stay near 30 MB whatever the scene: 25 states of 10,0
 CONTEXT_OBSERVATIONS = 2
 """States of the previous batch kept for the next one: the state before a touch (the velocity
 before) and the one before that (the approach acceleration)."""
-
-
-@dataclass(frozen=True, slots=True)
-class ImpactEvent:
-    """One impact of two bodies (or a body and the ground).
-
-    Attributes:
-        body_a, body_b: names (``ground`` for the plane); the normal points from A to B.
-        time_start: s, the first observation in contact. time_end: s, the first one apart
-            (for a plastic impact, e = 0: the observation that closed it while still touching).
-        normal: (3,) unit, world frame, at first contact.
-        normal_velocity_before: m/s, ``(v_PB - v_PA)·n`` just before the impulse (< 0).
-        normal_velocity_after: m/s, the same just after (both carried to the impulse centroid).
-        time_impulse: s, the impulse centroid (for a one-step impulse: the end of that step).
-        approach_acceleration: m/s², the relative normal acceleration before contact (what
-            acts besides the impulse: gravity, a support); step: s, between observations.
-        acceleration_a, acceleration_b: (3,) m/s², world frame, each body's acceleration
-            over the observed step before the contact (what acted on it then: g + F/m in free
-            flight, nothing net on a body resting on a support; zeros for the ground); None
-            when fewer than two states before the contact were observed.
-        angular_acceleration_a, angular_acceleration_b: (3,) rad/s², the same for ω.
-    """
-
-    body_a: str
-    body_b: str
-    time_start: float
-    time_end: float
-    time_impulse: float
-    normal: tuple[float, float, float]
-    normal_velocity_before: float
-    normal_velocity_after: float
-    approach_acceleration: float = 0.0
-    step: float = 0.0
-    acceleration_a: tuple[float, float, float] | None = None
-    acceleration_b: tuple[float, float, float] | None = None
-    angular_acceleration_a: tuple[float, float, float] | None = None
-    angular_acceleration_b: tuple[float, float, float] | None = None
-
-    def acceleration_of(self, body: str) -> np.ndarray | None:
-        """(3,) m/s², body ``body``'s observed acceleration before the contact (or None)."""
-        found = self.acceleration_a if body == self.body_a else self.acceleration_b
-        return None if found is None else np.array(found)
-
-    def angular_acceleration_of(self, body: str) -> np.ndarray | None:
-        """(3,) rad/s², body ``body``'s observed angular acceleration before the contact."""
-        found = self.angular_acceleration_a if body == self.body_a else self.angular_acceleration_b
-        return None if found is None else np.array(found)
-
-    @property
-    def restitution(self) -> float:
-        """Measured e = -(v_rel'·n)/(v_rel·n) (formulas.md section 5)."""
-        return -self.normal_velocity_after / self.normal_velocity_before
-
-    def band(self, requested: float) -> float:
-        """The discretization band of e_measured for a requested ``e`` (module docstring of
-        ``validation.measure.restitution``): ``(1 + e) |a·n| h / |v_before|``."""
-        return restitution_band(
-            requested, self.approach_acceleration, self.step, self.normal_velocity_before
-        )
 
 
 @dataclass
@@ -198,7 +143,9 @@ class ImpactDetector:
     """Finds impacts in batches of observed states of one scene (any engine)."""
 
     scene: CompiledScene
-    events: list[ImpactEvent] = field(default_factory=list)
+    new_events: list[ImpactEvent] = field(default_factory=list)
+    """The impacts the last ``update`` closed, in closing order (the run's ``ImpactLog``
+    keeps what it needs of them: the detector keeps none)."""
 
     def __post_init__(self) -> None:
         self.bodies = self.scene.model.n_bodies
@@ -247,7 +194,7 @@ class ImpactDetector:
             self.open[impact.key] = impact
             self._follow(kinematics, offset, impact, obs, count, touching_at)
         self.closed.sort(key=lambda item: (item[0], item[1]))
-        self.events += [event for _, _, event in self.closed]
+        self.new_events = [event for _, _, event in self.closed]
         self.closed = []
         self.context = ext.take(slice(len(ext) - min(CONTEXT_OBSERVATIONS, len(ext)), None))
         last_keys = touching.key[touching.observation == count - 1]
@@ -454,6 +401,8 @@ class Recording:
     trajectory: Trajectory
     """The kept states (``KEEP``)."""
     impacts: list[ImpactEvent]
+    """The kept impacts in closing order (``impact_log``: every one up to
+    ``MAX_SAMPLED_IMPACTS``, beyond an evenly spaced sample and the worst)."""
     stepping_seconds: float
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     series: Series
@@ -465,6 +414,8 @@ class Recording:
     """m, the deepest overlap over every observed state (None when nothing can touch)."""
     unstable: str | None = None
     """Why the run failed (``kind: detail``, kinds in ``stability.KINDS``), or None."""
+    impact_count: int = 0
+    """Every impact the run had, kept in ``impacts`` or not."""
 
 
 @dataclass
@@ -478,6 +429,7 @@ class _Measurer:
     keep: str = "states"
     checks: StabilityChecks = field(init=False)
     detector: ImpactDetector = field(init=False)
+    impacts: ImpactLog = field(init=False)
     samples: list[Trajectory] = field(default_factory=list)
     series: list[Series] = field(default_factory=list)
     kept: int = 0
@@ -490,6 +442,7 @@ class _Measurer:
     def __post_init__(self) -> None:
         self.checks = StabilityChecks(self.scene)
         self.detector = ImpactDetector(self.scene)
+        self.impacts = ImpactLog(self.scene)
         self.trackers = trackers(self.scene)
         traits = scene_traits(self.scene)
         self.free = why_undefined("position_error", traits) is None
@@ -500,12 +453,13 @@ class _Measurer:
         """What was measured, as the run's ``Recording``."""
         return Recording(
             trajectory=Trajectory.concat(*self.samples),
-            impacts=self.detector.events,
+            impacts=self.impacts.events(),
             stepping_seconds=stepping_seconds,
             series=Series.concat(*self.series),
             expectations=[tracker.result() for tracker in self.trackers],
             penetration_max=self.penetration if self.scene.can_touch else None,
             unstable=self.failure,
+            impact_count=self.impacts.count,
         )
 
     def measure(self, states: Trajectory, steps, final: int) -> bool:
@@ -528,11 +482,12 @@ class _Measurer:
         # the states that count: up to the failing one (included when only the overlap failed:
         # its pose was measured before the check)
         counted = last if found is None or found[1].startswith("deep_penetration") else last - 1
-        closed = len(self.detector.events)
+        new_events: list[ImpactEvent] = []
         if touching is not None and counted >= 0:
             self.detector.update(states, touching, counted)
             self.penetration = max(self.penetration, float(deepest[: counted + 1].max(initial=0.0)))
-        new_events = self.detector.events[closed:]
+            new_events = self.detector.new_events
+        self.impacts.add(new_events)
         judged = states.take(slice(0, counted + 1))
         for tracker in self.trackers:
             tracker.update(judged, new_events)

@@ -26,8 +26,9 @@ PLOT_QUANTITIES = (
 row of that metric has a number in the scene (a conserved quantity under test), not otherwise."""
 
 MAX_IMPACT_POINTS = 400
-"""Impacts drawn per engine in the e-against-speed chart (evenly chosen; impacts.csv and the
-table keep all): a pile of 49 balls has thousands, and 400 already fill the chart."""
+"""Impacts drawn per engine in the e-against-speed chart (evenly chosen from impacts.csv, which
+keeps every impact of a run up to ``impact_log.MAX_SAMPLED_IMPACTS``): a pile of 216 balls
+has thousands, and 400 already fill the chart."""
 
 PLOTTED_SERIES = ("t", "energy", "px", "py", "pz", "Lx", "Ly", "Lz")
 PLOTTED_IMPACTS = ("normal_velocity_before", "e_requested", "e_measured", "band")

@@ -2,7 +2,8 @@
 
 - ``results.csv`` (required): one row per (scenario, engine spec, metric);
 - ``series.csv`` (optional): energy, linear and angular momentum over time;
-- ``impacts.csv`` (optional): every impact with its requested and measured restitution;
+- ``impacts.csv`` (optional): every kept impact (``impact_log``) with its requested and
+  measured restitution;
 - ``trace.csv`` (optional): the thin trace of each body's quantity under test;
 - ``provenance.json`` (optional here, always written by the run): command, commit, machine,
   engine versions and settings.
