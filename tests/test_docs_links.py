@@ -1,5 +1,5 @@
-"""Every markdown link of the README, the docs/ pages and the scenario library's README that points
-into the repository resolves: the file or folder exists, and a ``#fragment`` names a heading of
+"""Every markdown link of the README, the docs/ pages and the READMEs of scenarios/ and reports/
+that points into the repository resolves: the file or folder exists, and a ``#fragment`` names a heading of
 the page it points to (as GitHub spells heading anchors)."""
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ PAGES = [
     ROOT / "README.md",
     *sorted((ROOT / "docs").glob("*.md")),
     ROOT / "scenarios" / "README.md",
+    ROOT / "reports" / "README.md",
 ]
 
 LINK = re.compile(r"(?<!!)\[(?P<text>[^\]]*)\]\((?P<target>[^)\s]+)\)")
