@@ -13,6 +13,8 @@ IMPACTS_FILE = "impacts.csv"
 PROVENANCE_FILE = "provenance.json"
 REPORT_FILE = "report.html"
 BASELINE_FILE = "baseline.csv"
+BASELINE_ACTION_NAMES = ("save",)
+"""``physval baseline ACTION``: the actions (``validation.nightly.baseline.BASELINE_ACTIONS``)."""
 """In a run folder run against a baseline: every row's class, the baseline's rows the run
 lacks (``missing``) included, with the baseline's value and error next to the run's."""
 SWEEP_FILE = "sweep.csv"
