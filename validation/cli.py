@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> int:
             print(problem, file=sys.stderr)
             return EXIT_BAD_INPUT
         return COMMANDS[args.command][0](args)
-    except KeyboardInterrupt as stop:  # Ctrl-C, signals.Stopped, the executor's Interrupted
+    except (signals.Interrupted, KeyboardInterrupt) as stop:  # also signals.Stopped
         signum = signals.signal_number(stop)
         print(signals.stop_message(signum), file=sys.stderr)
         return signals.exit_code(signum)
