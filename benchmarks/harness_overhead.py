@@ -15,7 +15,7 @@ For each engine (mini, MuJoCo, PyBullet) on the same library scenes (``SCENES``)
 Each of the three is the median of ``REPEATS`` measurements (the repeats are interleaved
 engine by engine, so slow minutes on a shared machine hit every engine alike).
 ``ratio = (whole - startup) / stepping``; the total is the sum over engines of
-``whole - startup`` over the sum of ``stepping``. Target (the issue): total <= 1.25.
+``whole - startup`` over the sum of ``stepping``. Target: total <= 1.25.
 
 ``--tree PATH`` benchmarks another checkout with the same interpreter and packages: every
 subprocess gets ``PYTHONPATH=PATH`` and the scenes are PATH's own files; the stepping-only
@@ -89,7 +89,7 @@ SUBPROCESS_TIMEOUT = 600.0
 """s; a whole run of ``SCENES`` takes about 13 to 50 s."""
 
 TARGET_RATIO = 1.25
-"""Total (whole - startup) / stepping the issue asks for."""
+"""Total (whole - startup) / stepping, the target."""
 
 RESULTS = Path(__file__).parent / "results"
 

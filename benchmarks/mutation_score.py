@@ -59,7 +59,7 @@ RESULTS = ROOT / "benchmarks" / "results" / "mutation_score.csv"
 """Where the catch table is written."""
 
 DEFAULT_RERUNS = 3
-"""Unchanged reruns against the baseline that must raise no alarm (the issue's target)."""
+"""Unchanged reruns against the baseline that must raise no alarm (the target)."""
 
 SHOWN_SCENES = 4
 """Scenes named per cell of the printed table (the CSV has them all)."""

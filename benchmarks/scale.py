@@ -1,4 +1,4 @@
-"""Scenes of 1,000 to 10,000 bodies in every engine: wall time and peak memory (issue 13).
+"""Scenes of 1,000 to 10,000 bodies in every engine: wall time and peak memory.
 
 Scene (``sphere_grid``): N spheres (r = 0.05 m, 1 kg, e = 0.5, frictionless) on a square
 grid of ``LAYERS`` layers, ``SPACING`` apart (1 cm gaps), the lowest layer 5 cm above the
@@ -53,14 +53,14 @@ LOWEST = 0.10
 """m, the lowest layer's centre height: 5 cm of free fall, landing at t = 0.10 s at 0.99 m/s."""
 DT = 2e-3
 DURATION = 0.3
-"""s: the issue's measurement (150 steps)."""
+"""s: the measured duration (150 steps)."""
 TARGET_RSS_MB = 2_000
-"""The issue's target: each engine at 10,000 spheres within 2 GB of peak RSS."""
+"""The target: each engine at 10,000 spheres within 2 GB of peak RSS."""
 RESULTS = Path(__file__).parent / "results" / "scale.csv"
 MEMORY_RESULTS = Path(__file__).parent / "results" / "scale_memory.csv"
 DURATION_RESULTS = Path(__file__).parent / "results" / "scale_duration.csv"
 DURATION_DT = 1e-3
-"""s: the step of the duration axis (``--durations``), the issue's measurement of memory
+"""s: the step of the duration axis (``--durations``), the measurement of memory
 bounded by the work (5,000 steps for 5 s)."""
 DURATION_TARGETS_MB = {(10_000, 5.0): 2_000, (1_000, 30.0): 1_000}
 """(spheres, s) -> MB of peak RSS the duration axis must stay within, every engine."""

@@ -8,7 +8,7 @@ Public API::
     state, report = step(model, state, Settings(dt=1e-3))
 
 The static ``Model`` and the dynamic ``State`` are structures of arrays; see
-``shared/docs/formulas.md`` for the formulas and ``Settings`` for every option
+``docs/formulas.md`` for the formulas and ``Settings`` for every option
 the articles leave open. Nothing here imports from ``validation``.
 """
 

@@ -1,6 +1,6 @@
 """Every numerical choice of the engine, in one frozen place.
 
-The defaults are the documented engine (``shared/docs/formulas.md``):
+The defaults are the documented engine (``docs/formulas.md``):
 semi-implicit Euler, ``α = I⁻¹τ`` without the gyroscopic term, the impulse of
 the articles with Newton's restitution law and no velocity threshold, no
 friction unless a body asks for it, and no position correction. Everything the

@@ -21,7 +21,7 @@ the lower shape value as body A (see ``mini_engine.narrowphase``).
 
 Mass properties are those of a uniform solid (MuJoCo computes the same
 values; PyBullet approximates the capsule by its bounding box, see
-``shared/docs/engines.md`` section 2.1).
+``docs/engines.md`` section 2.1).
 """
 
 from __future__ import annotations

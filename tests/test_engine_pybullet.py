@@ -1,6 +1,6 @@
 """The PyBullet adapter, measured: boundary conventions, the parity gate, free fall, the
 restitution recipe against PyBullet's defaults, torque-free tumbling, and the process-wide
-contact breaking threshold (shared/docs/engines.md section 2 for every number)."""
+contact breaking threshold (docs/engines.md section 2 for every number)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The history store, step detection, history.html and ``physval compare`` (issue 12 items 3-4).
+"""The history store, step detection, history.html and ``physval compare``.
 
 Run folders are tiny and synthetic (results.csv and provenance.json written with pandas); no
 engine runs. Each test names what it checks; the failure it was seen to give on a broken

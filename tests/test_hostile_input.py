@@ -1,4 +1,4 @@
-"""Hostile values, files and records (issue 11, items 3 to 5): every bad value is exit 2 with
+"""Hostile values, files and records: every bad value is exit 2 with
 one line and no traceback, before any work and within 5 s; files are refused by type and size
 before they are read; ``stability`` and ``sweep`` report an engine that cannot load a scene as
 ``error``; ``physval report`` survives ``$`` in names, absurd series values and unreadable

@@ -1,5 +1,5 @@
 """``physval run`` under kills and concurrency: the journal, ``--resume``, the output lock,
-publishing and the checks of ``--out`` (issue 11, items 1 and 2). Real processes, killed
+publishing and the checks of ``--out``. Real processes, killed
 with SIGKILL, on small scenes."""
 
 from __future__ import annotations

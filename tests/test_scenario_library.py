@@ -11,7 +11,7 @@ from validation.scenario.yaml_source import read_yaml
 
 SCENES = scenario_files([BUNDLED_SCENARIOS])
 MINIMUM_SCENES = 24
-"""Issue 3: the library holds at least 24 scenes."""
+"""The library holds at least 24 scenes."""
 
 THEMES = ("formulas", "benchmarks", "rotation", "contact", "stiff")
 

@@ -1,1 +1,1 @@
-"""physval's harness: scenarios, engine adapters, measuring, jobs and reports (see README, Layout)."""
+"""physval's harness: scenarios, engine adapters, measuring, jobs and reports (see docs/architecture.md)."""

@@ -1,6 +1,6 @@
 """The PyBullet adapter: a ``Scenario`` as PyBullet 3.2.7 bodies, stepped and read back.
 
-Every fact this adapter relies on is measured in ``shared/docs/engines.md`` section 2; the
+Every fact this adapter relies on is measured in ``docs/engines.md`` section 2; the
 numbers below name the subsection they come from.
 
 Boundary conventions (engines.md 2.1). PyBullet's base pose is its *inertial* frame (the
