@@ -30,6 +30,7 @@ WINGS: dict[str, int] = {
     "validation.csv_safe": 0,  # spreadsheet-safe CSV cells: imported by every CSV writer and reader
     "validation.redact": 0,  # passwords masked in URLs and command lines: imported by every output
     "validation.contract": 1,
+    "validation.engine_api": 1,  # engine declarations and discovery: read by spec parsing
     "validation.files": 1,
     "validation.signals": 2,  # imports contract; imported by jobs, cli and entry
     "validation.reference": 1,  # the closed forms judged against: below all that reads them
