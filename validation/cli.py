@@ -18,6 +18,7 @@ from validation import signals
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engines.sabotage import SabotageError, chosen
 from validation.jobs.check import check_main
+from validation.jobs.conformance import CHECKS, conformance_main
 from validation.jobs.dask_backend import distributed_missing
 from validation.jobs.executor import Interrupted, default_jobs
 from validation.jobs.listing import list_main, version_text
@@ -116,6 +117,11 @@ def command_list(args: argparse.Namespace) -> int:
     return list_main(args.paths or default_scenario_paths())
 
 
+def command_conformance(args: argparse.Namespace) -> int:
+    """Check an engine adapter against the adapter contract; 0 all pass, 1 one fails, 2 bad input."""
+    return conformance_main(args.engine, args.only)
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     print(json.dumps(json_schema(), indent=2))
@@ -129,6 +135,10 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "sweep": (command_sweep, "error against run time over a timestep sweep"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
+    "conformance": (
+        command_conformance,
+        "check an engine adapter against the adapter contract (the boundary, not the physics)",
+    ),
     "list": (
         command_list,
         "the scenes, the engines with their versions and options, the metrics and expectations",
@@ -254,6 +264,16 @@ def _sweep_arguments(command: argparse.ArgumentParser) -> None:
     _jobs_argument(command)
 
 
+def _conformance_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument("engine", metavar="ENGINE_SPEC", help="e.g. mujoco or mini(gyroscopic=implicit)")
+    command.add_argument(
+        "--only",
+        action="append",
+        metavar="CHECK",
+        help=f"run only this check (repeatable): {', '.join(CHECKS)}",
+    )
+
+
 def _db_argument(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--db", metavar="URL", help="history database URL or SQLite file (reports/history.sqlite)"
@@ -302,6 +322,7 @@ ARGUMENTS = {
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
     "list": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+    "conformance": _conformance_arguments,
     "history": _history_arguments,
     "compare": _compare_arguments,
     "baseline": _baseline_arguments,
