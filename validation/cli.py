@@ -16,6 +16,7 @@ from pathlib import Path
 
 from validation import signals
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.engine_api import discover
 from validation.engines.sabotage import SabotageError, chosen
 from validation.jobs.check import check_main
 from validation.jobs.conformance import CHECKS, conformance_main
@@ -344,6 +345,8 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, "scheduler", None) is not None and distributed_missing():
             print(distributed_missing(), file=sys.stderr)
             return EXIT_BAD_INPUT
+        for line in discover().broken:  # one line per broken engine plugin; the others run
+            print(line, file=sys.stderr)
         return COMMANDS[args.command][0](args)
     except (Interrupted, KeyboardInterrupt) as stop:
         signum = signals.signal_number(stop)

@@ -258,17 +258,28 @@ def _load(name: str, value: str, source: str) -> tuple[EngineDeclaration | None,
     return declaration, ""
 
 
+PHYSVAL = "physval"
+"""The distribution whose entry points are the built-in engines: they come first, so a plugin
+cannot take a built-in's name."""
+
+
 def _registered() -> list[tuple[str, str, str]]:
     """(name, value, distribution) of every entry point of the group, plus the built-ins the
-    metadata lacks, built-ins first."""
+    installed metadata lacks; physval's own first (in ``BUILTIN_ENGINES`` order), then the
+    plugins by name."""
     found = [
         (entry.name, entry.value, _distribution_of(entry))
         for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
     ]
-    named = {name for name, _, _ in found}
-    found += [(n, v, "physval") for n, v in BUILTIN_ENGINES.items() if n not in named]
+    own = {name for name, _, source in found if source == PHYSVAL}
+    found += [(n, v, PHYSVAL) for n, v in BUILTIN_ENGINES.items() if n not in own]
     order = list(BUILTIN_ENGINES)
-    return sorted(found, key=lambda f: (order.index(f[0]) if f[0] in order else len(order), f[0]))
+
+    def key(entry: tuple[str, str, str]) -> tuple:
+        name, _, source = entry
+        return (source != PHYSVAL, order.index(name) if name in order else len(order), name)
+
+    return sorted(found, key=key)
 
 
 @functools.cache

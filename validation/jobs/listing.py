@@ -4,7 +4,8 @@ Three sections: the scenes (name, file, engines), the engines (every installed o
 or plugin: its version, what it is, its capabilities and the options a spec takes, from its
 declaration), and the metrics and expectation kinds with their one-line definitions (the
 report's legend). It reads the scene files, the installed packages' metadata and the engines'
-declarations; it imports no engine. A broken engine plugin is one line on stderr.
+declarations; it imports no engine (a broken engine plugin is one line on stderr, printed by
+``physval``'s entry).
 """
 
 from __future__ import annotations
@@ -142,7 +143,5 @@ def list_main(paths: list[Path]) -> int:
     scenes, broken = scene_lines(paths)
     print("\n".join([*scenes, *engine_lines(), *definition_lines()]))
     for line in broken:
-        print(line, file=sys.stderr)
-    for line in discover().broken:  # the other engines are listed and run
         print(line, file=sys.stderr)
     return EXIT_BAD_INPUT if broken else EXIT_OK
