@@ -227,3 +227,46 @@ def test_engine_api_names_the_builtins_it_falls_back_to():
         module = value.split(":")[0]
         assert module == f"validation.engines.{name}.declaration"
         assert engine_api.declaration_of(name).adapter.startswith(f"validation.engines.{name}.adapter:")
+
+
+# --- what a scene needs ----------------------------------------------------------------------
+
+
+def test_each_capability_scene_needs_its_capability_and_a_lone_body_needs_no_contact():
+    from validation.jobs.conformance import CAPABILITY_SCENES, frames_scene
+    from validation.scenario.needs import scene_needs
+
+    for word, build in CAPABILITY_SCENES.items():
+        assert word in scene_needs(build()), word
+    lone = frames_scene("box")
+    assert set(scene_needs(lone)) == {"box"}, scene_needs(lone)
+
+
+def test_a_lone_body_with_restitution_and_friction_needs_neither():
+    """A coefficient acts only on a contact: a lone body in the air never uses it."""
+    from validation.scenario import Scenario
+    from validation.scenario.needs import scene_needs
+
+    body = {"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0,
+            "restitution": 0.5, "friction": 0.4}
+    alone = Scenario.model_validate({"dt": 1e-3, "duration": 0.1, "bodies": [body]})
+    assert set(scene_needs(alone)) == {"sphere"}
+    grounded = Scenario.model_validate({**alone.model_dump(), "ground": {}})
+    needs = scene_needs(grounded)
+    assert needs["restitution"] == "body 'b' has restitution 0.5", needs
+    assert needs["friction"] == "body 'b' has friction 0.4", needs
+
+
+def test_the_json_schema_names_the_installed_engines():
+    import jsonschema
+
+    from validation.scenario import json_schema
+
+    schema = json_schema()
+    scene = {"dt": 1e-3, "duration": 0.1,
+             "bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0}]}
+    jsonschema.validate({**scene, "engines": ["mini(gyroscopic=implicit)", "pybullet"]}, schema)
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({**scene, "engines": ["bullet"]}, schema)
+    described = schema["properties"]["engines"]["items"]["description"]
+    assert "mujoco(profile, integrator, solver, cone, restitution, iterations)" in described
