@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -270,3 +271,28 @@ def test_the_json_schema_names_the_installed_engines():
         jsonschema.validate({**scene, "engines": ["bullet"]}, schema)
     described = schema["properties"]["engines"]["items"]["description"]
     assert "mujoco(profile, integrator, solver, cone, restitution, iterations)" in described
+
+
+def test_capabilities_can_depend_on_the_spec(monkeypatch):
+    """An engine whose options change what it represents (a profile without springs) declares
+    ``capabilities_for``; the runner asks it per spec."""
+    from validation.jobs.conformance import CAPABILITY_SCENES
+    from validation.measure.runner import run_engine
+    from validation.scenario.compiled import compile_scene
+
+    found = discover()
+    mini = found.engines["mini"]
+
+    def capabilities_for(settings):
+        if settings.get("gyroscopic") == "implicit":
+            return replace(mini.capabilities, features=mini.capabilities.features - {"springs"})
+        return mini.capabilities
+
+    varying = replace(mini, capabilities_for=capabilities_for)
+    monkeypatch.setattr(
+        engine_api, "discover", lambda: replace(found, engines={**found.engines, "mini": varying})
+    )
+    scene = compile_scene(CAPABILITY_SCENES["springs"]())
+    assert run_engine(scene, parse_engine_spec("mini")).status == "ok"
+    refused = run_engine(scene, parse_engine_spec("mini(gyroscopic=implicit)"))
+    assert refused.status == "unsupported" and "springs (1 spring(s)" in refused.message, refused.message

@@ -156,6 +156,10 @@ class EngineDeclaration:
         capabilities: what it can represent.
         check_settings: the engine's own validation of a spec's settings (a dict), raising
             ``ValueError`` with one line for values the types alone cannot refuse; or None.
+        capabilities_for: the capabilities under a spec's settings (a dict), for an engine
+            whose options change them (a discrete and an error-controlled profile); None:
+            ``capabilities`` whatever the spec. ``capabilities`` is what ``physval list``
+            shows.
     """
 
     name: str
@@ -166,6 +170,13 @@ class EngineDeclaration:
     options: tuple[EngineOption, ...] = ()
     capabilities: Capabilities = field(default_factory=Capabilities)
     check_settings: Callable[[dict[str, object]], None] | None = None
+    capabilities_for: Callable[[dict[str, object]], Capabilities] | None = None
+
+    def capabilities_of(self, settings: dict[str, object]) -> Capabilities:
+        """The capabilities of the spec with these ``settings``."""
+        if self.capabilities_for is None:
+            return self.capabilities
+        return self.capabilities_for(settings)
 
     def option(self, key: str) -> EngineOption | None:
         return next((o for o in self.options if o.name == key), None)

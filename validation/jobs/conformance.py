@@ -36,6 +36,7 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK
 from validation.engine_api import (
     FEATURES,
     SHAPES,
+    Capabilities,
     EngineDeclaration,
     EngineOption,
     declaration_of,
@@ -233,17 +234,21 @@ class CheckResult:
 
 @dataclass(frozen=True)
 class Subject:
-    """The engine under test: its spec and declaration."""
+    """The engine under test: its spec, declaration and the capabilities under the spec."""
 
     spec: EngineSpec
     declaration: EngineDeclaration
 
     @property
+    def capabilities(self) -> Capabilities:
+        return self.declaration.capabilities_of(self.spec.as_dict())
+
+    @property
     def supported(self) -> frozenset[str]:
-        return self.declaration.capabilities.supported
+        return self.capabilities.supported
 
     def runnable(self, scenario: Scenario) -> bool:
-        return not missing(self.declaration.capabilities, scenario)
+        return not missing(self.capabilities, scenario)
 
 
 # --- running an adapter --------------------------------------------------------------------
@@ -296,7 +301,7 @@ def _run_scene(subject: Subject) -> Scenario:
 
 
 def _frame_shape(subject: Subject) -> str:
-    shapes = subject.declaration.capabilities.shapes
+    shapes = subject.capabilities.shapes
     return "box" if "box" in shapes else shapes[0]
 
 
@@ -323,8 +328,8 @@ def check_declaration(subject: Subject) -> CheckResult:
 
 
 def check_parity(subject: Subject) -> CheckResult:
-    tolerance = PRECISION_TOLERANCE[subject.declaration.capabilities.precision]
-    problems, shapes = [], subject.declaration.capabilities.shapes
+    tolerance = PRECISION_TOLERANCE[subject.capabilities.precision]
+    problems, shapes = [], subject.capabilities.shapes
     for shape in shapes:
         scene = compile_scene(parity_scene(shape))
         adapter = _loaded(subject.spec, scene)
@@ -375,7 +380,7 @@ def check_frames(subject: Subject) -> CheckResult:
         adapter.close()
     times = np.array([s.time for s in states])
     want = frames_expected(scenario, np.arange(len(states)) * DT)
-    velocity_tolerance = FRAME_VELOCITY_TOLERANCE[subject.declaration.capabilities.precision]
+    velocity_tolerance = FRAME_VELOCITY_TOLERANCE[subject.capabilities.precision]
     measured = {
         "time": (np.abs(times - np.arange(len(states)) * DT).max(), 1e-9, "s"),
         "pos": (np.abs(np.stack([s.pos[0] for s in states]) - want["pos"]).max(),
@@ -398,7 +403,7 @@ def check_frames(subject: Subject) -> CheckResult:
 
 
 def _tolerance(subject: Subject) -> float:
-    return subject.declaration.capabilities.advance_tolerance
+    return subject.capabilities.advance_tolerance
 
 
 def check_advance(subject: Subject) -> CheckResult:
@@ -438,7 +443,7 @@ def check_observe(subject: Subject) -> CheckResult:
             adapter.close()
         last = Snapshot(float(trajectory.t[-1]), trajectory.pos[-1], trajectory.quat[-1],
                         trajectory.vel[-1], trajectory.ang_vel[-1])
-        readback = READBACK_TOLERANCE[subject.declaration.capabilities.precision]
+        readback = READBACK_TOLERANCE[subject.capabilities.precision]
         problems += _same("advance_observed's last state vs observe()", last, after, readback)
         problems += _same("advance_observed vs advance", after, quiet, _tolerance(subject))
         if len(trajectory) != RUN_STEPS:

@@ -61,7 +61,7 @@ def run_engine(
     every engine failure becomes a status, never an exception."""
     start = time.perf_counter()
     run = EngineRun(scene.name, spec.label, "error")
-    capabilities = declaration_of(spec.name).capabilities
+    capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
     lacking = missing(capabilities, scene.scenario)
     if lacking:
         run.status, run.message = "unsupported", unsupported_message(spec.name, lacking)
