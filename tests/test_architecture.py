@@ -29,6 +29,8 @@ WINGS: dict[str, int] = {
     "validation": 1,  # the root __init__: run before every wing, so it sits at the bottom
     "validation.csv_safe": 0,  # spreadsheet-safe CSV cells: imported by every CSV writer and reader
     "validation.redact": 0,  # passwords masked in URLs and command lines: imported by every output
+    "validation.bundled": 0,  # where the scene library is: the commands' default paths
+    "validation.versions": 0,  # installed versions from package metadata: --version, list
     "validation.contract": 1,
     "validation.engine_api": 1,  # engine declarations and discovery: read by spec parsing
     "validation.files": 1,
@@ -321,3 +323,49 @@ def test_importing_the_reference_side_loads_no_mini_engine_module():
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]", f"loaded with the reference side: {done.stdout.strip()}"
+
+
+HEAVY_PACKAGES = ("mujoco", "pybullet", "pandas", "matplotlib", "scipy", "sqlalchemy", "jinja2")
+"""Packages a light command must not import: the engines and what the report, the history
+and the reference integration need (together most of a second and a half of import time)."""
+
+LIGHT_COMMANDS = {
+    "--help": ("pydantic", "numpy", "yaml", "mini_engine"),
+    "--version": ("pydantic", "numpy", "yaml", "mini_engine"),
+    "check": (),
+    "list": (),
+}
+"""Command -> packages it must not import besides ``HEAVY_PACKAGES``: help and version read
+nothing but argparse and package metadata; check and list load scene files (PyYAML,
+pydantic, mini_engine's model for the overlap check) and nothing else."""
+
+
+@pytest.mark.parametrize("command", sorted(LIGHT_COMMANDS))
+def test_a_light_command_imports_only_what_it_uses(command, tmp_path):
+    """``physval check FILE``, ``list``, ``--help`` and ``--version`` run in a fresh
+    interpreter; the top-level packages loaded by then exclude the engines, pandas and
+    matplotlib (each command imports what it uses when it runs)."""
+    scene = ROOT / "scenarios" / "formulas" / "projectile.yaml"
+    argv = {"check": ["check", str(scene)], "list": ["list", str(scene)]}.get(command, [command])
+    program = (
+        "import sys\n"
+        "from validation.cli import main\n"
+        "try:\n"
+        f"    code = main({argv!r})\n"
+        "except SystemExit as stop:\n"
+        "    code = stop.code\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules}), file=sys.stderr)\n"
+        "sys.exit(code)\n"
+    )
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", program],
+        capture_output=True,
+        text=True,
+        env=environment,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    loaded = set(ast.literal_eval(done.stderr.strip().splitlines()[-1]))
+    forbidden = loaded & {*HEAVY_PACKAGES, *LIGHT_COMMANDS[command]}
+    assert not forbidden, f"physval {command} imported {sorted(forbidden)}"

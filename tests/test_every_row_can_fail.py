@@ -106,7 +106,7 @@ def test_physval_check_prints_the_warning_and_exits_0(tmp_path, capsys):
     out = capsys.readouterr().out
     assert f"{path}:14:3: warning: checks.flips.box:" in out, out
     assert "got 3 for mini, mini(gyroscopic=implicit)" in out, out
-    assert "1 files: 1 valid, 0 invalid, 1 warnings" in out, out
+    assert "1 file: 1 valid, 0 invalid, 1 warning" in out, out
 
 
 PYTEST = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider"]

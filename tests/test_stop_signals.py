@@ -112,3 +112,34 @@ def test_a_stop_signal_stops_every_worker_with_one_line(tmp_path, signum, target
     _wait_for(lambda: not _alive(started), WORKERS_GONE_S, "the run's workers to end")
     assert not out.exists(), "nothing is published by a stopped run"
     assert all(path.exists() for path in journaled), "the finished jobs stay in the journal"
+
+
+IMPORT_RECORDER = """
+import subprocess, sys
+started = []
+class Recording(subprocess.Popen):
+    def __init__(self, args, *rest, **kwargs):
+        started.append(args)
+        super().__init__(args, *rest, **kwargs)
+subprocess.Popen = Recording
+import validation.engines.mujoco.adapter
+import validation.engines.pybullet.adapter
+print(len(started))
+"""
+"""Counts the processes importing the engine adapters starts."""
+
+
+def test_importing_the_engines_starts_no_other_process(tmp_path):
+    """Every process of a run's group gets a Ctrl-C: one the engines' imports start on the
+    side (GLFW, loaded by ``import mujoco``, ran a second Python to read its version) printed
+    a BrokenPipeError traceback after the run's one line when the signal came at that moment."""
+    environment = {key: value for key, value in os.environ.items() if key != "MUJOCO_GL"}
+    found = subprocess.run(
+        [sys.executable, "-c", IMPORT_RECORDER],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=environment,
+        check=True,
+    )
+    assert found.stdout.strip() == "0", (found.stdout, found.stderr[-2000:])

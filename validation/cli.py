@@ -4,46 +4,40 @@ Exit codes (``validation.contract``): 0 all good; 1 (``run`` only) a regression 
 failure (a failed check, an unstable run, a model mismatch, an engine error that is not a
 known finding of its scene); 2 bad input (a scenario, a flag, a value). Bad input prints one line per problem naming the
 file, line, field and what was expected, and never a traceback.
+
+Each command imports what it uses when it runs, so ``physval check`` pays for the scene
+loader only, and ``physval --help`` for nothing but argparse (``tests/test_architecture.py``
+checks which packages each light command imports).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 from validation import signals
-from validation.contract import EXIT_BAD_INPUT, EXIT_OK
-from validation.engine_api import discover
-from validation.engines.sabotage import SabotageError, chosen
-from validation.jobs.check import check_main
-from validation.jobs.conformance import CHECKS, conformance_main
-from validation.jobs.dask_backend import distributed_missing
-from validation.jobs.executor import Interrupted, default_jobs
-from validation.jobs.listing import list_main, version_text
-from validation.jobs.run import RESUME_ALONE, run_main
-from validation.jobs.stability_search import stability_main
-from validation.jobs.sweep import sweep_main
-from validation.nightly.baseline import BASELINE_ACTIONS, baseline_main
-from validation.nightly.compare import compare_main
-from validation.nightly.history_page import history_main
-from validation.report.render import report_command
-from validation.scenario import (  # BUNDLED_SCENARIOS: tests and scripts import it from here
+from validation.bundled import (  # BUNDLED_SCENARIOS: tests and scripts import it from here
     BUNDLED_SCENARIOS,  # noqa: F401
     default_scenario_paths,
-    json_schema,
 )
+from validation.contract import BASELINE_ACTION_NAMES, CONFORMANCE_CHECKS, EXIT_BAD_INPUT, EXIT_OK
 
 
 def command_check(args: argparse.Namespace) -> int:
     """Validate scenario files and folders; print every problem; 0 if all are valid, else 2."""
+    from validation.jobs.check import check_main
+
     return check_main(args.paths or default_scenario_paths())
 
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
+    from validation.jobs.run import RESUME_ALONE, run_main
+
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
     if args.resume is not None and any(selection):
         print(
@@ -70,11 +64,15 @@ def command_run(args: argparse.Namespace) -> int:
 
 def command_report(args: argparse.Namespace) -> int:
     """Re-render report.html of a run folder from its files, without re-running."""
+    from validation.report.render import report_command
+
     return report_command(args.folder)
 
 
 def command_stability(args: argparse.Namespace) -> int:
     """Largest stable dt per scene and engine, by bisection; writes stability.csv."""
+    from validation.jobs.stability_search import stability_main
+
     return stability_main(
         args.paths or default_scenario_paths(),
         args.engines,
@@ -87,6 +85,8 @@ def command_stability(args: argparse.Namespace) -> int:
 
 def command_sweep(args: argparse.Namespace) -> int:
     """Error against run time over a dt sweep; writes sweep.csv and sweep.html."""
+    from validation.jobs.sweep import sweep_main
+
     return sweep_main(
         args.paths or default_scenario_paths(),
         args.engines,
@@ -100,31 +100,43 @@ def command_sweep(args: argparse.Namespace) -> int:
 
 def command_history(args: argparse.Namespace) -> int:
     """Trend, steps and regressions of every recorded series; writes history.html."""
+    from validation.nightly.history_page import history_main
+
     return history_main(args.db, args.last, args.only, args.out, args.selection)
 
 
 def command_compare(args: argparse.Namespace) -> int:
     """The rows that moved beyond noise between two runs; writes compare.csv and compare.html."""
+    from validation.nightly.compare import compare_main
+
     return compare_main(args.run_a, args.run_b, args.db, args.out, args.selection)
 
 
 def command_baseline(args: argparse.Namespace) -> int:
     """Save a run's rows as the baseline later runs are classified against."""
+    from validation.nightly.baseline import baseline_main
+
     return baseline_main(args.action, args.run_dir, args.to)
 
 
 def command_list(args: argparse.Namespace) -> int:
     """List the scenes, the engines with their versions and options, the metrics."""
+    from validation.jobs.listing import list_main
+
     return list_main(args.paths or default_scenario_paths())
 
 
 def command_conformance(args: argparse.Namespace) -> int:
     """Check an engine adapter against the adapter contract; 0 all pass, 1 one fails, 2 bad input."""
+    from validation.jobs.conformance import conformance_main
+
     return conformance_main(args.engine, args.only)
 
 
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
+    from validation.scenario import json_schema
+
     print(json.dumps(json_schema(), indent=2))
     return EXIT_OK
 
@@ -153,11 +165,42 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
 }
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: the versions, read only when asked for (they come from the installed
+    packages' metadata)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="show the versions and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from validation.versions import version_text
+
+        print(version_text())
+        parser.exit()
+
+
+def _environment_problem(args: argparse.Namespace) -> str | None:
+    """What the environment lacks or gets wrong for this command, checked before any work:
+    an unknown ``PHYSVAL_SABOTAGE`` (``validation.engines.sabotage``), a ``--scheduler``
+    without Dask installed."""
+    from validation.engines.sabotage import SabotageError, chosen
+
+    try:
+        chosen()
+    except SabotageError as error:
+        return str(error)
+    if getattr(args, "scheduler", None) is not None:
+        from validation.jobs.dask_backend import distributed_missing
+
+        return distributed_missing()
+    return None
+
+
 def parser() -> argparse.ArgumentParser:
     root = argparse.ArgumentParser(
         prog="physval", description="Reference-validated rigid-body physics harness."
     )
-    root.add_argument("--version", action="version", version=version_text())
+    root.add_argument("--version", action=_VersionAction)
     sub = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, help_text) in COMMANDS.items():
         command = sub.add_parser(name, help=help_text, description=help_text)
@@ -231,7 +274,7 @@ def _jobs_argument(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--jobs",
         type=_positive_count,
-        default=default_jobs(),
+        default=os.cpu_count() or 1,
         metavar="N",
         help="parallel worker processes (default: the machine's cores; with --scheduler "
         "local, the local cluster's workers)",
@@ -271,7 +314,7 @@ def _conformance_arguments(command: argparse.ArgumentParser) -> None:
         "--only",
         action="append",
         metavar="CHECK",
-        help=f"run only this check (repeatable): {', '.join(CHECKS)}",
+        help=f"run only this check (repeatable): {', '.join(CONFORMANCE_CHECKS)}",
     )
 
 
@@ -311,7 +354,7 @@ def _compare_arguments(command: argparse.ArgumentParser) -> None:
 
 
 def _baseline_arguments(command: argparse.ArgumentParser) -> None:
-    command.add_argument("action", choices=sorted(BASELINE_ACTIONS), help="what to do")
+    command.add_argument("action", choices=sorted(BASELINE_ACTION_NAMES), help="what to do")
     command.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run folder")
     command.add_argument("--to", type=Path, metavar="FILE", required=True, help="the baseline file")
 
@@ -337,18 +380,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     args.argv = argv
     try:
-        chosen()  # PHYSVAL_SABOTAGE (validation.engines.sabotage) checked before any work
-    except SabotageError as error:
-        print(error, file=sys.stderr)
-        return EXIT_BAD_INPUT
-    try:
-        if getattr(args, "scheduler", None) is not None and distributed_missing():
-            print(distributed_missing(), file=sys.stderr)
+        problem = _environment_problem(args)
+        if problem:
+            print(problem, file=sys.stderr)
             return EXIT_BAD_INPUT
+        from validation.engine_api import discover  # the declarations only, never an engine
+
         for line in discover().broken:  # one line per broken engine plugin; the others run
             print(line, file=sys.stderr)
         return COMMANDS[args.command][0](args)
-    except (Interrupted, KeyboardInterrupt) as stop:
+    except (signals.Interrupted, KeyboardInterrupt) as stop:  # also signals.Stopped
         signum = signals.signal_number(stop)
         print(signals.stop_message(signum), file=sys.stderr)
         return signals.exit_code(signum)

@@ -13,6 +13,8 @@ IMPACTS_FILE = "impacts.csv"
 PROVENANCE_FILE = "provenance.json"
 REPORT_FILE = "report.html"
 BASELINE_FILE = "baseline.csv"
+BASELINE_ACTION_NAMES = ("save",)
+"""``physval baseline ACTION``: the actions (``validation.nightly.baseline.BASELINE_ACTIONS``)."""
 """In a run folder run against a baseline: every row's class, the baseline's rows the run
 lacks (``missing``) included, with the baseline's value and error next to the run's."""
 SWEEP_FILE = "sweep.csv"
@@ -140,3 +142,18 @@ INTERRUPTED_MESSAGE = (
 )
 """The one line a Ctrl-C prints, whenever it comes (results are published only after every
 job has finished; a run's finished jobs stay in its journal)."""
+
+
+CONFORMANCE_CHECKS = (
+    "declaration",
+    "parity",
+    "frames",
+    "advance",
+    "observe",
+    "determinism",
+    "close",
+    "provenance",
+    "capabilities",
+)
+"""The checks of ``physval conformance``, in the order they run (``validation.jobs.conformance``
+defines each; ``--only`` takes these names)."""

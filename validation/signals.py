@@ -32,6 +32,16 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
+class Interrupted(Exception):  # noqa: N818 (a user action, not an error)
+    """Ctrl-C, or a stop signal (``signum``), that ended a run of jobs: every worker has been
+    stopped (``validation.jobs.executor`` raises it). An ``Exception``, so that each layer's
+    clean-up runs on the way out; the commands turn it into the one line."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
 def _raise_stopped(signum: int, _frame) -> None:
     raise Stopped(signum)
 

@@ -10,6 +10,11 @@ from validation.jobs.plan import duplicate_name
 from validation.scenario import check_scenario, scenario_files
 
 
+def _counted(count: int, noun: str) -> str:
+    """``1 file``, ``2 files``, ``0 warnings``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def check_main(paths: list[Path]) -> int:
     """Print every problem of the files under ``paths``; 0 if all are valid, else 2."""
     missing = [p for p in paths if not Path(p).exists()]
@@ -34,5 +39,8 @@ def check_main(paths: list[Path]) -> int:
         for problem in problems:
             print(problem, file=sys.stderr if not problem.warning else sys.stdout)
     valid = len(files) - invalid
-    print(f"{len(files)} files: {valid} valid, {invalid} invalid, {warnings} warnings")
+    print(
+        f"{_counted(len(files), 'file')}: {valid} valid, {invalid} invalid, "
+        f"{_counted(warnings, 'warning')}"
+    )
     return EXIT_OK if invalid == 0 else EXIT_BAD_INPUT

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.contract import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK
+from validation.contract import CONFORMANCE_CHECKS, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK
 from validation.engine_api import (
     FEATURES,
     SHAPES,
@@ -578,7 +578,10 @@ CHECKS: dict[str, Callable[[Subject], CheckResult]] = {
     "provenance": check_provenance,
     "capabilities": check_capabilities,
 }
-"""Every conformance check, in the order they run (the declaration first: the others need it)."""
+"""Every conformance check, in the order they run (the declaration first: the others need it);
+the names are ``contract.CONFORMANCE_CHECKS``."""
+
+assert tuple(CHECKS) == CONFORMANCE_CHECKS, "contract.CONFORMANCE_CHECKS is out of step"
 
 
 def subject_of(text: str) -> Subject:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextlib import nullcontext
@@ -32,7 +31,8 @@ from validation.jobs.dask_backend import (  # BackendError: the commands catch i
     BackendError,  # noqa: F401
     dask_executor,
 )
-from validation.signals import (
+from validation.signals import (  # Interrupted: the commands catch it from here
+    Interrupted,
     deferred,
     ignore_in_worker,
     ignored_while_starting_helpers,
@@ -45,14 +45,6 @@ WORKER_PRELOAD = [
     "validation.jobs.stability_search",
 ]
 """Modules the fork server imports once, so each worker starts with them loaded."""
-
-
-class Interrupted(Exception):  # noqa: N818 (a user action, not an error)
-    """Ctrl-C, or a stop signal (``signum``); every worker has been stopped."""
-
-    def __init__(self, signum: int = signal.SIGINT):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
 
 
 class SerialExecutor(Executor):

@@ -10,8 +10,6 @@ declarations; it imports no engine (a broken engine plugin is one line on stderr
 
 from __future__ import annotations
 
-import importlib.metadata
-import platform
 import sys
 import textwrap
 from pathlib import Path
@@ -20,6 +18,7 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engine_api import FEATURES, SHAPES, Count, EngineDeclaration, EngineOption, discover
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
 from validation.scenario.load import check_scenario, scenario_files
+from validation.versions import version_of
 
 LIST_WIDTH = 100
 """Columns of every line ``physval list`` prints (a CI log, a standard terminal)."""
@@ -27,24 +26,6 @@ LIST_WIDTH = 100
 NAME_WIDTH = 30
 """The name column of the scenes and definitions tables; longer names push their text over."""
 
-VERSION_PACKAGES = ("mujoco", "pybullet", "numpy")
-"""What ``physval --version`` names besides physval itself (the numbers' provenance)."""
-
-
-def version_of(distribution: str) -> str:
-    """The installed version of a distribution, or ``not installed``."""
-    try:
-        return importlib.metadata.version(distribution)
-    except importlib.metadata.PackageNotFoundError:
-        return "not installed"
-
-
-def version_text() -> str:
-    """``physval 0.1.0 (mujoco 3.x, pybullet 3.x, numpy 2.x, Python 3.11.7)``."""
-    parts = [f"{name} {version_of(name)}" for name in VERSION_PACKAGES]
-    return (
-        f"physval {version_of('physval')} ({', '.join(parts)}, Python {platform.python_version()})"
-    )
 
 
 def _row(name: str, text: str) -> list[str]:

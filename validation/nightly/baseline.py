@@ -256,4 +256,5 @@ def baseline_main(action: str, run_dir: Path, to: Path) -> int:
 
 
 BASELINE_ACTIONS = {"save": save_baseline}
-"""``physval baseline ACTION``: what each action does."""
+"""``physval baseline ACTION``: what each action does (its names are the contract's
+``BASELINE_ACTION_NAMES``, which the command line offers without importing this module)."""

@@ -19,6 +19,7 @@ from pydantic import (
     ValidationError,
 )
 
+from validation.bundled import BUNDLED_SCENARIOS, default_scenario_paths  # noqa: F401 (re-exported)
 from validation.engine_api import declarations
 from validation.scenario.checks import document_problems
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
@@ -41,16 +42,6 @@ from validation.scenario.yaml_source import (
     YamlSourceError,
     read_yaml,
 )
-
-BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent.parent / "scenarios"
-"""The library shipped with the project (the repository's scenarios/ folder)."""
-
-
-def default_scenario_paths() -> list[Path]:
-    """``./scenarios`` when run from a checkout, else the bundled library (what ``physval``
-    commands and ``pytest --physval`` run when given no paths)."""
-    local = Path("scenarios")
-    return [local if local.is_dir() else BUNDLED_SCENARIOS]
 
 
 class ScenarioWarning(UserWarning):

@@ -8,10 +8,12 @@ them to ``MUJOCO_LOG.TXT`` in the current directory); ``instability_warnings`` a
 
 from __future__ import annotations
 
+import importlib
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
+from types import ModuleType
 
-import mujoco
 import numpy as np
 
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
@@ -27,6 +29,22 @@ from validation.reference.rotation import quat_to_matrix
 from validation.scenario import Scenario
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
+
+NO_RENDERING = {"MUJOCO_GL": "disable"}
+"""physval never renders: without this, ``import mujoco`` loads GLFW, whose import starts a
+second Python to query the library's version; a Ctrl-C at that moment left that process
+printing a BrokenPipeError traceback after the run's one line. A user's own ``MUJOCO_GL``
+is kept."""
+
+
+def _import_headless(name: str) -> ModuleType:
+    """``import name`` with ``NO_RENDERING`` in the environment (unless already set)."""
+    for variable, value in NO_RENDERING.items():
+        os.environ.setdefault(variable, value)
+    return importlib.import_module(name)
+
+
+mujoco = _import_headless("mujoco")
 
 # --- provenance helpers -------------------------------------------------------------------
 

@@ -1,0 +1,16 @@
+"""Where the bundled scene library is, with nothing else imported: the commands' default
+paths, needed before a command knows whether it will load a scene at all."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+"""The scene library shipped with physval (``scenarios/`` of the checkout)."""
+
+
+def default_scenario_paths() -> list[Path]:
+    """``./scenarios`` when run from a checkout, else the bundled library (what ``physval``
+    commands and ``pytest --physval`` run when given no paths)."""
+    local = Path("scenarios")
+    return [local if local.is_dir() else BUNDLED_SCENARIOS]
