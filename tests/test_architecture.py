@@ -32,6 +32,7 @@ WINGS: dict[str, int] = {
     "validation.bundled": 0,  # where the scene library is: the commands' default paths
     "validation.versions": 0,  # installed versions from package metadata: --version, list
     "validation.contract": 1,
+    "validation.engine_api": 1,  # engine declarations and discovery: read by spec parsing
     "validation.files": 1,
     "validation.signals": 2,  # imports contract; imported by jobs, cli and entry
     "validation.reference": 1,  # the closed forms judged against: below all that reads them

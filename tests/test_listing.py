@@ -8,7 +8,8 @@ import importlib.metadata
 import pytest
 
 from validation.cli import main
-from validation.jobs.listing import LIST_WIDTH
+from validation.engine_api import declarations
+from validation.jobs.listing import LIST_WIDTH, version_of
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
 from validation.scenario import BUNDLED_SCENARIOS
 from validation.scenario.engine_spec import ENGINE_OPTIONS
@@ -23,10 +24,16 @@ def test_list_names_every_scene_engine_option_metric_and_expectation(capsys):
     ]
     for file in scenario_files([BUNDLED_SCENARIOS]):
         assert file.stem in names, file
+    words = " ".join(out.split())  # the lines wrap within LIST_WIDTH
     for engine, options in ENGINE_OPTIONS.items():
         assert engine in names, engine
         for key in options:
             assert f" {key}: " in out, (engine, key)
+    for engine, declaration in declarations().items():
+        assert f"{declaration.distribution} {version_of(declaration.distribution)}: {declaration.summary}" in words
+        for option in declaration.options:
+            assert f"{option.meaning}" in words, (engine, option.name)
+    assert "supports every shape and scene feature" in words
     for name in (*METRIC_DEFINITIONS, *EXPECTATION_DEFINITIONS):
         assert name in names, name
     assert f"mujoco {importlib.metadata.version('mujoco')}" in out

@@ -24,7 +24,7 @@ from validation.bundled import (  # BUNDLED_SCENARIOS: tests and scripts import 
     BUNDLED_SCENARIOS,  # noqa: F401
     default_scenario_paths,
 )
-from validation.contract import BASELINE_ACTION_NAMES, EXIT_BAD_INPUT, EXIT_OK
+from validation.contract import BASELINE_ACTION_NAMES, CONFORMANCE_CHECKS, EXIT_BAD_INPUT, EXIT_OK
 
 
 def command_check(args: argparse.Namespace) -> int:
@@ -126,6 +126,13 @@ def command_list(args: argparse.Namespace) -> int:
     return list_main(args.paths or default_scenario_paths())
 
 
+def command_conformance(args: argparse.Namespace) -> int:
+    """Check an engine adapter against the adapter contract; 0 all pass, 1 one fails, 2 bad input."""
+    from validation.jobs.conformance import conformance_main
+
+    return conformance_main(args.engine, args.only)
+
+
 def command_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of the scenario format (for editors)."""
     from validation.scenario import json_schema
@@ -141,6 +148,10 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "sweep": (command_sweep, "error against run time over a timestep sweep"),
     "check": (command_check, "validate scenario files and folders (default: the bundled library)"),
     "schema": (command_schema, "print the JSON Schema of the scenario format"),
+    "conformance": (
+        command_conformance,
+        "check an engine adapter against the adapter contract (the boundary, not the physics)",
+    ),
     "list": (
         command_list,
         "the scenes, the engines with their versions and options, the metrics and expectations",
@@ -297,6 +308,16 @@ def _sweep_arguments(command: argparse.ArgumentParser) -> None:
     _jobs_argument(command)
 
 
+def _conformance_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument("engine", metavar="ENGINE_SPEC", help="e.g. mujoco or mini(gyroscopic=implicit)")
+    command.add_argument(
+        "--only",
+        action="append",
+        metavar="CHECK",
+        help=f"run only this check (repeatable): {', '.join(CONFORMANCE_CHECKS)}",
+    )
+
+
 def _db_argument(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--db", metavar="URL", help="history database URL or SQLite file (reports/history.sqlite)"
@@ -345,6 +366,7 @@ ARGUMENTS = {
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
     "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
     "list": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+    "conformance": _conformance_arguments,
     "history": _history_arguments,
     "compare": _compare_arguments,
     "baseline": _baseline_arguments,
@@ -362,6 +384,10 @@ def main(argv: list[str] | None = None) -> int:
         if problem:
             print(problem, file=sys.stderr)
             return EXIT_BAD_INPUT
+        from validation.engine_api import discover  # the declarations only, never an engine
+
+        for line in discover().broken:  # one line per broken engine plugin; the others run
+            print(line, file=sys.stderr)
         return COMMANDS[args.command][0](args)
     except (signals.Interrupted, KeyboardInterrupt) as stop:  # also signals.Stopped
         signum = signals.signal_number(stop)

@@ -144,3 +144,18 @@ INTERRUPTED_MESSAGE = (
 )
 """The one line a Ctrl-C prints, whenever it comes (results are published only after every
 job has finished; a run's finished jobs stay in its journal)."""
+
+
+CONFORMANCE_CHECKS = (
+    "declaration",
+    "parity",
+    "frames",
+    "advance",
+    "observe",
+    "determinism",
+    "close",
+    "provenance",
+    "capabilities",
+)
+"""The checks of ``physval conformance``, in the order they run (``validation.jobs.conformance``
+defines each; ``--only`` takes these names)."""

@@ -8,8 +8,14 @@ such row against its tolerance; a case whose every bad row is a known finding is
 (strict=False: a known finding that passes again reads XPASS, not a failure). ``-k``, ``-x``,
 ``--junitxml`` and pytest-xdist's ``-n`` work as for any test.
 
-Without ``--physval`` the plugin only adds its option: nothing of physval beyond this module
-is imported, and nothing is collected. With it, the scene paths (default: ``./scenarios``
+``pytest --physval-conformance ENGINE_SPEC`` (repeatable) adds one item per conformance check
+of that engine (``validation.jobs.conformance``), node id ``conformance[<spec>]::<check>``, to
+whatever else is collected; the ``physval_conformance`` fixture is ``run_conformance`` itself
+(``physval_conformance("myengine")`` -> the list of ``CheckResult``), for an adapter's own
+test suite.
+
+Without ``--physval`` the plugin only adds its options and fixture: nothing of physval beyond
+this module is imported, and nothing is collected. With it, the scene paths (default: ``./scenarios``
 or the bundled library) replace pytest's default test paths; paths given as pytest
 arguments are collected too.
 """
@@ -40,10 +46,84 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         help="run physval scenes (files or folders; default ./scenarios or the bundled "
         "library), one test per (scene, engine spec)",
     )
+    _add_conformance_option(group)
+
+
+CONFORMANCE_OPTION = "--physval-conformance"
+CONFORMANCE_DEST = "physval_conformance"
+
+
+@pytest.fixture
+def physval_conformance():
+    """``run_conformance(engine_spec, only=None)``: every conformance check's ``CheckResult``."""
+    from validation.jobs.conformance import run_conformance
+
+    return run_conformance
+
+
+def _add_conformance_option(group) -> None:
+    group.addoption(
+        CONFORMANCE_OPTION,
+        action="append",
+        default=None,
+        dest=CONFORMANCE_DEST,
+        metavar="ENGINE_SPEC",
+        help="check an engine adapter against the adapter contract, one test per check "
+        "(repeatable)",
+    )
+
+
+class ConformanceFailedError(Exception):
+    """A conformance check found problems (the text lists them)."""
+
+
+class ConformanceItem(pytest.Item):
+    """One conformance check of one engine spec."""
+
+    def __init__(self, *, spec: str, check: str, **kwargs):
+        super().__init__(**kwargs)
+        self.spec, self.check = spec, check
+
+    def runtest(self) -> None:
+        from validation.jobs.conformance import run_conformance
+
+        (result,) = run_conformance(self.spec, [self.check])
+        if not result.passed:
+            raise ConformanceFailedError("\n".join([f"{self.spec} {self.check}:", *result.problems]))
+
+    def repr_failure(self, excinfo, style=None):
+        if isinstance(excinfo.value, ConformanceFailedError):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style)
+
+    def reportinfo(self):
+        return self.path, None, f"conformance {self.spec} · {self.check}"
+
+
+class ConformanceCollector:
+    """Adds the ``--physval-conformance`` items after the rest is collected."""
+
+    def __init__(self, specs: list[str]):
+        self.specs = specs
+
+    def pytest_collection_modifyitems(self, session, config, items) -> None:
+        from validation.jobs.conformance import CHECKS
+
+        items.extend(
+            ConformanceItem.from_parent(
+                session, name=f"conformance[{spec}]::{check}", spec=spec, check=check
+            )
+            for spec in self.specs
+            for check in CHECKS
+        )
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """With ``--physval``: collect the scene paths and register the collector."""
+    """With ``--physval``: collect the scene paths and register the collector; with
+    ``--physval-conformance``: register the conformance items."""
+    specs = config.getoption(CONFORMANCE_DEST)
+    if specs:
+        config.pluginmanager.register(ConformanceCollector(specs), "physval-conformance")
     given = config.getoption(DEST)
     if given is None:
         return

@@ -1,10 +1,35 @@
-"""The engine interface every adapter implements, and the records it produces.
+"""The public adapter contract (version ``API_VERSION``): what an engine adapter implements,
+the records it returns, and the declaration that tells physval about it.
 
-An adapter turns a ``Scenario`` into one engine's model, advances it by whole steps,
-and reads the state back in the scene's conventions: bodies in scenario order (the
-ground plane is never a body of the snapshot), centre of mass, quaternions w x y z,
-linear and angular velocity in the world frame. Every unit, frame and quaternion-order
-conversion happens inside the adapter, at its boundary, and nowhere else.
+An engine joins physval as a package that registers an ``EngineDeclaration`` under the entry
+point group ``physval.engines`` (``docs/adapters.md``; ``examples/engine_plugin`` is a
+complete one). Everything an adapter author needs is importable from this module.
+
+The declaration (``validation.engine_api``, re-exported here) is data and imports nothing of
+the engine: the options a spec may carry (``EngineOption``: name, type, choices, default,
+meaning), the capabilities (``Capabilities``: shapes, scene features such as springs, loads,
+restitution, friction, tilted ground; integrators, precision, stepping) and the adapter's
+``module:Class``. A scene that needs a capability the engine lacks is not run in it: its rows
+are ``unsupported`` with the reason, never a silent approximation.
+
+The adapter (``EngineAdapter``) turns a ``CompiledScene`` into one engine's model, advances
+it, and reads the state back. Conventions, all at the adapter's boundary and nowhere else:
+
+- units: SI (m, kg, s, N, rad); inertias in kg·m²;
+- frames: one right-handed world frame, gravity as the scene states it (usually -z);
+  positions, velocities and angular velocities in the world frame; a body's frame has its
+  origin at its centre of mass and the scene's axes (``BodySpec.orientation`` at t = 0);
+- quaternions: unit, scalar first (w, x, y, z), rotating the body frame into the world;
+- body order: the scene's ``bodies`` list, fixed bodies included (at rest); the ground plane
+  is never a body of a snapshot;
+- time: ``advance(n)`` moves the state on by n·dt (the scene's dt): n fixed steps for a
+  ``fixed`` engine, the time n·dt at its stated accuracy for an ``error_controlled`` one;
+  ``advance(n)`` equals n × ``advance(1)`` (exactly, or to ``advance_tolerance``), observing
+  never changes the run, and the same scene and spec give the same states on every rerun;
+- provenance: ``Provenance.settings`` holds every option the spec sets, under its name (or
+  ``spec.<name>`` where the engine's own settings use the same name), with the value used.
+
+``physval conformance ENGINE_SPEC`` checks an adapter against these rules.
 """
 
 from __future__ import annotations
@@ -14,8 +39,36 @@ from typing import Protocol
 
 import numpy as np
 
+from validation.engine_api import (
+    API_VERSION,
+    ENTRY_POINT_GROUP,
+    FEATURES,
+    SHAPES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
+
+__all__ = [
+    "API_VERSION",
+    "ENTRY_POINT_GROUP",
+    "FEATURES",
+    "SHAPES",
+    "Capabilities",
+    "CompiledScene",
+    "Count",
+    "EngineAdapter",
+    "EngineDeclaration",
+    "EngineOption",
+    "EngineSpec",
+    "ModelReport",
+    "Provenance",
+    "Snapshot",
+    "Trajectory",
+]
 
 
 @dataclass(frozen=True)
@@ -110,7 +163,13 @@ class Provenance:
 
 
 class EngineAdapter(Protocol):
-    """One engine behind one small interface (Solver2D's pattern: one file per engine)."""
+    """One engine behind one small interface (Solver2D's pattern: one file per engine).
+
+    Constructed with the parsed ``EngineSpec`` only (its settings already checked against the
+    declaration); ``load`` is called once, then ``model_report`` (the parity gate), then
+    ``advance``/``observe`` (or ``advance_observed``), ``provenance``, and always ``close``,
+    also after an exception.
+    """
 
     spec: EngineSpec
 
@@ -134,4 +193,4 @@ class EngineAdapter(Protocol):
         """Version and effective settings."""
 
     def close(self) -> None:
-        """Release the engine (PyBullet clients, for example)."""
+        """Release the engine (PyBullet clients, for example); idempotent."""

@@ -1,21 +1,22 @@
 """``physval list``: what this installation can run and measure, and ``physval --version``.
 
-Three sections: the scenes (name, file, engines), the engines (version and the options a spec
-takes), and the metrics and expectation kinds with their one-line definitions (the report's
-legend). It reads the scene files and the installed packages' metadata; it imports no engine.
+Three sections: the scenes (name, file, engines), the engines (every installed one, built-in
+or plugin: its version, what it is, its capabilities and the options a spec takes, from its
+declaration), and the metrics and expectation kinds with their one-line definitions (the
+report's legend). It reads the scene files, the installed packages' metadata and the engines'
+declarations; it imports no engine (a broken engine plugin is one line on stderr, printed by
+``physval``'s entry).
 """
 
 from __future__ import annotations
 
 import sys
 import textwrap
-from dataclasses import fields
 from pathlib import Path
 
-from mini_engine.settings import Settings
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.engine_api import FEATURES, SHAPES, Count, EngineDeclaration, EngineOption, discover
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
-from validation.scenario.engine_spec import ENGINE_OPTIONS, Count, Option
 from validation.scenario.load import check_scenario, scenario_files
 from validation.versions import version_of
 
@@ -25,8 +26,6 @@ LIST_WIDTH = 100
 NAME_WIDTH = 30
 """The name column of the scenes and definitions tables; longer names push their text over."""
 
-ENGINE_DISTRIBUTIONS = {"mini": "physval", "mujoco": "mujoco", "pybullet": "pybullet"}
-"""The installed distribution whose version is each engine's version (mini ships with physval)."""
 
 
 def _row(name: str, text: str) -> list[str]:
@@ -41,38 +40,45 @@ def _row(name: str, text: str) -> list[str]:
     ) or [head.rstrip()]
 
 
-def _option_text(key: str, option: Option, default: object | None) -> str:
-    """``gyroscopic: none|explicit|implicit (default none)`` and the like."""
-    if isinstance(option, tuple):
-        accepted = "|".join(option)
-    elif option is Count:
-        accepted = "a whole number >= 1"
-    else:
-        accepted = {bool: "true|false", int: "an integer", float: "a number"}.get(option, "?")
+ACCEPTED_TEXT = {Count: "a whole number >= 1", bool: "true|false", int: "an integer", float: "a number"}
+"""How a number option's accepted values read (a word option lists its words)."""
+
+
+def _option_text(option: EngineOption) -> str:
+    """``gyroscopic: none|explicit|implicit (default none): the gyroscopic term ...``."""
+    accepted = "|".join(option.choices) if option.type is str else ACCEPTED_TEXT[option.type]
+    default = option.default
     shown = (
         ""
         if default is None
         else f" (default {str(default).lower() if isinstance(default, bool) else default})"
     )
-    return f"{key}: {accepted}{shown}"
+    return f"{option.name}: {accepted}{shown}: {option.meaning}"
 
 
-def _defaults(engine: str) -> dict[str, object]:
-    """The options' defaults where the engine states them (mini's ``Settings``); MuJoCo's and
-    PyBullet's depend on the spec's ``profile``."""
-    if engine != "mini":
-        return {}
-    return {item.name: getattr(Settings(), item.name) for item in fields(Settings)}
+def _capability_text(declaration: EngineDeclaration) -> str:
+    """``supports sphere, box, ...; lacks springs; integrators ...; float64, fixed steps``."""
+    capabilities = declaration.capabilities
+    lacking = [w for w in (*SHAPES, *FEATURES) if w not in capabilities.supported]
+    parts = ["supports every shape and scene feature"]
+    if lacking:
+        has = [w for w in (*SHAPES, *FEATURES) if w in capabilities.supported]
+        parts = [f"supports {', '.join(has) or 'nothing'}", f"lacks {', '.join(lacking)}"]
+    if capabilities.integrators:
+        parts.append(f"integrators {', '.join(capabilities.integrators)}")
+    parts.append(f"{capabilities.precision}, {capabilities.stepping} steps")
+    return "; ".join(parts)
 
 
 def engine_lines() -> list[str]:
+    """Every installed engine: its distribution and version, summary, capabilities, options."""
     lines = ["engines (an option is written name(key=value, ...), e.g. mini(gyroscopic=implicit)):"]
-    for engine, options in ENGINE_OPTIONS.items():
-        defaults = _defaults(engine)
-        version = f"{ENGINE_DISTRIBUTIONS[engine]} {version_of(ENGINE_DISTRIBUTIONS[engine])}"
-        lines += _row(engine, version)
-        for key, option in options.items():
-            lines += _row("", _option_text(key, option, defaults.get(key)))
+    for name, declaration in discover().engines.items():
+        version = f"{declaration.distribution} {version_of(declaration.distribution)}"
+        lines += _row(name, f"{version}: {declaration.summary}")
+        lines += _row("", _capability_text(declaration))
+        for option in declaration.options:
+            lines += _row("", _option_text(option))
     return lines
 
 

@@ -127,9 +127,10 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
     return StabilityLimit(scenario.name or "", spec.label, stable, unstable, reason)
 
 
-NOT_RUN = ("model_mismatch", "error")
-"""Run statuses that say nothing of stability: the model failed the parity gate, or the
-engine raised (a model it cannot compile); reported as such, never as unstable."""
+NOT_RUN = ("model_mismatch", "error", "unsupported")
+"""Run statuses that say nothing of stability: the model failed the parity gate, the
+engine raised (a model it cannot compile), or it lacks a capability the scene needs;
+reported as such, never as unstable."""
 
 
 class _NotRunError(Exception):

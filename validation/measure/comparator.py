@@ -86,7 +86,7 @@ def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
         "error": None,
         "tolerance": None,
         "band": None,
-        "passed": False,
+        "passed": None if run.status == "unsupported" else False,  # not run: not judged
         "status": run.status,
         "message": run.message,
         **dict.fromkeys(SIGNED_COLUMNS),

@@ -9,7 +9,10 @@ returns an ``EngineRun`` whose ``status`` says what happened:
 - ``unstable``: the run failed one of the stability checks (``stability.KINDS``: non-finite
   state, energy blow-up, quaternion drift, tunnelling, impossible speed, the engine's own
   instability warning); the run stops there and is kept for the report;
-- ``error``: the engine raised; the message carries the exception.
+- ``error``: the engine raised; the message carries the exception;
+- ``unsupported``: the scene needs a capability the engine's declaration lacks
+  (``validation.scenario.needs``); the message names each and why; the engine is not even
+  imported.
 
 Metrics and the comparison with tolerances (``failed``) come on top of this
 (``validation.measure.comparator``).
@@ -23,13 +26,15 @@ from typing import Any
 
 import numpy as np
 
+from validation.engine_api import declaration_of
 from validation.engines.base import Provenance
-from validation.engines.parity import Mismatch, compare
+from validation.engines.parity import PRECISION_TOLERANCE, Mismatch, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.measure.recording import Recording, record
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
+from validation.scenario.needs import missing, unsupported_message
 
 
 @dataclass
@@ -56,11 +61,20 @@ def run_engine(
     every engine failure becomes a status, never an exception."""
     start = time.perf_counter()
     run = EngineRun(scene.name, spec.label, "error")
+    capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
+    lacking = missing(capabilities, scene.scenario)
+    if lacking:
+        run.status, run.message = "unsupported", unsupported_message(spec.name, lacking)
+        return run
     adapter = create_adapter(spec)
     try:
         adapter.load(scene)
         run.provenance = adapter.provenance()
-        run.mismatches = compare(adapter.model_report(), reference_report(scene))
+        run.mismatches = compare(
+            adapter.model_report(),
+            reference_report(scene),
+            PRECISION_TOLERANCE[capabilities.precision],
+        )
         if run.mismatches:
             run.status = "model_mismatch"
             run.message = "; ".join(str(m) for m in run.mismatches)

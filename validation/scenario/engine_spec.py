@@ -1,10 +1,10 @@
 """Engine specs: ``name`` or ``name(key=value, ...)``, parsed once and checked per engine.
 
 The same strings work in a scenario's ``engines:`` list and on the command line
-(``--engines "mini(gyroscopic=implicit),mujoco(integrator=RK4)"``). Each engine
-declares its settings in ``ENGINE_OPTIONS``: a setting is either a tuple of
-accepted words or a number type. Unknown engines and settings are errors that
-name the nearest valid word.
+(``--engines "mini(gyroscopic=implicit),mujoco(integrator=RK4)"``). Each installed engine
+declares its settings as data (``validation.engine_api.EngineDeclaration.options``): a
+setting is either a tuple of accepted words or a number type. Unknown engines and settings
+are errors that name the nearest valid word. Nothing here imports an engine.
 """
 
 from __future__ import annotations
@@ -12,53 +12,37 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from dataclasses import dataclass, fields
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 
-from mini_engine.settings import CHOICES as MINI_CHOICES
-from mini_engine.settings import Settings
-
-
-class Count(int):
-    """A setting that counts something (solver iterations): a whole number >= 1. Engines take
-    a non-positive count silently (MuJoCo's -5 iterations make a scene unstable, PyBullet's -1
-    falls back to 50), so it is refused here, in every engine's spec."""
-
+from validation.engine_api import Count, declarations, discover
 
 Option = tuple[str, ...] | type
 """Accepted values of one setting: a tuple of words, ``Count``, or ``int``/``float``/``bool``."""
 
 
-def _mini_options() -> dict[str, Option]:
-    """Every field of ``mini_engine.Settings`` except dt (the scene's), typed from its default."""
-    options: dict[str, Option] = {}
-    for item in fields(Settings):
-        if item.name == "dt":
-            continue
-        default = getattr(Settings(), item.name)
-        kind = type(default)
-        if item.name.endswith("iterations"):
-            kind = Count
-        options[item.name] = MINI_CHOICES.get(item.name, kind)
-    return options
+class _EngineOptions(Mapping[str, dict[str, Option]]):
+    """Engine name -> {setting: accepted values}, read from the installed engines'
+    declarations when first used (discovery reads the installed metadata once)."""
+
+    def _table(self) -> dict[str, dict[str, Option]]:
+        return {
+            name: {option.name: option.accepted for option in declaration.options}
+            for name, declaration in declarations().items()
+        }
+
+    def __getitem__(self, name: str) -> dict[str, Option]:
+        return self._table()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(declarations())
+
+    def __len__(self) -> int:
+        return len(declarations())
 
 
-ENGINE_OPTIONS: dict[str, dict[str, Option]] = {
-    "mini": _mini_options(),
-    "mujoco": {
-        "profile": ("matched", "defaults"),
-        "integrator": ("Euler", "RK4", "implicit", "implicitfast"),
-        "solver": ("auto", "Newton", "CG", "PGS"),
-        "cone": ("pyramidal", "elliptic"),
-        "restitution": ("damper", "soft"),
-        "iterations": Count,
-    },
-    "pybullet": {
-        "profile": ("matched", "defaults"),
-        "bodies": ("maximal", "multibody"),
-        "solver_iterations": Count,
-    },
-}
-"""Settings each engine accepts in a spec (the adapters read them)."""
+ENGINE_OPTIONS: Mapping[str, dict[str, Option]] = _EngineOptions()
+"""Settings each installed engine accepts in a spec (the adapters read them)."""
 
 DEFAULT_ENGINES = ("mini", "mujoco", "pybullet")
 
@@ -134,12 +118,17 @@ def parse_engine_spec(text: str) -> EngineSpec:
     if match is None:
         raise EngineSpecError(f"expected an engine spec like name or name(key=value); got {text!r}")
     name, inner = match.group(1), match.group(2)
-    if name not in ENGINE_OPTIONS:
+    engines = declarations()
+    if name not in engines:
+        broken = discover().broken_names.get(name)
+        if broken:
+            raise EngineSpecError(f"engine {name!r} is installed but broken: {broken}")
         raise EngineSpecError(
-            f"unknown engine {name!r}; expected one of {', '.join(ENGINE_OPTIONS)}"
-            + _suggest(name, ENGINE_OPTIONS)
+            f"unknown engine {name!r}; expected one of {', '.join(engines)}"
+            + _suggest(name, engines)
         )
-    options = ENGINE_OPTIONS[name]
+    declaration = engines[name]
+    options = {option.name: option.accepted for option in declaration.options}
     settings: list[tuple[str, str | int | float | bool]] = []
     for part in [p for p in (inner or "").split(",") if p.strip()]:
         key, sep, raw = (s.strip() for s in part.partition("="))
@@ -153,11 +142,11 @@ def parse_engine_spec(text: str) -> EngineSpec:
         if any(key == seen for seen, _ in settings):
             raise EngineSpecError(f"{name}: setting {key!r} given twice")
         settings.append((key, _convert(name, key, raw, options[key])))
-    if name == "mini":  # the engine's own validation, so that values are checked once here
+    if declaration.check_settings is not None:  # the engine's own validation, checked once here
         try:
-            Settings(**dict(settings))
+            declaration.check_settings(dict(settings))
         except ValueError as error:
-            raise EngineSpecError(f"mini: {error}") from None
+            raise EngineSpecError(f"{name}: {error}") from None
     return EngineSpec(name, tuple(settings))
 
 

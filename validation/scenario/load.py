@@ -11,6 +11,7 @@ errors, for ``physval check`` to print.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from pydantic import (
 )
 
 from validation.bundled import BUNDLED_SCENARIOS, default_scenario_paths  # noqa: F401 (re-exported)
+from validation.engine_api import declarations
 from validation.scenario.checks import document_problems
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.physics import initial_overlaps
@@ -149,12 +151,29 @@ def scenario_files(paths: list[str | Path]) -> list[Path]:
     return files
 
 
+def _describe_engines(engines: dict) -> None:
+    """The ``engines`` list's items: a spec of an installed engine (the name by pattern, the
+    options each engine declares in the description), read from the declarations."""
+    found = declarations()
+    names = "|".join(re.escape(name) for name in found)
+    options = "; ".join(
+        f"{name}({', '.join(o.name for o in declaration.options) or 'no options'})"
+        for name, declaration in found.items()
+    )
+    engines["items"] = {
+        "type": "string",
+        "pattern": rf"^\s*({names})\s*(\(.*\))?\s*$",
+        "description": f"an engine spec name or name(key=value, ...); installed: {options}",
+    }
+
+
 def json_schema() -> dict:
     """The JSON Schema of the format (for editors: the YAML language server)."""
     schema = Scenario.model_json_schema()
     schema["properties"].pop("source", None)
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "physval scenario, version 1"
+    _describe_engines(schema["properties"]["engines"])
     schema["description"] = (
         f"A physval scene. The file may have at most {MAX_BYTES} bytes and expand to at most "
         f"{MAX_VALUES} values, the size cap over {BYTES_PER_VALUE} bytes a value (plain values "

@@ -35,6 +35,7 @@ from itertools import combinations
 
 import numpy as np
 
+from validation.engines.mujoco.declaration import DECLARATION
 from validation.scenario import BodySpec, Scenario
 from validation.scenario.physics import body_inertia, ground_pose, pair_rule, rest_length
 
@@ -123,14 +124,12 @@ INTEGRATORS = {
 """Spec word -> MJCF option value (case-sensitive in MJCF, engines.md 1.1)."""
 
 DEFAULT_SETTINGS: dict[str, object] = {
-    "profile": "matched",
-    "integrator": "Euler",  # the documented engine is semi-implicit Euler; MuJoCo's default too
-    "solver": "auto",
+    **{option.name: option.default for option in DECLARATION.options},
     "cone": "auto",  # not a spec word: resolved by ``choose_cone``
-    "restitution": "damper",
-    "iterations": 100,  # MuJoCo's default (engines.md 1.2)
 }
-"""Every ``ENGINE_OPTIONS["mujoco"]`` setting and the value used when a spec omits it."""
+"""Every option of MuJoCo's declaration and the value used when a spec omits it (the
+declaration's defaults: integrator Euler, the documented engine's semi-implicit Euler and
+MuJoCo's default too; iterations 100, MuJoCo's default, engines.md 1.2)."""
 
 RESTITUTION_NOTES = {
     "damper": (

@@ -693,6 +693,7 @@ class PybulletAdapter:
             "engine_parameters": self._engine_parameters(),
             "profile": self.profile_name,
             "bodies": self.bodies_mode,
+            "solver_iterations": self.solver_iterations,
             "ground": (
                 {"shape": "GEOM_BOX", "halfExtents": list(GROUND_BOX_HALF_EXTENTS)}
                 if self.profile.ground == "box"
