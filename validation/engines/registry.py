@@ -12,6 +12,7 @@ ADAPTERS: dict[str, str] = {
     "mini": "validation.engines.mini.adapter:MiniAdapter",
     "mujoco": "validation.engines.mujoco.adapter:MujocoAdapter",
     "pybullet": "validation.engines.pybullet.adapter:PybulletAdapter",
+    "rapier": "validation.engines.rapier.adapter:RapierAdapter",
 }
 """Engine name -> ``module:Class``; imported on first use, so a run pays only for the
 engines it names."""

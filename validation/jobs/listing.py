@@ -25,7 +25,12 @@ LIST_WIDTH = 100
 NAME_WIDTH = 30
 """The name column of the scenes and definitions tables; longer names push their text over."""
 
-ENGINE_DISTRIBUTIONS = {"mini": "physval", "mujoco": "mujoco", "pybullet": "pybullet"}
+ENGINE_DISTRIBUTIONS = {
+    "mini": "physval",
+    "mujoco": "mujoco",
+    "pybullet": "pybullet",
+    "rapier": "rapier3d",
+}
 """The installed distribution whose version is each engine's version (mini ships with physval)."""
 
 

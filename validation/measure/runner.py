@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from validation.engines.base import Provenance
-from validation.engines.parity import Mismatch, compare
+from validation.engines.parity import PRECISION_TOLERANCE, Mismatch, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.measure.recording import Recording, record
@@ -60,7 +60,11 @@ def run_engine(
     try:
         adapter.load(scene)
         run.provenance = adapter.provenance()
-        run.mismatches = compare(adapter.model_report(), reference_report(scene))
+        run.mismatches = compare(
+            adapter.model_report(),
+            reference_report(scene),
+            PRECISION_TOLERANCE[getattr(adapter, "precision", "float64")],
+        )
         if run.mismatches:
             run.status = "model_mismatch"
             run.message = "; ".join(str(m) for m in run.mismatches)

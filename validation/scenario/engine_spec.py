@@ -10,6 +10,7 @@ name the nearest valid word.
 from __future__ import annotations
 
 import difflib
+import importlib.util
 import math
 import re
 from dataclasses import dataclass, fields
@@ -57,8 +58,23 @@ ENGINE_OPTIONS: dict[str, dict[str, Option]] = {
         "bodies": ("maximal", "multibody"),
         "solver_iterations": Count,
     },
+    "rapier": {
+        "profile": ("matched", "defaults"),
+        "gyroscopic": ("on", "off"),
+        "ccd": ("on", "off"),
+        "friction_model": ("coulomb", "simplified"),
+        "solver_iterations": Count,
+    },
 }
-"""Settings each engine accepts in a spec (the adapters read them)."""
+"""Settings each engine accepts in a spec (the adapters read them; Rapier's meanings are in
+``validation.engines.rapier.declaration.OPTIONS``)."""
+
+OPTIONAL_ENGINES: dict[str, tuple[str, str]] = {
+    "rapier": ("rapier3d", 'pip install "physval[rapier]"'),
+}
+"""Engines whose package is an optional extra: name -> (the module it imports, the install
+command). Naming one that is not installed is a spec error, one line with that command,
+found without importing the engine."""
 
 DEFAULT_ENGINES = ("mini", "mujoco", "pybullet")
 
@@ -139,6 +155,7 @@ def parse_engine_spec(text: str) -> EngineSpec:
             f"unknown engine {name!r}; expected one of {', '.join(ENGINE_OPTIONS)}"
             + _suggest(name, ENGINE_OPTIONS)
         )
+    _check_installed(name)
     options = ENGINE_OPTIONS[name]
     settings: list[tuple[str, str | int | float | bool]] = []
     for part in [p for p in (inner or "").split(",") if p.strip()]:
@@ -159,6 +176,16 @@ def parse_engine_spec(text: str) -> EngineSpec:
         except ValueError as error:
             raise EngineSpecError(f"mini: {error}") from None
     return EngineSpec(name, tuple(settings))
+
+
+def _check_installed(name: str) -> None:
+    """An ``EngineSpecError`` naming the install command when an optional engine's package
+    is missing (``OPTIONAL_ENGINES``; ``find_spec`` reads the path, nothing is imported)."""
+    if name not in OPTIONAL_ENGINES:
+        return
+    module, command = OPTIONAL_ENGINES[name]
+    if importlib.util.find_spec(module) is None:
+        raise EngineSpecError(f"engine {name!r} needs the {module} package, not installed: {command}")
 
 
 def split_engine_list(text: str) -> list[str]:
