@@ -124,7 +124,8 @@ def test_observe_returns_every_body_in_scene_order_with_its_own_frame():
     for k, body in enumerate(scenario.bodies):
         quat = np.asarray(body.orientation) * np.sign(np.dot(start.quat[k], body.orientation))
         errors = {
-            "pos": np.abs(start.pos[k] - body.position).max() / max(1.0, np.abs(body.position).max()),
+            "pos": np.abs(start.pos[k] - body.position).max()
+            / max(1.0, np.abs(body.position).max()),
             "quat": np.abs(start.quat[k] - quat).max(),
             "vel": np.abs(start.vel[k] - body.velocity).max(),
             "ang_vel": np.abs(start.ang_vel[k] - body.angular_velocity).max() / 3.0,
@@ -175,10 +176,10 @@ def test_a_spinning_translating_body_reads_back_its_closed_form_rotation():
 
 
 @needs_rapier
-def test_advance_n_equals_n_single_steps():
+def test_advance_n_equals_n_single_steps_and_a_rerun_is_bit_identical():
     scenario = scene(ground={"restitution": 0.5}, bodies=[spinning_box(position=(0, 0, 0.5))])
     runs = []
-    for stepping in ("once", "singly"):
+    for stepping in ("once", "singly", "once"):
         adapter = adapter_for("rapier", scenario)
         try:
             if stepping == "once":
@@ -192,6 +193,7 @@ def test_advance_n_equals_n_single_steps():
             adapter.close()
     for field in ("pos", "quat", "vel", "ang_vel"):
         assert np.array_equal(getattr(runs[0], field), getattr(runs[1], field)), field
+        assert np.array_equal(getattr(runs[0], field), getattr(runs[2], field)), field
 
 
 # --- 2. parity ------------------------------------------------------------------------------
@@ -337,9 +339,7 @@ def test_defaults_profile_averages_the_two_restitutions():
 @needs_rapier
 def test_a_pair_override_is_set_on_the_contact():
     """Ball and ground both e = 0, the scene's ``pairs:`` says 0.8: the hook sets it."""
-    _, got = drop(
-        "rapier", 1.0, {}, pairs=[{"a": "ball", "b": "ground", "restitution": 0.8}]
-    )
+    _, got = drop("rapier", 1.0, {}, pairs=[{"a": "ball", "b": "ground", "restitution": 0.8}])
     assert abs(got - 0.8) <= RESTITUTION_TOLERANCE, f"e = {got:.9g}"
 
 
@@ -368,7 +368,9 @@ def test_provenance_says_float32_and_records_the_options():
 def test_a_library_scene_runs_through_the_runner():
     from validation.measure.runner import run_engine
 
-    scenario = load_scenario(Path(__file__).resolve().parent.parent / "scenarios/formulas/projectile.yaml")
+    scenario = load_scenario(
+        Path(__file__).resolve().parent.parent / "scenarios/formulas/projectile.yaml"
+    )
     run = run_engine(compile_scene(scenario), parse_engine_spec("rapier"))
     assert run.status == "ok", run.message
     assert run.provenance.engine == "rapier"
@@ -391,8 +393,18 @@ def test_run_with_rapier_missing_is_one_line_and_exit_2(monkeypatch, tmp_path, c
     monkeypatch.setitem(engine_spec.OPTIONAL_ENGINES, "rapier", NOT_INSTALLED)
     scene_file = Path(__file__).resolve().parent.parent / "scenarios/formulas/projectile.yaml"
     code = main(
-        ["run", str(scene_file), "--engines", "rapier", "--out", str(tmp_path / "out"),
-         "--history", "none", "--baseline", "none"]
+        [
+            "run",
+            str(scene_file),
+            "--engines",
+            "rapier",
+            "--out",
+            str(tmp_path / "out"),
+            "--history",
+            "none",
+            "--baseline",
+            "none",
+        ]
     )
     err = capsys.readouterr().err
     assert code == 2, err

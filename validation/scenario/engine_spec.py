@@ -185,7 +185,9 @@ def _check_installed(name: str) -> None:
         return
     module, command = OPTIONAL_ENGINES[name]
     if importlib.util.find_spec(module) is None:
-        raise EngineSpecError(f"engine {name!r} needs the {module} package, not installed: {command}")
+        raise EngineSpecError(
+            f"engine {name!r} needs the {module} package, not installed: {command}"
+        )
 
 
 def split_engine_list(text: str) -> list[str]:

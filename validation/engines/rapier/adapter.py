@@ -367,9 +367,12 @@ class RapierAdapter:
         return Trajectory(np.asarray(times, dtype=float), pos, quat, vel, ang_vel)
 
     def observe(self) -> Snapshot:
-        states = self._states(np.array([self.steps_taken * self.scenario.dt]), self._raw_state()[None])
+        states = self._states(
+            np.array([self.steps_taken * self.scenario.dt]), self._raw_state()[None]
+        )
         return Snapshot(
-            float(states.t[0]), *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel))
+            float(states.t[0]),
+            *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel)),
         )
 
     def model_report(self) -> ModelReport:
@@ -384,11 +387,12 @@ class RapierAdapter:
         for k in moving:
             body = bodies[self.handles[k]]
             properties = body.mass_properties
-            frame = quat_to_matrix(
-                from_xyzw(np.array([body.rotation.quaternion]))
-            )[0] @ quat_to_matrix(
-                from_xyzw(np.array([properties.principal_inertia_local_frame.quaternion]))
-            )[0]
+            frame = (
+                quat_to_matrix(from_xyzw(np.array([body.rotation.quaternion])))[0]
+                @ quat_to_matrix(
+                    from_xyzw(np.array([properties.principal_inertia_local_frame.quaternion]))
+                )[0]
+            )
             moments = np.array(properties.principal_inertia.to_tuple(), dtype=float)
             mass.append(float(body.mass))
             com.append(body.center_of_mass.to_tuple())

@@ -98,15 +98,25 @@ PROFILES: dict[str, Profile] = {
 }
 
 OPTIONS: dict[str, tuple[tuple[str, ...] | str, str]] = {
-    "profile": (("matched", "defaults"), "matched: set up to integrate the scene's model; "
-                "defaults: what a new user gets (default matched)"),
+    "profile": (
+        ("matched", "defaults"),
+        "matched: set up to integrate the scene's model; "
+        "defaults: what a new user gets (default matched)",
+    ),
     "gyroscopic": (("on", "off"), "RigidBody gyroscopic_forces; unset: the profile's (on)"),
-    "ccd": (("on", "off"), "continuous collision detection on moving bodies; unset: on when "
-            "matched, off for defaults"),
-    "friction_model": (("coulomb", "simplified"), "IntegrationParameters.friction_model; unset: "
-                       "coulomb when matched, simplified for defaults"),
-    "solver_iterations": ("Count", "IntegrationParameters.num_solver_iterations (substeps per "
-                          "step); unset: Rapier's 4"),
+    "ccd": (
+        ("on", "off"),
+        "continuous collision detection on moving bodies; unset: on when matched, off for defaults",
+    ),
+    "friction_model": (
+        ("coulomb", "simplified"),
+        "IntegrationParameters.friction_model; unset: "
+        "coulomb when matched, simplified for defaults",
+    ),
+    "solver_iterations": (
+        "Count",
+        "IntegrationParameters.num_solver_iterations (substeps per step); unset: Rapier's 4",
+    ),
 }
 """Option name -> (choices, or the name of a number type; meaning). The spec parser's table
 (``validation.scenario.engine_spec.ENGINE_OPTIONS["rapier"]``) lists the same names and
