@@ -16,7 +16,8 @@ Profiles (``declaration.PROFILES``, each choice documented there):
 
 - ``matched`` (default): gyroscopic term on, CCD on, Coulomb friction per contact point, the
   scene's combine rules (restitution by max, friction by geometric mean) and its ``pairs:``
-  overrides set on each contact by a ``modify_solver_contacts`` hook, no sleeping, no damping.
+  overrides set on each contact by a ``modify_solver_contacts`` hook, contacts only between
+  touching shapes (no speculative band), no sleeping, no damping.
 - ``defaults``: Rapier's own settings (Rapier's AVERAGE combine rule, the simplified friction
   model, sleeping, no CCD) with the scene's masses, inertias, shapes, gravity, dt and per-body
   contact values.
@@ -107,6 +108,7 @@ class Settings:
     friction_model: str
     combine: str
     sleeping: bool
+    prediction_distance: float | None
     solver_iterations: int | None
 
     @staticmethod
@@ -122,6 +124,7 @@ class Settings:
             friction_model=str(options.get("friction_model", profile.friction_model)),
             combine=profile.combine,
             sleeping=profile.sleeping,
+            prediction_distance=profile.prediction_distance,
             solver_iterations=None if iterations is None else int(iterations),
         )
 
@@ -189,6 +192,8 @@ class RapierAdapter:
         parameters = self.world.integration_parameters
         parameters.dt = float(scenario.dt)
         parameters.friction_model = FRICTION_MODELS[self.settings.friction_model]
+        if self.settings.prediction_distance is not None:
+            parameters.normalized_prediction_distance = self.settings.prediction_distance
         if self.settings.solver_iterations is not None:
             parameters.num_solver_iterations = self.settings.solver_iterations
 
@@ -442,6 +447,9 @@ class RapierAdapter:
             "ccd_enabled": SWITCH[s.ccd],
             "friction_model": s.friction_model,
             "can_sleep": s.sleeping,
+            "prediction_distance": (
+                s.prediction_distance if s.prediction_distance is not None else "Rapier default"
+            ),
             "combine_rules": (
                 {"restitution": "MAX", "friction": "GEOMETRIC_MEAN"}
                 if s.combine == "scene"

@@ -71,6 +71,21 @@ class Profile:
     its ``pairs:`` overrides); ``rapier``: Rapier's own (the average of the two colliders')."""
     sleeping: bool
     """Whether bodies may fall asleep (a sleeping body is no longer integrated)."""
+    prediction_distance: float | None
+    """m, ``IntegrationParameters.normalized_prediction_distance`` (length unit 1 m): how far
+    apart two shapes get a (speculative) contact; None keeps Rapier's 0.02."""
+
+
+MATCHED_PREDICTION_DISTANCE = 1e-6
+"""m. Rapier's speculative contacts (default band 0.02 m) stop an approaching body the step
+before it would touch: a sphere dropped from 1 m rebounds with e = 0.5 exactly but from 5.1 mm
+above the ground (measured), an impulse at a distance that the scene's rigid contact does not
+have, and that the harness, which sees an impact when shapes touch within its detection gap
+(``validation.measure.recording.DETECTION_GAP``, 1e-6 m), reads as "no impact". With the band
+at that gap the contact acts when the shapes touch or overlap: the same drop penetrates
+3.6 mm (v·dt) and rebounds with e = 0.5 exactly, from 0.1 mm to 3 m (measured); a body at rest
+sinks the same 68 µm either way (Rapier's allowed linear error). PyBullet's matched profile
+removes Bullet's speculative band for the same reason (``MATCHED_CONTACT_BREAKING_THRESHOLD``)."""
 
 
 PROFILES: dict[str, Profile] = {
@@ -84,16 +99,27 @@ PROFILES: dict[str, Profile] = {
     #  - combine scene: the pair rules of validation.scenario.physics.PAIR_RULES exactly
     #    (CoefficientCombineRule.MAX and GEOMETRIC_MEAN on every collider; pairs: by hook).
     #  - no sleeping: a body at rest keeps being integrated, as in every other engine.
+    #  - prediction distance MATCHED_PREDICTION_DISTANCE: contacts act on touching shapes.
     # The solver iterations (substeps) stay at Rapier's 4 unless the spec says otherwise:
     # they are the integration's substeps, not a tolerance of the contact solve.
     "matched": Profile(
-        gyroscopic="on", ccd="on", friction_model="coulomb", combine="scene", sleeping=False
+        gyroscopic="on",
+        ccd="on",
+        friction_model="coulomb",
+        combine="scene",
+        sleeping=False,
+        prediction_distance=MATCHED_PREDICTION_DISTANCE,
     ),
     # defaults: what a new user gets: Rapier's own settings, with the scene's masses,
     # inertias, shapes, gravity, dt and per-body contact values (combined by Rapier's
     # AVERAGE rule, so a pair's value is not the scene's where the two bodies' differ).
     "defaults": Profile(
-        gyroscopic="on", ccd="off", friction_model="simplified", combine="rapier", sleeping=True
+        gyroscopic="on",
+        ccd="off",
+        friction_model="simplified",
+        combine="rapier",
+        sleeping=True,
+        prediction_distance=None,
     ),
 }
 
