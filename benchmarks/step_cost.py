@@ -19,7 +19,7 @@ Scenes:
 
 Every engine runs with the settings of the adapters' matched profile that matter for speed
 (MuJoCo Euler or implicitfast with CG for the pile; PyBullet maximal coordinates; Rapier
-one worker thread, no sleeping, Coulomb friction, CCD on, its 4 substeps; Rapier only when
+one worker thread, no sleeping, CCD on, its 4 substeps; Rapier only when
 ``rapier3d`` is installed: ``pip install "physval[rapier]"``). Prints a
 table and writes ``benchmarks/results/step_cost.csv``. Not a test: wall-clock numbers
 depend on the machine; the ratios are what to compare.
@@ -177,11 +177,10 @@ def pybullet_sphere() -> tuple[float, int]:
 
 def _rapier_world(dt: float, gravity=(0.0, 0.0, -9.81)):
     """A Rapier world as the adapter's matched profile sets it up for speed: one worker
-    thread, Coulomb friction (``validation.engines.rapier``)."""
+    thread, Rapier's simplified friction (``validation.engines.rapier``)."""
     world = rapier3d.PhysicsWorld(gravity=gravity)
     world.set_num_threads(1)
     world.integration_parameters.dt = dt
-    world.integration_parameters.friction_model = rapier3d.FrictionModel.COULOMB
     return world
 
 
@@ -216,11 +215,7 @@ SPHERE_ENGINES = {
     "mini": (mini_sphere, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_sphere, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_sphere, "maximal coordinates, 50 iterations"),
-    **(
-        {"rapier": (rapier_sphere, "1 thread, 4 substeps, Coulomb friction, CCD")}
-        if rapier3d
-        else {}
-    ),
+    **({"rapier": (rapier_sphere, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
 }
 """Engine -> (one-sphere runner, the settings it runs with, for the table)."""
 
@@ -320,9 +315,7 @@ PILE_ENGINES = {
     "mini": (mini_pile, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_pile, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_pile, "maximal coordinates, 50 iterations"),
-    **(
-        {"rapier": (rapier_pile, "1 thread, 4 substeps, Coulomb friction, CCD")} if rapier3d else {}
-    ),
+    **({"rapier": (rapier_pile, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
 }
 """Engine -> (pile runner, the settings it runs with, for the table)."""
 

@@ -62,7 +62,7 @@ ENGINE_OPTIONS: dict[str, dict[str, Option]] = {
         "profile": ("matched", "defaults"),
         "gyroscopic": ("on", "off"),
         "ccd": ("on", "off"),
-        "friction_model": ("coulomb", "simplified"),
+        "friction_model": ("simplified", "coulomb"),
         "solver_iterations": Count,
     },
 }

@@ -14,12 +14,12 @@ the provenance says so in its notes.
 
 Profiles (``declaration.PROFILES``, each choice documented there):
 
-- ``matched`` (default): gyroscopic term on, CCD on, Coulomb friction per contact point, the
+- ``matched`` (default): gyroscopic term on, CCD on, Rapier's per-manifold friction, the
   scene's combine rules (restitution by max, friction by geometric mean) and its ``pairs:``
   overrides set on each contact by a ``modify_solver_contacts`` hook, contacts only between
   touching shapes (no speculative band), no sleeping, no damping.
-- ``defaults``: Rapier's own settings (Rapier's AVERAGE combine rule, the simplified friction
-  model, sleeping, no CCD) with the scene's masses, inertias, shapes, gravity, dt and per-body
+- ``defaults``: Rapier's own settings (Rapier's AVERAGE combine rule, sleeping, no CCD,
+  speculative contacts) with the scene's masses, inertias, shapes, gravity, dt and per-body
   contact values.
 
 In both, the world has one worker thread (``WORKER_THREADS``) and dt is the scene's.
