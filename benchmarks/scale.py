@@ -16,7 +16,7 @@ size, its explicit ``<pair>`` count and the time to build it.
 Prints a table and writes ``benchmarks/results/scale.csv``. Not a test: wall-clock numbers
 depend on the machine and its load (2 shared cores here).
 
-    python benchmarks/scale.py [--sizes 1000 4000 10000] [--engines mini mujoco pybullet]
+    python benchmarks/scale.py [--sizes 1000 4000 10000] [--engines mini mujoco pybullet rapier]
 
 The duration axis (``--durations``): the same grids run for each duration at dt = 1e-3 s,
 peak RSS per (N, duration, engine), against the targets of ``DURATION_TARGETS_MB`` (10,000
@@ -29,6 +29,7 @@ spheres for 5 s within 2 GB, 1,000 for 30 s within 1 GB); writes
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -42,7 +43,13 @@ import pandas as pd
 import yaml
 
 SIZES = (1_000, 4_000, 10_000)
-ENGINES = ("mini", "mujoco", "pybullet")
+ENGINES = (
+    "mini",
+    "mujoco",
+    "pybullet",
+    *(("rapier",) if importlib.util.find_spec("rapier3d") is not None else ()),
+)
+"""Every engine by default; Rapier only when ``rapier3d`` is installed (the ``rapier`` extra)."""
 RADIUS = 0.05
 """m, every sphere's radius."""
 SPACING = 0.11

@@ -1,4 +1,4 @@
-"""Per-step cost of mini_engine, MuJoCo and PyBullet on the same scenes, in one run, as ratios.
+"""Per-step cost of mini_engine, MuJoCo, PyBullet and Rapier on the same scenes, in one run, as ratios.
 
 Scenes:
 
@@ -18,7 +18,9 @@ Scenes:
    copies advance at least 10x faster per body-step than one copy.
 
 Every engine runs with the settings of the adapters' matched profile that matter for speed
-(MuJoCo Euler or implicitfast with CG for the pile; PyBullet maximal coordinates). Prints a
+(MuJoCo Euler or implicitfast with CG for the pile; PyBullet maximal coordinates; Rapier
+one worker thread, no sleeping, CCD on, its 4 substeps; Rapier only when
+``rapier3d`` is installed: ``pip install "physval[rapier]"``). Prints a
 table and writes ``benchmarks/results/step_cost.csv``. Not a test: wall-clock numbers
 depend on the machine; the ratios are what to compare.
 
@@ -28,6 +30,9 @@ depend on the machine; the ratios are what to compare.
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.metadata
+import importlib.util
 import statistics
 import time
 from collections.abc import Callable
@@ -41,6 +46,13 @@ import pybullet
 from mini_engine import Body, Plane, Settings, Sphere, build_model, step
 from mini_engine.scenes import GAZEBO_BOX_HALF_EXTENTS, sphere_pile, tumbling_box
 from mini_engine.shapes import Box
+
+rapier3d = (
+    importlib.import_module("rapier3d")
+    if importlib.util.find_spec("rapier3d") is not None
+    else None
+)
+"""The optional Rapier engine (the ``rapier`` extra), or None: its rows are then left out."""
 
 PILE_DT = 2e-3
 """s. engines.md 1.9 measured the reference engines at 2e-3 (1e-3 costs the same per step)."""
@@ -163,10 +175,47 @@ def pybullet_sphere() -> tuple[float, int]:
         pybullet.disconnect(client)
 
 
+def _rapier_world(dt: float, gravity=(0.0, 0.0, -9.81)):
+    """A Rapier world as the adapter's matched profile sets it up for speed: one worker
+    thread, Rapier's simplified friction (``validation.engines.rapier``)."""
+    world = rapier3d.PhysicsWorld(gravity=gravity)
+    world.set_num_threads(1)
+    world.integration_parameters.dt = dt
+    return world
+
+
+def _rapier_sphere(world, position) -> None:
+    body = rapier3d.RigidBody.dynamic().translation(tuple(position)).can_sleep(False)
+    collider = rapier3d.Collider.ball(SPHERE_RADIUS).mass(1.0).friction(0.0).restitution(0.0)
+    world.add_body(body.ccd_enabled(True), [collider])
+
+
+def _rapier_settled_cost(world, steps: int) -> tuple[float, int]:
+    """Rapier's seconds per step (blocks of ``steps``) after ``SETTLE_STEPS``, and its
+    number of touching collider pairs."""
+
+    def advance(steps: int) -> None:
+        for _ in range(steps):
+            world.step()
+
+    advance(SETTLE_STEPS)
+    cost = seconds_per_step(advance, steps)
+    touching = sum(1 for pair in world.narrow_phase.contact_pairs() if pair.has_any_active_contact)
+    return cost, touching
+
+
+def rapier_sphere() -> tuple[float, int]:
+    world = _rapier_world(PILE_DT)
+    world.add_body(rapier3d.RigidBody.fixed(), [rapier3d.Collider.halfspace((0.0, 0.0, 1.0))])
+    _rapier_sphere(world, (0.0, 0.0, SPHERE_RADIUS))
+    return _rapier_settled_cost(world, SMALL_TIMED_STEPS)
+
+
 SPHERE_ENGINES = {
     "mini": (mini_sphere, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_sphere, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_sphere, "maximal coordinates, 50 iterations"),
+    **({"rapier": (rapier_sphere, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
 }
 """Engine -> (one-sphere runner, the settings it runs with, for the table)."""
 
@@ -252,10 +301,21 @@ def pybullet_pile(count: int) -> tuple[float, int]:
         pybullet.disconnect(client)
 
 
+def rapier_pile(count: int) -> tuple[float, int]:
+    world = _rapier_world(PILE_DT)
+    for point, normal in PLANE_NORMALS:
+        wall = rapier3d.RigidBody.fixed().translation(point)
+        world.add_body(wall, [rapier3d.Collider.halfspace(normal).friction(0.0)])
+    for position in _pile_positions(count):
+        _rapier_sphere(world, position)
+    return _rapier_settled_cost(world, TIMED_STEPS)
+
+
 PILE_ENGINES = {
     "mini": (mini_pile, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_pile, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_pile, "maximal coordinates, 50 iterations"),
+    **({"rapier": (rapier_pile, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
 }
 """Engine -> (pile runner, the settings it runs with, for the table)."""
 
@@ -347,10 +407,37 @@ def pybullet_copies(copies: int) -> float:
         pybullet.disconnect(client)
 
 
+def rapier_copies(copies: int) -> float:
+    """Seconds per step of ``copies`` tumbling boxes in one world, no colliders (contacts cost
+    nothing, as in MuJoCo's run), the box's mass properties set on the body."""
+    world = _rapier_world(BOX_DT, BOX_GRAVITY)
+    inertia = rapier3d.MassProperties(
+        local_com=(0.0, 0.0, 0.0), mass=BOX_MASS, principal_inertia=tuple(_box_inertia())
+    )
+    for k in range(copies):
+        body = (
+            rapier3d.RigidBody.dynamic()
+            .translation((3.0 * k, 0.0, 0.0))
+            .linvel(BOX_VELOCITY)
+            .angvel(BOX_SPIN)
+            .can_sleep(False)
+            .additional_mass_properties(inertia)
+        )
+        world.add_body(body)
+
+    def advance(steps: int) -> None:
+        for _ in range(steps):
+            world.step()
+
+    advance(10)
+    return seconds_per_step(advance)
+
+
 COPY_ENGINES = {
     "mini": (mini_copies, "gyroscopic explicit, one world per copy"),
     "mujoco": (mujoco_copies, "Euler, contacts disabled"),
     "pybullet": (pybullet_copies, "maximal coordinates, no collision shapes"),
+    **({"rapier": (rapier_copies, "1 thread, no colliders")} if rapier3d else {}),
 }
 """Engine -> (copies runner, the settings it runs with, for the table)."""
 
@@ -410,6 +497,9 @@ def main() -> None:
     table = pd.DataFrame(rows)
     table["numpy_version"], table["mujoco_version"] = np.__version__, mujoco.__version__
     table["pybullet_api"] = pybullet.getAPIVersion()
+    table["rapier3d_version"] = (
+        importlib.metadata.version("rapier3d") if rapier3d is not None else "not installed"
+    )
     table["clock"] = args.clock
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     temporary = RESULTS.with_suffix(".tmp")
@@ -418,7 +508,14 @@ def main() -> None:
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(
             table.drop(
-                columns=["numpy_version", "mujoco_version", "pybullet_api", "settings", "clock"]
+                columns=[
+                    "numpy_version",
+                    "mujoco_version",
+                    "pybullet_api",
+                    "rapier3d_version",
+                    "settings",
+                    "clock",
+                ]
             ).to_string(index=False)
         )
     print(f"numpy {np.__version__}, mujoco {mujoco.__version__}; results in {RESULTS}")

@@ -16,7 +16,14 @@ from validation.engines.base import Snapshot
 from validation.engines.mini.adapter import MiniAdapter
 from validation.jobs.conformance import CHECKS, run_conformance
 
-BUILT_IN = ("mini", "mujoco", "pybullet", "mini(gyroscopic=implicit)", "mujoco(integrator=RK4)")
+BUILT_IN = (
+    "mini",
+    "mujoco",
+    "pybullet",
+    "rapier",
+    "mini(gyroscopic=implicit)",
+    "mujoco(integrator=RK4)",
+)
 """The built-in engines (and two non-default specs) that must keep the contract."""
 
 

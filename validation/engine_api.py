@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.metadata
+import importlib.util
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -37,6 +38,7 @@ BUILTIN_ENGINES: dict[str, str] = {
     "mini": "validation.engines.mini.declaration:DECLARATION",
     "mujoco": "validation.engines.mujoco.declaration:DECLARATION",
     "pybullet": "validation.engines.pybullet.declaration:DECLARATION",
+    "rapier": "validation.engines.rapier.declaration:DECLARATION",
 }
 """The built-in engines' entry points, exactly as physval's pyproject.toml registers them;
 used only for a built-in whose entry point the installed metadata lacks."""
@@ -160,6 +162,10 @@ class EngineDeclaration:
             whose options change them (a discrete and an error-controlled profile); None:
             ``capabilities`` whatever the spec. ``capabilities`` is what ``physval list``
             shows.
+        requires: the modules the adapter imports that may be missing (an optional extra);
+            a spec naming the engine while one is missing is refused with ``install``,
+            found without importing anything (``importlib.util.find_spec``).
+        install: the command that installs what ``requires`` names.
     """
 
     name: str
@@ -171,6 +177,12 @@ class EngineDeclaration:
     capabilities: Capabilities = field(default_factory=Capabilities)
     check_settings: Callable[[dict[str, object]], None] | None = None
     capabilities_for: Callable[[dict[str, object]], Capabilities] | None = None
+    requires: tuple[str, ...] = ()
+    install: str = ""
+
+    def missing(self) -> tuple[str, ...]:
+        """The modules of ``requires`` that are not installed (none imported to find out)."""
+        return tuple(module for module in self.requires if importlib.util.find_spec(module) is None)
 
     def capabilities_of(self, settings: dict[str, object]) -> Capabilities:
         """The capabilities of the spec with these ``settings``."""
@@ -204,7 +216,9 @@ def declaration_problems(declaration: object) -> list[str]:
     for option in declaration.options:
         problems += [f"option {option.name!r}: {p}" for p in _option_problems(option)]
     names = [option.name for option in declaration.options]
-    problems += [f"option {n!r} declared twice" for n in sorted({n for n in names if names.count(n) > 1})]
+    problems += [
+        f"option {n!r} declared twice" for n in sorted({n for n in names if names.count(n) > 1})
+    ]
     problems += _capability_problems(declaration.capabilities)
     return problems
 
@@ -229,7 +243,9 @@ def _capability_problems(capabilities: object) -> list[str]:
     problems = [f"unknown shape {s!r}" for s in capabilities.shapes if s not in SHAPES]
     problems += [f"unknown feature {f!r}" for f in sorted(capabilities.features - set(FEATURES))]
     if capabilities.precision not in PRECISIONS:
-        problems.append(f"precision {capabilities.precision!r} is not one of {', '.join(PRECISIONS)}")
+        problems.append(
+            f"precision {capabilities.precision!r} is not one of {', '.join(PRECISIONS)}"
+        )
     if capabilities.stepping not in STEPPING:
         problems.append(f"stepping {capabilities.stepping!r} is not one of {', '.join(STEPPING)}")
     tolerance = capabilities.advance_tolerance

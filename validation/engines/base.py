@@ -186,6 +186,10 @@ class EngineAdapter(Protocol):
     # steps, for engines whose per-step observation costs more than their step (MuJoCo,
     # PyBullet). Without it the recording calls ``advance(1)`` and ``observe()`` per step.
 
+    # Optional: ``precision``, ``"float64"`` (the default) or ``"float32"``: the floating-point
+    # type the engine computes in, which sets the parity gate's tolerance
+    # (``validation.engines.parity.PRECISION_TOLERANCE``; Rapier's bindings are float32).
+
     def observe(self) -> Snapshot:
         """The current state, in the scene's conventions."""
 

@@ -201,6 +201,13 @@ under constant gravity and a torque-free principal spin; what is left is round-o
 steps (float64: ~1e-13; float32: 500 × 6e-8 × 10 m/s ≈ 3e-4); a body-frame angular velocity is
 off by |ω| |R0 - 1| ≈ 4 rad/s."""
 
+FRAME_ANGULAR_VELOCITY_TOLERANCE = {"float64": 1e-6, "float32": 1e-2}
+"""rad/s, per declared precision. float64 as ``FRAME_VELOCITY_TOLERANCE``. A float32 engine's
+principal axes and gyroscopic update carry float32 error, which makes the principal spin
+precess a little (Rapier 0.36: 2.6e-3 rad/s off over the 0.5 s at 4 rad/s, measured; its
+isotropic sphere 5e-4 rad/s): physics quality, not the boundary. A body-frame readback or a
+swapped axis is off by about 4 rad/s, 400 times the float32 allowance."""
+
 READBACK_TOLERANCE = {"float64": 1e-12, "float32": 1e-6}
 """Relative, per declared precision: one state read back two ways (``advance_observed``'s
 batch and ``observe``) may differ by the round-off of a different order of the same
@@ -381,6 +388,7 @@ def check_frames(subject: Subject) -> CheckResult:
     times = np.array([s.time for s in states])
     want = frames_expected(scenario, np.arange(len(states)) * DT)
     velocity_tolerance = FRAME_VELOCITY_TOLERANCE[subject.capabilities.precision]
+    spin_tolerance = FRAME_ANGULAR_VELOCITY_TOLERANCE[subject.capabilities.precision]
     measured = {
         "time": (np.abs(times - np.arange(len(states)) * DT).max(), 1e-9, "s"),
         "pos": (np.abs(np.stack([s.pos[0] for s in states]) - want["pos"]).max(),
@@ -390,7 +398,7 @@ def check_frames(subject: Subject) -> CheckResult:
         "vel": (np.abs(np.stack([s.vel[0] for s in states]) - want["vel"]).max(),
                 velocity_tolerance, "m/s"),
         "ang_vel": (np.abs(np.stack([s.ang_vel[0] for s in states]) - want["ang_vel"]).max(),
-                    velocity_tolerance, "rad/s"),
+                    spin_tolerance, "rad/s"),
     }
     problems = [
         f"{quantity}: largest error {error:.3g} {unit} > {tolerance:g} {unit} against the "

@@ -128,6 +128,12 @@ def parse_engine_spec(text: str) -> EngineSpec:
             + _suggest(name, engines)
         )
     declaration = engines[name]
+    missing = declaration.missing()
+    if missing:
+        raise EngineSpecError(
+            f"engine {name!r} needs the {', '.join(missing)} package, not installed: "
+            + declaration.install
+        )
     options = {option.name: option.accepted for option in declaration.options}
     settings: list[tuple[str, str | int | float | bool]] = []
     for part in [p for p in (inner or "").split(",") if p.strip()]:

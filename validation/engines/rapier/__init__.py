@@ -1,0 +1,1 @@
+"""Rapier (rapier3d) adapter: ``declaration`` (no engine import) and ``adapter``."""
