@@ -22,8 +22,8 @@ DOCS = sorted((ROOT / "docs").glob("*.md"))
 
 SETUP_RUN = "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && physval run"
 SETUP_TEST = (
-    'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]" && ruff check . '
-    "&& pytest"
+    'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test,rapier]" && ruff check '
+    ". && pytest"
 )
 """The README's two set-up commands, byte for byte (``.ci/run`` runs the second's tail)."""
 
@@ -52,14 +52,24 @@ def first_scene(text: str) -> str:
 
 def code_commands(text: str, program: str) -> list[str]:
     """Every command of an indented code block that starts with ``program``, with its synopsis
-    continuation lines (a code line that starts with ``[``) joined to it."""
+    continuation lines (a code line that starts with ``[``) and shell continuations (a line
+    ending in a backslash) joined to it."""
     commands: list[str] = []
+    continued = False  # the previous line was a command's and ended in a backslash
     for line in text.splitlines():
         code = line.strip() if line.startswith(CODE_INDENT) else ""
-        if code.startswith(program + " "):
+        if continued and code:
+            commands[-1] += " " + code
+        elif code.startswith(program + " "):
             commands.append(code)
         elif code.startswith("[") and commands and commands[-1].startswith(program + " "):
             commands[-1] += " " + code
+        else:
+            continued = False
+            continue
+        continued = commands[-1].endswith("\\")
+        if continued:
+            commands[-1] = commands[-1][:-1].rstrip()
     return commands
 
 
