@@ -369,3 +369,12 @@ def test_a_light_command_imports_only_what_it_uses(command, tmp_path):
     loaded = set(ast.literal_eval(done.stderr.strip().splitlines()[-1]))
     forbidden = loaded & {*HEAVY_PACKAGES, *LIGHT_COMMANDS[command]}
     assert not forbidden, f"physval {command} imported {sorted(forbidden)}"
+
+
+def test_the_baseline_actions_the_command_line_offers_are_the_ones_it_has():
+    """``physval baseline ACTION`` offers the contract's names without importing the baseline
+    module (pandas); each must be an action that module has."""
+    from validation.contract import BASELINE_ACTION_NAMES
+    from validation.nightly.baseline import BASELINE_ACTIONS
+
+    assert tuple(BASELINE_ACTIONS) == BASELINE_ACTION_NAMES, (BASELINE_ACTIONS, BASELINE_ACTION_NAMES)
