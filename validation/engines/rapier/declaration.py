@@ -130,38 +130,42 @@ PROFILES: dict[str, Profile] = {
     ),
 }
 
-OPTIONS: dict[str, tuple[tuple[str, ...] | str, str]] = {
-    "profile": (
-        ("matched", "defaults"),
-        "matched: set up to integrate the scene's model; "
-        "defaults: what a new user gets (default matched)",
-    ),
-    "gyroscopic": (("on", "off"), "RigidBody gyroscopic_forces; unset: the profile's (on)"),
-    "ccd": (
-        ("on", "off"),
-        "continuous collision detection on moving bodies; unset: on when matched, off for defaults",
-    ),
-    "friction_model": (
-        ("simplified", "coulomb"),
-        "IntegrationParameters.friction_model; unset: simplified (per manifold, Rapier's "
-        "default); coulomb: one constraint per contact point",
-    ),
-    "solver_iterations": (
-        "Count",
-        "IntegrationParameters.num_solver_iterations (substeps per step); unset: Rapier's 4",
-    ),
-}
-"""Option name -> (choices, or the name of a number type; meaning): the declaration's options."""
-
 SOLVER_ITERATIONS_EXAMPLE = 8
 """A solver_iterations value other than Rapier's 4, for the conformance suite's provenance check."""
 
-
-def _option(name: str, accepted: tuple[str, ...] | str, meaning: str) -> EngineOption:
-    if accepted == "Count":
-        return EngineOption(name, Count, meaning, (), None, SOLVER_ITERATIONS_EXAMPLE)
-    default = "matched" if name == "profile" else None  # the others: the profile's
-    return EngineOption(name, str, meaning, accepted, default)
+OPTIONS = (
+    EngineOption(
+        "profile",
+        str,
+        "matched: set up to integrate the scene's model; "
+        "defaults: what a new user gets (default matched)",
+        ("matched", "defaults"),
+        "matched",
+    ),
+    EngineOption(
+        "gyroscopic", str, "RigidBody gyroscopic_forces; unset: the profile's (on)", ("on", "off")
+    ),
+    EngineOption(
+        "ccd",
+        str,
+        "continuous collision detection on moving bodies; unset: on when matched, off for defaults",
+        ("on", "off"),
+    ),
+    EngineOption(
+        "friction_model",
+        str,
+        "IntegrationParameters.friction_model; unset: simplified (per manifold, Rapier's "
+        "default); coulomb: one constraint per contact point",
+        ("simplified", "coulomb"),
+    ),
+    EngineOption(
+        "solver_iterations",
+        Count,
+        "IntegrationParameters.num_solver_iterations (substeps per step); unset: Rapier's 4",
+        example=SOLVER_ITERATIONS_EXAMPLE,
+    ),
+)
+"""The settings a Rapier spec may carry; unset ones take the profile's value (``PROFILES``)."""
 
 
 DECLARATION = EngineDeclaration(
@@ -170,7 +174,7 @@ DECLARATION = EngineDeclaration(
     adapter=ADAPTER,
     distribution=DISTRIBUTION,
     summary=SUMMARY,
-    options=tuple(_option(name, *entry) for name, entry in OPTIONS.items()),
+    options=OPTIONS,
     capabilities=Capabilities(
         shapes=SHAPES,
         features=frozenset(FEATURES),
