@@ -669,7 +669,7 @@ def _finish(
     return EXIT_FAILED if exit_failed(rows) else EXIT_OK
 
 
-RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported")
+RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported", "not_installed")
 """An engine run's statuses (``validation.measure.runner``)."""
 
 RECORDED_STATUSES = ("ok", "unstable")
