@@ -327,6 +327,33 @@ def test_a_box_slides_to_the_coulomb_closed_form(text):
     )
 
 
+PAIR_SLIDE_TOLERANCE = 1e-3
+"""m/s: the continuous profile's measured slide (0.5094 for 0.5095, ``SLIDE_TOLERANCE``)."""
+
+
+@pytest.mark.parametrize(
+    "box_mu, ground_mu, pairs",
+    [
+        (0.0, 0.0, [{"a": "box", "b": "ground", "friction": SLIDE_MU}]),
+        (0.4, 0.1, []),
+    ],
+    ids=["pair-override", "geometric-mean"],
+)
+def test_a_pair_friction_drakes_rule_would_not_give_is_the_scenes(box_mu, ground_mu, pairs):
+    """The scene's pair value (a ``pairs:`` override, or the geometric mean sqrt(0.4 x 0.1) =
+    0.2) where Drake's 2ab/(a+b) would give 0 or 0.16: the box decelerates at 0.2 g."""
+    scenario = slide_scene()
+    data = scenario.model_dump()
+    data["bodies"][0]["friction"] = box_mu
+    data["ground"]["friction"] = ground_mu
+    data["pairs"] = pairs
+    state = final_state(CONTINUOUS, Scenario.model_validate(data), SLIDE_TIME_STEPS)
+    expected = 1.0 - SLIDE_MU * GRAVITY * SLIDE_TIME_STEPS * DT
+    assert abs(state.vel[0, 0] - expected) <= PAIR_SLIDE_TOLERANCE, (
+        f"v {state.vel[0, 0]:.6g} m/s, closed form {expected:.6g} m/s"
+    )
+
+
 def test_the_lagged_default_is_measured_slow():
     state = final_state(DISCRETE, slide_scene(), SLIDE_TIME_STEPS)
     assert abs(state.vel[0, 0] - LAGGED_SLIDE_SPEED) <= LAGGED_TOLERANCE, state.vel[0]

@@ -34,7 +34,14 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import Box, Capsule, HalfSpace, Sphere
+from pydrake.geometry import (
+    Box,
+    Capsule,
+    CollisionFilterDeclaration,
+    GeometrySet,
+    HalfSpace,
+    Sphere,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialForce, SpatialVelocity
 from pydrake.multibody.plant import (
@@ -194,8 +201,9 @@ class DrakeAdapter:
         self.fixed = np.array([b.fixed for b in scenario.bodies], dtype=bool)
         builder = DiagramBuilder()
         time_step = float(scenario.dt) if self.settings.profile == DISCRETE else 0.0
-        plant, _ = AddMultibodyPlantSceneGraph(builder, time_step)
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
         self.plant = plant
+        self.geometry: dict[int, tuple] = {}  # object -> (Drake body, pose in it, shape, id)
         if self.settings.contact_approximation is not None:
             plant.set_discrete_contact_approximation(
                 APPROXIMATIONS[self.settings.contact_approximation]
@@ -205,15 +213,16 @@ class DrakeAdapter:
         if scenario.ground is not None:
             self._create_ground()
         self._create_springs()
+        pair_geometry = self._pair_geometries(scenario)
         with quiet_drake():
             plant.Finalize()
+            self._filter_pairs(scene_graph, pair_geometry)
             self.diagram = builder.Build()
             self.simulator = Simulator(self.diagram)
         self.context = self.plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
         self._index_state()
         self._set_start(scenario)
         self._fix_loads()
-        self._note_friction(scenario)
         if self.settings.profile == CONTINUOUS:
             integrator = ResetIntegratorFromFlags(
                 self.simulator, self.settings.integrator, MAX_STEP_SIZE
@@ -230,15 +239,16 @@ class DrakeAdapter:
         friction = CoulombFriction(float(spec.friction), float(spec.friction))
         name = f"body{index}_{spec.name}"
         if spec.fixed:
-            plant.RegisterCollisionGeometry(
-                plant.world_body(), pose(spec.position, spec.orientation), shape, name, friction
-            )
+            where = pose(spec.position, spec.orientation)
+            found = plant.RegisterCollisionGeometry(plant.world_body(), where, shape, name, friction)
+            self.geometry[index] = (plant.world_body(), where, shape, found)
             return None
         inertia = SpatialInertia.MakeFromCentralInertia(
             float(spec.mass), np.zeros(3), rotational_inertia(self._inertia(index))
         )
         body = plant.AddRigidBody(name, inertia)
-        plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
+        found = plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
+        self.geometry[index] = (body, RigidTransform(), shape, found)
         return body
 
     def _inertia(self, index: int) -> np.ndarray:
@@ -249,9 +259,11 @@ class DrakeAdapter:
         """A ``HalfSpace`` (outward normal its +z) on the world body at the ground's pose."""
         point, quat = ground_pose(self.scenario.ground)
         mu = float(self.scenario.ground.friction)
-        self.plant.RegisterCollisionGeometry(
-            self.plant.world_body(), pose(point, quat), HalfSpace(), GROUND, CoulombFriction(mu, mu)
+        where = pose(point, quat)
+        found = self.plant.RegisterCollisionGeometry(
+            self.plant.world_body(), where, HalfSpace(), GROUND, CoulombFriction(mu, mu)
         )
+        self.geometry[len(self.scenario.bodies)] = (self.plant.world_body(), where, HalfSpace(), found)
 
     def _end(self, body: int, anchor: np.ndarray):
         """(Drake body, anchor in its frame) of one spring end: a moving body's own anchor; a
@@ -353,27 +365,65 @@ class DrakeAdapter:
         self.loads = len(loads)
         self.plant.get_applied_spatial_force_input_port().FixValue(self.context, loads)
 
-    def _note_friction(self, scenario: Scenario) -> None:
-        """Name the pairs whose scene friction Drake's combination rule does not give."""
+    def _differing_pairs(self, scenario: Scenario) -> list[tuple[int, int, float]]:
+        """(i, j, μ) of every pair of objects that can touch (scene bodies in order, then the
+        ground) whose scene friction (its ``pairs:`` value or ``physics.PAIR_RULES``, the
+        geometric mean) Drake's combination 2ab/(a+b) of the two geometries' does not give."""
         names = [b.name for b in scenario.bodies] + ([GROUND] if scenario.ground else [])
-        own = {b.name: float(b.friction) for b in scenario.bodies}
-        if scenario.ground is not None:
-            own[GROUND] = float(scenario.ground.friction)
-        differ = []
-        for i, a in enumerate(names):
-            for b in names[i + 1 :]:
-                if a != GROUND and b != GROUND and self.fixed[i] and self.fixed[names.index(b)]:
-                    continue
-                wanted = pair_value(scenario, a, b, "friction")
-                got = drake_friction(own[a], own[b])
-                if abs(wanted - got) > SAME_VALUE * max(1.0, abs(wanted)):
-                    differ.append(f"{a}-{b} {got:.6g} for {wanted:.6g}")
-        if differ:
+        own = [float(b.friction) for b in scenario.bodies]
+        own += [float(scenario.ground.friction)] if scenario.ground else []
+        if not scenario.pairs and len(set(own)) <= 1:
+            return []  # equal coefficients: every rule gives that one
+        still = list(self.fixed) + [True] * (len(names) - len(scenario.bodies))
+        found = []
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                if still[i] and still[j]:
+                    continue  # two world geometries never touch
+                wanted = pair_value(scenario, names[i], names[j], "friction")
+                if abs(wanted - drake_friction(own[i], own[j])) > SAME_VALUE * max(1.0, wanted):
+                    found.append((i, j, wanted))
+        return found
+
+    def _pair_geometries(self, scenario: Scenario) -> list[tuple[object, object, object, object]]:
+        """For each pair whose friction Drake's rule would not give (``_differing_pairs``), a
+        second copy of both shapes carrying the pair's μ (2μμ/(μ+μ) = μ), to be filtered so
+        that only the two copies meet (``_filter_pairs``); (original a, original b, copy a,
+        copy b) geometry ids per pair."""
+        found = []
+        for i, j, mu in self._differing_pairs(scenario):
+            copies = []
+            for k in (i, j):
+                body, where, shape, _ = self.geometry[k]
+                copies.append(
+                    self.plant.RegisterCollisionGeometry(
+                        body, where, shape, f"pair{i}_{j}_copy{k}", CoulombFriction(mu, mu)
+                    )
+                )
+            found.append((self.geometry[i][3], self.geometry[j][3], *copies))
+        if found:
             self.notes.append(
-                "friction: Drake combines two geometries' coefficients as 2ab/(a+b), the scene "
-                "by its pairs: or the geometric mean sqrt(ab) (physics.PAIR_RULES); "
-                f"pairs that differ: {', '.join(differ)}"
+                f"friction: {len(found)} pair(s) whose scene value Drake's rule 2ab/(a+b) would "
+                "not give get a second copy of both shapes with the pair's value, filtered to "
+                "meet only each other (the originals of the pair filtered apart)"
             )
+        return found
+
+    def _filter_pairs(self, scene_graph, pairs: list[tuple[object, object, object, object]]) -> None:
+        """Collision filters of the pair copies: the pair's originals never meet, each copy
+        meets only the other copy."""
+        if not pairs:
+            return
+        every = [entry[3] for entry in self.geometry.values()]
+        every += [g for pair in pairs for g in pair[2:]]
+        manager = scene_graph.collision_filter_manager()
+        for original_a, original_b, copy_a, copy_b in pairs:
+            declaration = CollisionFilterDeclaration()
+            declaration.ExcludeBetween(GeometrySet([original_a]), GeometrySet([original_b]))
+            for mine, partner in ((copy_a, copy_b), (copy_b, copy_a)):
+                others = [g for g in every if g not in (mine, partner)]
+                declaration.ExcludeBetween(GeometrySet([mine]), GeometrySet(others))
+            manager.Apply(declaration)
 
     # -- stepping --------------------------------------------------------------------------
 
