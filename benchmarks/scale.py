@@ -16,7 +16,7 @@ size, its explicit ``<pair>`` count and the time to build it.
 Prints a table and writes ``benchmarks/results/scale.csv``. Not a test: wall-clock numbers
 depend on the machine and its load (2 shared cores here).
 
-    python benchmarks/scale.py [--sizes 1000 4000 10000] [--engines mini mujoco pybullet rapier]
+    python benchmarks/scale.py [--sizes 1000 4000 10000] [--engines mini mujoco pybullet rapier drake]
 
 The duration axis (``--durations``): the same grids run for each duration at dt = 1e-3 s,
 peak RSS per (N, duration, engine), against the targets of ``DURATION_TARGETS_MB`` (10,000
@@ -48,8 +48,10 @@ ENGINES = (
     "mujoco",
     "pybullet",
     *(("rapier",) if importlib.util.find_spec("rapier3d") is not None else ()),
+    *(("drake",) if importlib.util.find_spec("pydrake") is not None else ()),
 )
-"""Every engine by default; Rapier only when ``rapier3d`` is installed (the ``rapier`` extra)."""
+"""Every engine by default; Rapier only when ``rapier3d`` is installed (the ``rapier`` extra),
+Drake only when ``pydrake`` is (the ``drake`` extra)."""
 RADIUS = 0.05
 """m, every sphere's radius."""
 SPACING = 0.11

@@ -1,4 +1,4 @@
-"""Per-step cost of mini_engine, MuJoCo, PyBullet and Rapier on the same scenes, in one run, as ratios.
+"""Per-step cost of mini_engine, MuJoCo, PyBullet, Rapier and Drake on the same scenes, in one run, as ratios.
 
 Scenes:
 
@@ -20,7 +20,9 @@ Scenes:
 Every engine runs with the settings of the adapters' matched profile that matter for speed
 (MuJoCo Euler or implicitfast with CG for the pile; PyBullet maximal coordinates; Rapier
 one worker thread, no sleeping, CCD on, its 4 substeps; Rapier only when
-``rapier3d`` is installed: ``pip install "physval[rapier]"``). Prints a
+``rapier3d`` is installed: ``pip install "physval[rapier]"``; Drake's discrete plant at dt
+with its default contact solver, as the adapter's discrete profile, only when ``pydrake`` is
+installed: ``pip install "physval[drake]"``). Prints a
 table and writes ``benchmarks/results/step_cost.csv``. Not a test: wall-clock numbers
 depend on the machine; the ratios are what to compare.
 
@@ -53,6 +55,10 @@ rapier3d = (
     else None
 )
 """The optional Rapier engine (the ``rapier`` extra), or None: its rows are then left out."""
+
+HAVE_DRAKE = importlib.util.find_spec("pydrake") is not None
+"""Whether the optional Drake engine (the ``drake`` extra) is installed: else its rows are left
+out (pydrake is imported inside its runners)."""
 
 PILE_DT = 2e-3
 """s. engines.md 1.9 measured the reference engines at 2e-3 (1e-3 costs the same per step)."""
@@ -211,11 +217,87 @@ def rapier_sphere() -> tuple[float, int]:
     return _rapier_settled_cost(world, SMALL_TIMED_STEPS)
 
 
+def _drake_plant(dt: float, gravity=(0.0, 0.0, -9.81)):
+    """A discrete Drake plant and scene graph at ``dt``, Drake's default contact solver (the
+    adapter's discrete profile), and a function that adds a frictionless sphere at a point."""
+    from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+    from pydrake.systems.framework import DiagramBuilder
+
+    builder = DiagramBuilder()
+    plant, _ = AddMultibodyPlantSceneGraph(builder, dt)
+    plant.mutable_gravity_field().set_gravity_vector(np.asarray(gravity, dtype=float))
+    return builder, plant
+
+
+def _drake_sphere(plant, k: int) -> object:
+    from pydrake.geometry import Sphere
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.plant import CoulombFriction
+    from pydrake.multibody.tree import SpatialInertia
+
+    body = plant.AddRigidBody(
+        f"sphere{k}", SpatialInertia.SolidSphereWithMass(1.0, SPHERE_RADIUS)
+    )
+    plant.RegisterCollisionGeometry(
+        body, RigidTransform(), Sphere(SPHERE_RADIUS), f"sphere{k}", CoulombFriction(0.0, 0.0)
+    )
+    return body
+
+
+def _drake_planes(plant, planes) -> None:
+    """Frictionless half-spaces on the world body at (point, inward normal)."""
+    from pydrake.geometry import HalfSpace
+    from pydrake.multibody.plant import CoulombFriction
+
+    for k, (point, normal) in enumerate(planes):
+        plant.RegisterCollisionGeometry(
+            plant.world_body(),
+            HalfSpace.MakePose(np.asarray(normal, dtype=float), np.asarray(point, dtype=float)),
+            HalfSpace(),
+            f"plane{k}",
+            CoulombFriction(0.0, 0.0),
+        )
+
+
+def _drake_settled_cost(builder, plant, bodies, positions, steps: int) -> tuple[float, int]:
+    """Drake's seconds per step (one ``AdvanceTo`` per block of ``steps``) after
+    ``SETTLE_STEPS``, and its number of point contacts."""
+    from pydrake.math import RigidTransform
+    from pydrake.systems.analysis import Simulator
+
+    plant.Finalize()
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    for body, position in zip(bodies, positions, strict=True):
+        plant.SetFreeBodyPose(context, body, RigidTransform(np.asarray(position, dtype=float)))
+    simulator.Initialize()
+    dt = plant.time_step()
+    taken = [0]
+
+    def advance(count: int) -> None:
+        taken[0] += count
+        simulator.AdvanceTo(taken[0] * dt)
+
+    advance(SETTLE_STEPS)
+    cost = seconds_per_step(advance, steps)
+    contacts = plant.get_contact_results_output_port().Eval(context).num_point_pair_contacts()
+    return cost, int(contacts)
+
+
+def drake_sphere() -> tuple[float, int]:
+    builder, plant = _drake_plant(PILE_DT)
+    _drake_planes(plant, [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))])
+    body = _drake_sphere(plant, 0)
+    return _drake_settled_cost(builder, plant, [body], [(0.0, 0.0, SPHERE_RADIUS)], SMALL_TIMED_STEPS)
+
+
 SPHERE_ENGINES = {
     "mini": (mini_sphere, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_sphere, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_sphere, "maximal coordinates, 50 iterations"),
     **({"rapier": (rapier_sphere, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
+    **({"drake": (drake_sphere, "discrete, default solver (SAP, lagged)")} if HAVE_DRAKE else {}),
 }
 """Engine -> (one-sphere runner, the settings it runs with, for the table)."""
 
@@ -311,11 +393,20 @@ def rapier_pile(count: int) -> tuple[float, int]:
     return _rapier_settled_cost(world, TIMED_STEPS)
 
 
+def drake_pile(count: int) -> tuple[float, int]:
+    builder, plant = _drake_plant(PILE_DT)
+    _drake_planes(plant, PLANE_NORMALS)
+    positions = _pile_positions(count)
+    bodies = [_drake_sphere(plant, k) for k in range(len(positions))]
+    return _drake_settled_cost(builder, plant, bodies, positions, TIMED_STEPS)
+
+
 PILE_ENGINES = {
     "mini": (mini_pile, "defaults: semi-implicit Euler, 10 sweeps, warm start"),
     "mujoco": (mujoco_pile, "implicitfast, CG, condim 1"),
     "pybullet": (pybullet_pile, "maximal coordinates, 50 iterations"),
     **({"rapier": (rapier_pile, "1 thread, 4 substeps, CCD")} if rapier3d else {}),
+    **({"drake": (drake_pile, "discrete, default solver (SAP, lagged)")} if HAVE_DRAKE else {}),
 }
 """Engine -> (pile runner, the settings it runs with, for the table)."""
 
@@ -433,11 +524,45 @@ def rapier_copies(copies: int) -> float:
     return seconds_per_step(advance)
 
 
+def drake_copies(copies: int) -> float:
+    """Seconds per step of ``copies`` tumbling boxes in one discrete plant, no collision
+    geometry (contacts cost nothing, as in MuJoCo's run)."""
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.math import SpatialVelocity
+    from pydrake.multibody.tree import RotationalInertia, SpatialInertia
+    from pydrake.systems.analysis import Simulator
+
+    builder, plant = _drake_plant(BOX_DT, BOX_GRAVITY)
+    moments = _box_inertia()
+    inertia = SpatialInertia.MakeFromCentralInertia(
+        BOX_MASS, np.zeros(3), RotationalInertia(*(float(m) for m in moments))
+    )
+    bodies = [plant.AddRigidBody(f"box{k}", inertia) for k in range(copies)]
+    plant.Finalize()
+    simulator = Simulator(builder.Build())
+    context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    for k, body in enumerate(bodies):
+        plant.SetFreeBodyPose(context, body, RigidTransform([3.0 * k, 0.0, 0.0]))
+        plant.SetFreeBodySpatialVelocity(
+            context, body, SpatialVelocity(np.array(BOX_SPIN), np.array(BOX_VELOCITY))
+        )
+    simulator.Initialize()
+    taken = [0]
+
+    def advance(steps: int) -> None:
+        taken[0] += steps
+        simulator.AdvanceTo(taken[0] * BOX_DT)
+
+    advance(10)
+    return seconds_per_step(advance)
+
+
 COPY_ENGINES = {
     "mini": (mini_copies, "gyroscopic explicit, one world per copy"),
     "mujoco": (mujoco_copies, "Euler, contacts disabled"),
     "pybullet": (pybullet_copies, "maximal coordinates, no collision shapes"),
     **({"rapier": (rapier_copies, "1 thread, no colliders")} if rapier3d else {}),
+    **({"drake": (drake_copies, "discrete, no collision geometry")} if HAVE_DRAKE else {}),
 }
 """Engine -> (copies runner, the settings it runs with, for the table)."""
 
@@ -500,6 +625,9 @@ def main() -> None:
     table["rapier3d_version"] = (
         importlib.metadata.version("rapier3d") if rapier3d is not None else "not installed"
     )
+    table["drake_version"] = (
+        importlib.metadata.version("drake") if HAVE_DRAKE else "not installed"
+    )
     table["clock"] = args.clock
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     temporary = RESULTS.with_suffix(".tmp")
@@ -513,6 +641,7 @@ def main() -> None:
                     "mujoco_version",
                     "pybullet_api",
                     "rapier3d_version",
+                    "drake_version",
                     "settings",
                     "clock",
                 ]

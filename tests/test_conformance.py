@@ -21,6 +21,8 @@ BUILT_IN = (
     "mujoco",
     "pybullet",
     "rapier",
+    "drake",
+    "drake(profile=continuous)",
     "mini(gyroscopic=implicit)",
     "mujoco(integrator=RK4)",
 )

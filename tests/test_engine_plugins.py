@@ -65,7 +65,7 @@ def test_every_built_in_declaration_is_well_formed_and_imports_no_engine():
         "found = discover()\n"
         "assert not found.broken, found.broken\n"
         "print(sorted(found.engines))\n"
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('mujoco', 'pybullet', 'rapier3d')))\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('mujoco', 'pybullet', 'rapier3d', 'pydrake')))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", program], capture_output=True, text=True,

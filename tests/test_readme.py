@@ -22,7 +22,7 @@ DOCS = sorted((ROOT / "docs").glob("*.md"))
 
 SETUP_RUN = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[rapier]" && physval run'
 SETUP_TEST = (
-    'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test,rapier]" && ruff check '
+    'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test,rapier,drake]" && ruff check '
     ". && pytest"
 )
 """The README's two set-up commands, byte for byte (``.ci/run`` runs the second's tail)."""

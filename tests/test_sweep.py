@@ -291,3 +291,51 @@ def test_a_sweep_fits_rk4_above_its_floor_and_marks_the_points_left_out(tmp_path
     ):
         assert f"{legend}</span>" in page, f"the legend lacks {legend!r}"  # a legend entry
     assert "fitted over 3 points, dt 0.001 to 0.01 s" in page, "the page lacks RK4's range"
+
+
+# --- an error-controlled engine is swept over its accuracy -----------------------------------
+
+ACCURACY_ORDER = 0.93
+ACCURACY_ORDER_TOLERANCE = 0.1
+"""Drake's continuous profile (RK3) on a 10 rad/s spring observed every 50 ms: the position
+error follows the accuracy asked for, order 0.93 in it (measured over 1e-2 to 1e-6: 4.3e-3 to
+7.7e-7 m); 0.1 leaves room for the error control's step choices. An accuracy that did not
+reach the integrator would give order 0 (every point the same run)."""
+
+
+def observed_spring() -> Scenario:
+    return Scenario.model_validate(
+        {
+            "name": "observed_spring", "dt": 0.05, "duration": 2.0, "gravity": [0, 0, 0],
+            "bodies": [{"name": "bob", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0,
+                        "position": [0.55, 0, 0]}],
+            "springs": [{"a": "bob", "b": "world", "stiffness": 100.0, "rest_length": 0.5}],
+        }
+    )
+
+
+def test_an_error_controlled_spec_is_swept_over_its_accuracy_with_its_run_time():
+    from validation.jobs.nightly_run import sweep_result_rows
+    from validation.jobs.sweep import ACCURACY_GRID, sweep_scene
+
+    rows = sweep_scene((observed_spring(), parse_engine_spec("drake(profile=continuous)"), [0.05]))
+    points = [r for r in rows if r["metric"] == "position_error"]
+    assert [r["accuracy"] for r in points] == list(ACCURACY_GRID), points
+    assert {r["dt"] for r in points} == {0.05}, "an accuracy sweep keeps the scene's dt"
+    assert all(r["wall_time_s"] > 0 for r in points), points
+    errors = [r["error"] for r in points]
+    assert errors == sorted(errors, reverse=True), errors
+    (order,) = [r for r in rows if r["metric"] == "convergence_order" and r["of"] == "position_error"]
+    assert abs(order["value"] - ACCURACY_ORDER) <= ACCURACY_ORDER_TOLERANCE, order
+    assert "accuracy 1e-06 to 0.01" in order["message"], order
+    names = {r["metric"] for r in sweep_result_rows(rows)}
+    assert "sweep_error.position_error@accuracy=0.0001" in names, sorted(names)
+    assert not any("@dt=" in name for name in names), sorted(names)
+
+
+def test_a_fixed_step_sweep_keeps_its_dt_rows():
+    from validation.jobs.nightly_run import sweep_result_rows
+
+    rows = [{"scenario": "s", "engine": "mini", "metric": "position_error", "dt": 1e-3,
+             "value": 1.0, "error": 1.0}]
+    assert [r["metric"] for r in sweep_result_rows(rows)] == ["sweep_error.position_error@dt=0.001"]

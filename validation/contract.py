@@ -105,7 +105,8 @@ SWEEP_ORDER = "sweep_order"
 SWEEP_ERROR = "sweep_error"
 SWEEP_CROSS_CHECK = "sweep_cross_check"
 """Prefixes of the result rows a scene's sweep adds: ``sweep_order.<metric>`` (the fitted
-convergence order), ``sweep_error.<metric>@dt=<dt>`` (the error at one step) and
+convergence order), ``sweep_error.<metric>@dt=<dt>`` (the error at one step;
+``sweep_error.<metric>@accuracy=<a>`` at one accuracy of an error-controlled engine) and
 ``sweep_cross_check.<metric>`` (DOP853 against MuJoCo RK4); the history tracks them like
 every other row."""
 

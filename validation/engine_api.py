@@ -39,6 +39,7 @@ BUILTIN_ENGINES: dict[str, str] = {
     "mujoco": "validation.engines.mujoco.declaration:DECLARATION",
     "pybullet": "validation.engines.pybullet.declaration:DECLARATION",
     "rapier": "validation.engines.rapier.declaration:DECLARATION",
+    "drake": "validation.engines.drake.declaration:DECLARATION",
 }
 """The built-in engines' entry points, exactly as physval's pyproject.toml registers them;
 used only for a built-in whose entry point the installed metadata lacks."""

@@ -244,6 +244,9 @@ def _sweep_metric(row: dict) -> str | None:
         return f"{SWEEP_ORDER}.{row['of']}"
     if row["metric"] == "reference_cross_check":
         return f"{SWEEP_CROSS_CHECK}.{row['of']}"
+    accuracy = row.get("accuracy")
+    if row["metric"] in SWEEP_METRICS and accuracy is not None and math.isfinite(float(accuracy)):
+        return f"{SWEEP_ERROR}.{row['metric']}@accuracy={float(row['accuracy']):.3g}"
     if row["metric"] in SWEEP_METRICS:
         return f"{SWEEP_ERROR}.{row['metric']}@dt={float(row['dt']):.3g}"
     return None

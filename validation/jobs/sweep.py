@@ -69,6 +69,7 @@ from pathlib import Path
 import numpy as np
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
+from validation.engine_api import declaration_of
 from validation.engines.registry import create_adapter
 from validation.files import write_table
 from validation.jobs.executor import BackendError, run_jobs
@@ -192,6 +193,10 @@ FIT_RULE = (
 )
 """The fit in one paragraph, for the sweep page."""
 
+FITTED_OVER_ACCURACY = "fitted over {points} points, accuracy {dt_min:.3g} to {dt_max:.3g}"
+"""``FITTED_OVER`` of an accuracy sweep: the slope of log(error) on log(accuracy), 1 when the
+error is proportional to the accuracy asked for."""
+
 NOT_ASYMPTOTIC = "not in the asymptotic range"
 """The note (start of the message) of an order row with fewer than ``MIN_FIT_POINTS`` points
 in its asymptotic range: its value is NaN, its status ``unsupported``."""
@@ -267,7 +272,9 @@ def reference_problems(jobs: list[tuple[Scenario, EngineSpec, list[float]]]) -> 
     step, or MuJoCo RK4 at a tenth of it for the DOP853 cross-check) would exceed
     ``MAX_STEPS``: refused before any work rather than run for hours."""
     problems = []
-    for scenario, _, dts in jobs:
+    for scenario, spec, dts in jobs:
+        if spec is not None and error_controlled(spec):
+            continue  # swept over its accuracy at the scene's dt (``accuracy_sweep``)
         steps = runnable(scenario, dts)
         if not steps:
             continue
@@ -297,6 +304,9 @@ class Reference:
     accuracy: dict[str, float] = field(default_factory=dict)
     """Sweep metric -> the reference's own error where it is known at every dt (DOP853: its
     cross-check difference); a self reference's depends on the point (``reference_floor``)."""
+    spec: EngineSpec | None = None
+    """The fine run's spec where it is not the swept one (an accuracy sweep's self reference:
+    the same engine at a finer accuracy); None: the swept spec."""
 
 
 def stepping_seconds(scenario: Scenario, spec: EngineSpec) -> float:
@@ -486,7 +496,7 @@ def segment_error(
         end_time = coarse.steps * coarse.dt  # compare both at exactly this time
         fine_end = _state_at(
             restarted(scenario, fine, sample, reference.dt, end_time + reference.dt),
-            spec,
+            reference.spec or spec,
             end_time,
         )
         if coarse_end is None or fine_end is None:
@@ -643,19 +653,19 @@ def consistent_points(log_dt: np.ndarray, log_error: np.ndarray) -> int:
     return 1 + (consistent.size if consistent.all() else int(np.argmin(consistent)))
 
 
-def asymptotic_range(rows: list[dict], roles: list[str]) -> list[int]:
-    """Indices of the points to fit: from the smallest dt whose point is usable, the
-    contiguous usable points (by dt) whose local slopes are consistent; empty when fewer
-    than ``MIN_FIT_POINTS``."""
+def asymptotic_range(rows: list[dict], roles: list[str], grid: str = "dt") -> list[int]:
+    """Indices of the points to fit: from the smallest ``grid`` value (dt, or the accuracy of
+    an accuracy sweep) whose point is usable, the contiguous usable points (by it) whose local
+    slopes are consistent; empty when fewer than ``MIN_FIT_POINTS``."""
 
     def usable(i: int) -> bool:
         return roles[i] == FITTED
 
-    by_dt = sorted(range(len(rows)), key=lambda i: rows[i]["dt"])
+    by_dt = sorted(range(len(rows)), key=lambda i: rows[i][grid])
     run = list(itertools.takewhile(usable, itertools.dropwhile(lambda i: not usable(i), by_dt)))
     if not run:
         return []
-    log_dt, log_error = np.log([[rows[i]["dt"], rows[i]["error"]] for i in run]).T
+    log_dt, log_error = np.log([[rows[i][grid], rows[i]["error"]] for i in run]).T
     fitted = run[: consistent_points(log_dt, log_error)]
     return fitted if len(fitted) >= MIN_FIT_POINTS else []
 
@@ -697,22 +707,24 @@ def _whole_curve_note(rows: list[dict]) -> str:
     return ""
 
 
-def fit_order(rows: list[dict]) -> OrderFit:
+def fit_order(rows: list[dict], grid: str = "dt") -> OrderFit:
     """The convergence order of one curve (the rows of one scene, engine and sweep metric)
-    over its asymptotic range (module docstring), with each point's role in the fit."""
+    over its asymptotic range (module docstring), with each point's role in the fit; the
+    slope of log(error) on log(``grid``): dt, or the accuracy of an accuracy sweep."""
     roles = [point_role(r) for r in rows]
     whole = _whole_curve_note(rows)
     if whole:  # at round-off every measured point is floor-bound; zero ones are unmeasured
         return OrderFit(math.nan, [FLOOR if r == FITTED else r for r in roles], note=whole)
-    fitted = asymptotic_range(rows, roles)
+    fitted = asymptotic_range(rows, roles, grid)
     roles = [FITTED if i in fitted else OUTSIDE if r == FITTED else r for i, r in enumerate(roles)]
     left_out = _left_out(roles)
     if not fitted:
         detail = f"fewer than {MIN_FIT_POINTS} points" + (f"; {left_out}" if left_out else "")
         return OrderFit(math.nan, roles, note=f"{NOT_ASYMPTOTIC} ({detail})")
-    dts, errors = np.array([[rows[i]["dt"], rows[i]["error"]] for i in fitted]).T
+    dts, errors = np.array([[rows[i][grid], rows[i]["error"]] for i in fitted]).T
     order = float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
-    note = FITTED_OVER.format(points=len(fitted), dt_min=dts.min(), dt_max=dts.max())
+    over = FITTED_OVER if grid == "dt" else FITTED_OVER_ACCURACY
+    note = over.format(points=len(fitted), dt_min=dts.min(), dt_max=dts.max())
     return OrderFit(
         order,
         roles,
@@ -758,6 +770,8 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
     (``fit_role``), plus each sweep metric's fitted convergence order (or the note saying why
     there is none)."""
     scenario, spec, dts = job
+    if error_controlled(spec):
+        return accuracy_sweep(scenario, spec, dts)
     steps = runnable(scenario, dts)
     reference = choose_reference(scenario, spec, min(steps)) if steps else Reference(NO_REFERENCE)
     rows = [row for dt in dts for row in sweep_point(scenario, spec, dt, reference)]
@@ -769,6 +783,95 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
             if fit.note == IDENTICALLY_ZERO:
                 row["message"] = IDENTICALLY_ZERO
         rows.append({**order_row(scenario, spec, reference, metric), **fit_row(fit)})
+    return rows
+
+
+ACCURACY_OPTION = "accuracy"
+"""The option an ``error_controlled`` engine's accuracy is set by (Drake's continuous profile,
+``validation.engines.drake.declaration``): an accuracy sweep writes it at every point."""
+
+ACCURACY_GRID = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+"""The accuracies an error-controlled spec is swept over. Such an engine picks its own steps
+(dt is only the observation interval, ``engine_api.STEPPING``), so a dt sweep measures
+nothing of it: the sweep varies what its error control is asked for instead, from Drake's
+``SimulatorConfig`` default accuracy 1e-4 two decades either way, at the scene's dt."""
+
+REFINE_ACCURACY = 100.0
+"""An accuracy sweep's self reference: the same spec at the smallest accuracy / 100 (two
+decades finer, so its own error is about 1 % of the finest point's when the error follows
+the accuracy)."""
+
+ACCURACY_REFERENCE_ORDER = 1.0
+"""The order in the accuracy assumed for a self reference's own error: (a_fine / a)^1 of the
+point's, the error proportional to the accuracy asked for."""
+
+
+def error_controlled(spec: EngineSpec) -> bool:
+    """Whether ``spec``'s capabilities say ``stepping: error_controlled``."""
+    capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
+    return capabilities.stepping == "error_controlled"
+
+
+def with_setting(spec: EngineSpec, key: str, value: object) -> EngineSpec:
+    """``spec`` with ``key`` set to ``value`` (appended, or replacing a written one)."""
+    kept = tuple((k, v) for k, v in spec.settings if k != key)
+    return EngineSpec(spec.name, (*kept, (key, value)))
+
+
+def without_setting(spec: EngineSpec, key: str) -> EngineSpec:
+    return EngineSpec(spec.name, tuple((k, v) for k, v in spec.settings if k != key))
+
+
+def accuracy_reference(scenario: Scenario, spec: EngineSpec, dts: list[float]) -> Reference:
+    """``choose_reference`` for an accuracy sweep: DOP853 or the scene's expectation as for a
+    dt sweep; else the same spec at the smallest accuracy / ``REFINE_ACCURACY``, at the
+    scene's dt."""
+    if not _can_touch(scenario) or scenario.expect:
+        steps = runnable(scenario, dts) or [scenario.dt]
+        return choose_reference(scenario, spec, min(steps))
+    fine = with_setting(spec, ACCURACY_OPTION, min(ACCURACY_GRID) / REFINE_ACCURACY)
+    run = _run(scenario, fine, _every(scenario, scenario.dt))
+    return Reference(f"self:{fine.label}", run, scenario.dt, spec=fine)
+
+
+def accuracy_point(
+    scenario: Scenario, spec: EngineSpec, accuracy: float, reference: Reference
+) -> list[dict]:
+    """``sweep_point`` at the scene's dt with ``spec`` at ``accuracy``: rows under the swept
+    spec's label, with the ``accuracy`` column; a self reference's floor is its share
+    (a_fine / a)^p of the error (``ACCURACY_REFERENCE_ORDER``)."""
+    rows = sweep_point(scenario, with_setting(spec, ACCURACY_OPTION, accuracy), scenario.dt, reference)
+    for row in rows:
+        row["engine"] = spec.label
+        row["accuracy"] = accuracy
+        if reference.spec is not None:
+            fine = float(reference.spec.as_dict()[ACCURACY_OPTION])
+            row["reference_floor"] = row["error"] * (fine / accuracy) ** ACCURACY_REFERENCE_ORDER
+    return rows
+
+
+def accuracy_sweep(scenario: Scenario, spec: EngineSpec, dts: list[float]) -> list[dict]:
+    """``sweep_scene`` for an error-controlled spec: every accuracy of ``ACCURACY_GRID`` at the
+    scene's dt, error against run time, and each sweep metric's order in the accuracy."""
+    base = without_setting(spec, ACCURACY_OPTION)
+    if ACCURACY_OPTION not in {o.name for o in declaration_of(spec.name).options}:
+        message = f"{spec.name} is error-controlled but has no {ACCURACY_OPTION!r} option to sweep"
+        return [
+            {"scenario": scenario.name, "engine": spec.label, "dt": scenario.dt, "metric": m,
+             "status": "unsupported", "message": message}
+            for m in SWEEP_METRICS
+        ]
+    reference = accuracy_reference(scenario, base, dts)
+    rows = [row for a in ACCURACY_GRID for row in accuracy_point(scenario, base, a, reference)]
+    for metric in SWEEP_METRICS:
+        mine = [r for r in rows if r["metric"] == metric]
+        fit = fit_order(mine, ACCURACY_OPTION)
+        for row, role in zip(mine, fit.roles, strict=True):
+            row["fit_role"] = role
+            if fit.note == IDENTICALLY_ZERO:
+                row["message"] = IDENTICALLY_ZERO
+        order = {**order_row(scenario, base, reference, metric), **fit_row(fit)}
+        rows.append({**order, "fit_accuracy_min": fit.dt_min, "fit_accuracy_max": fit.dt_max})
     return rows
 
 
