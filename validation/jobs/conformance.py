@@ -24,10 +24,12 @@ bad spec). ``pytest --physval-conformance SPEC`` runs the same checks as tests, 
 from __future__ import annotations
 
 import gc
+import json
+import re
 import resource
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -554,8 +556,34 @@ def check_provenance(subject: Subject) -> CheckResult:
                 problems.append(
                     f"{text}: provenance says {keys[0]} = {settings[keys[0]]!r}"
                 )
+    problems += _provenance_repeats(subject, scene)
     detail = f"{tried} option values" + (f"; not valid alone: {'; '.join(skipped)}" if skipped else "")
     return CheckResult("provenance", tuple(problems), detail)
+
+
+MEMORY_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
+"""An object's default repr: a memory address, different in every process."""
+
+
+def _provenance_repeats(subject: Subject, scene: CompiledScene) -> list[str]:
+    """The spec's provenance, read from two loads of one scene, is the same text and holds no
+    memory address: a rerun or a resumed run must record the same provenance."""
+    texts = []
+    for _ in range(2):
+        adapter = _loaded(subject.spec, scene)
+        try:
+            provenance = adapter.provenance()
+        finally:
+            adapter.close()
+        texts.append(json.dumps(asdict(provenance), sort_keys=True, default=str))
+    problems = []
+    found = MEMORY_ADDRESS.search(texts[0])
+    if found:
+        start = max(0, found.start() - 60)
+        problems.append(f"provenance holds a memory address: ...{texts[0][start : found.end()]}")
+    elif texts[0] != texts[1]:
+        problems.append("provenance differs between two loads of one scene")
+    return problems
 
 
 def check_capabilities(subject: Subject) -> CheckResult:

@@ -98,6 +98,34 @@ def from_xyzw(quat: np.ndarray) -> np.ndarray:
     return np.asarray(quat, dtype=float)[..., [3, 0, 1, 2]]
 
 
+PLAIN_DEPTH = 3
+ADDRESS = " at 0x"
+"""What an object's default repr carries and a plain value never does: its memory address."""
+"""How deep ``plain_fields`` follows nested settings objects (IntegrationParameters nests two)."""
+
+
+def plain_fields(settings: object, depth: int = PLAIN_DEPTH) -> dict[str, object]:
+    """A bindings object's public, non-callable attributes as plain values: numbers, text,
+    booleans, values with their own text (an enum), other objects as dicts of theirs
+    (``depth`` levels), anything deeper by its type's name. Deterministic: the same settings give the same dict in every process."""
+    found: dict[str, object] = {}
+    for name in dir(settings):
+        if name.startswith("_"):
+            continue
+        value = getattr(settings, name)
+        if callable(value):
+            continue
+        if value is None or isinstance(value, bool | int | float | str):
+            found[name] = value
+        elif ADDRESS not in str(value):  # an enum or a value with its own text
+            found[name] = str(value)
+        elif depth > 1:
+            found[name] = plain_fields(value, depth - 1) or type(value).__name__
+        else:
+            found[name] = type(value).__name__
+    return found
+
+
 @dataclass(frozen=True)
 class Settings:
     """The effective settings of one adapter: the profile's defaults, the spec's options on top."""
@@ -423,17 +451,10 @@ class RapierAdapter:
     # -- provenance ------------------------------------------------------------------------
 
     def _integration_settings(self) -> dict[str, object]:
-        """Every plain field of the world's ``IntegrationParameters``."""
-        parameters = self.world.integration_parameters
-        found: dict[str, object] = {}
-        for name in dir(parameters):
-            if name.startswith("_"):
-                continue
-            value = getattr(parameters, name)
-            if callable(value):
-                continue
-            found[name] = value if isinstance(value, bool | int | float | str) else str(value)
-        return found
+        """Every plain field of the world's ``IntegrationParameters``, nested settings objects
+        (``soft_bodies``, ``contact_softness``) as their own plain fields: never an object's
+        repr, whose memory address would differ between two runs of one scene."""
+        return plain_fields(self.world.integration_parameters)
 
     def provenance(self) -> Provenance:
         """rapier3d's version, every integration parameter, the profile and what it set."""
