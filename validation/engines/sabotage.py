@@ -417,7 +417,11 @@ SABOTAGES: dict[str, Sabotage] = {
             "sphere_box_normal_flipped",
             "the sphere-box contact normal points the wrong way",
             "narrowphase.NARROW_PHASE[sphere, box]",
-            (Patch("mini_engine.narrowphase", "NARROW_PHASE", _flipped_normal, key_of=_sphere_box),),
+            (
+                Patch(
+                    "mini_engine.narrowphase", "NARROW_PHASE", _flipped_normal, key_of=_sphere_box
+                ),
+            ),
         ),
         Sabotage(
             "warm_start_doubled",
