@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 DOCS = sorted((ROOT / "docs").glob("*.md"))
 
-SETUP_RUN = "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && physval run"
+SETUP_RUN = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[rapier]" && physval run'
 SETUP_TEST = (
     'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test,rapier]" && ruff check '
     ". && pytest"

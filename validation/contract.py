@@ -95,6 +95,8 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
     "quantity and both values); the engine was not run",
     "error": "the engine raised; the message carries the exception",
     "unsupported": "the engine cannot represent something the scene or metric needs",
+    "not_installed": "the scene names an engine whose package is not installed here (the "
+    "message says how to install it); the engine was not run",
 }
 """Every status a result row can carry, with its meaning. CI jobs and the report depend on
 these names; ``BAD_STATUSES`` decides the exit code."""
@@ -110,6 +112,10 @@ every other row."""
 SWEEP_ROW_PREFIXES = (SWEEP_ORDER, SWEEP_ERROR, SWEEP_CROSS_CHECK)
 """Every prefix of a sweep's result rows (``<prefix>.<metric>``): tracked, not judged, so
 they do not colour a scene's cells in the terminal matrix."""
+
+NOT_JUDGED_STATUSES = ("unsupported", "not_installed")
+"""Row statuses of a scene not run in an engine for a reason that is no fault of the engine:
+never judged (``passed`` empty), never failing a run, always shown."""
 
 BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
 """Row statuses that fail a row; ``physval run`` exits 1 on such a row unless it is a known

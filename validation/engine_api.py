@@ -128,6 +128,9 @@ class Capabilities:
         advance_tolerance: relative; how closely ``advance(n)`` must equal n × ``advance(1)``
             (0: exactly, a fixed-step engine repeats the same arithmetic; an error-controlled
             engine states its accuracy).
+        substeps: state updates per scene step (1 unless the engine substeps); a float32
+            engine's rows count steps × substeps roundings in their resolution floor
+            (``validation.measure.resolution``).
     """
 
     shapes: tuple[str, ...] = SHAPES
@@ -136,6 +139,7 @@ class Capabilities:
     precision: str = "float64"
     stepping: str = "fixed"
     advance_tolerance: float = 0.0
+    substeps: int = 1
 
     @property
     def supported(self) -> frozenset[str]:

@@ -50,7 +50,12 @@ from validation.measure.runner import run_engine
 from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import Scenario
 from validation.scenario.compiled import CompiledScene, compile_scene
-from validation.scenario.engine_spec import EngineSpec, EngineSpecError, parse_engine_spec
+from validation.scenario.engine_spec import (
+    EngineSpec,
+    EngineSpecError,
+    parse_engine_spec,
+    parse_installed_spec,
+)
 from validation.scenario.needs import missing
 
 # --- the scenes ----------------------------------------------------------------------------
@@ -593,8 +598,9 @@ assert tuple(CHECKS) == CONFORMANCE_CHECKS, "contract.CONFORMANCE_CHECKS is out 
 
 
 def subject_of(text: str) -> Subject:
-    """The engine under test of a spec, or ``EngineSpecError`` (unknown, broken, bad spec)."""
-    spec = parse_engine_spec(text)
+    """The engine under test of a spec, or ``EngineSpecError`` (unknown, broken, bad spec,
+    not installed)."""
+    spec = parse_installed_spec(text)
     return Subject(spec, declaration_of(spec.name))
 
 

@@ -14,7 +14,9 @@ from validation.scenario.compiled import CompiledScene, compile_scene
 from validation.scenario.engine_spec import (
     EngineSpec,
     EngineSpecError,
+    not_installed,
     parse_engine_spec,
+    parse_installed_spec,
     split_engine_list,
 )
 
@@ -34,7 +36,8 @@ class Plan:
     @property
     def sweeps(self) -> list[tuple[Scenario, EngineSpec, list[float]]]:
         """(scenario, spec, dts) of the scenes that declare ``sweep:``, in plan order: the
-        sweep's own engines, or the specs the scene runs in."""
+        sweep's own engines, or the specs the scene runs in, leaving out engines not
+        installed here (the scene's own rows say ``not_installed``)."""
         return [
             (scene.scenario, spec, list(scene.scenario.sweep.dt))
             for scene, specs in self.scenes
@@ -44,6 +47,7 @@ class Plan:
                 if scene.scenario.sweep.engines
                 else specs
             )
+            if not not_installed(spec.name)
         ]
 
 
@@ -114,7 +118,7 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         overrides = []
         for text in split_engine_list(engines) or [""]:
             try:
-                spec = parse_engine_spec(text)
+                spec = parse_installed_spec(text)
             except EngineSpecError as error:
                 problems.append(f"--engines: {error}")
                 continue

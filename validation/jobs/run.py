@@ -711,7 +711,7 @@ def _written(
     return rows, comparison
 
 
-RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported")
+RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported", "not_installed")
 """An engine run's statuses (``validation.measure.runner``)."""
 
 RECORDED_STATUSES = ("ok", "unstable")

@@ -127,10 +127,10 @@ def stability_limit(scenario: Scenario, spec, search_down: float = SEARCH_DOWN) 
     return StabilityLimit(scenario.name or "", spec.label, stable, unstable, reason)
 
 
-NOT_RUN = ("model_mismatch", "error", "unsupported")
+NOT_RUN = ("model_mismatch", "error", "unsupported", "not_installed")
 """Run statuses that say nothing of stability: the model failed the parity gate, the
-engine raised (a model it cannot compile), or it lacks a capability the scene needs;
-reported as such, never as unstable."""
+engine raised (a model it cannot compile), it lacks a capability the scene needs, or its
+package is not installed; reported as such, never as unstable."""
 
 
 class _NotRunError(Exception):

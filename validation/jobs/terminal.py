@@ -32,6 +32,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 from validation.contract import SWEEP_ROW_PREFIXES
+from validation.engine_api import declarations
 from validation.nightly.known import outcome_of
 from validation.report.news import NEWS_SECTIONS, NEWS_WORDS, news_selections
 from validation.report.outcomes import OUTCOME_ORDER, error_ratio, outcome_label
@@ -67,6 +68,7 @@ ABBREVIATIONS = {
     "unstable": "unst.",
     "model_mismatch": "mism.",
     "unsupported": "unsup",
+    "not installed": "n/inst",
 }
 """Short cell words used when the full word does not fit the engine column (named in a key)."""
 
@@ -80,6 +82,7 @@ STYLES = {
     "passed": "green",
     "no_tolerance": "dim",
     "unsupported": "dim",
+    "not_installed": "dim",
 }
 """Cell colours per outcome, the report's colour families (red: needs a look; amber: a known
 finding; blue: a fixed one; green: passed; grey: nothing judged), used only when
@@ -363,9 +366,24 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
         f"{len(rows)} rows:",
         ", ",
     )
-    for line in [*legend, *packed_lines(key, width, "key:"), *tally]:
+    for line in [*legend, *packed_lines(key, width, "key:"), *tally, *install_lines(rows)]:
         console.print(line, highlight=False, markup=False, soft_wrap=False)
     return "\n".join(line.rstrip() for line in console.file.getvalue().splitlines())
+
+
+def install_lines(rows: list[dict]) -> list[str]:
+    """One line per engine a scene names that is not installed here: how many scenes were
+    not run in it, and how to install it."""
+    absent: dict[str, set[str]] = {}
+    for row in rows:
+        if row.get("status") == "not_installed":
+            absent.setdefault(str(row["engine"]).split("(")[0], set()).add(row["scenario"])
+    engines = declarations()
+    return [
+        f"{name} not installed: {len(scenes)} scene{'s' if len(scenes) != 1 else ''} not run in "
+        f"it ({engines[name].install if name in engines else 'install its package'})"
+        for name, scenes in absent.items()
+    ]
 
 
 NAMED_NEWS = ("regressed", "changed", "new_failures")

@@ -8,18 +8,23 @@ mismatch, error) gets one row with metric ``status`` and its message.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 
 from validation.contract import (
+    NOT_JUDGED_STATUSES,
     RESULTS_COLUMNS,
     SIGNED_COLUMNS,
     SIGNED_ERROR_COLUMN,
     VECTOR_ERROR_COLUMNS,
 )
+from validation.engine_api import Capabilities, declaration_of
 from validation.measure.metrics import Context, Measurement, divergence, measure
+from validation.measure.resolution import resolution_note
 from validation.measure.runner import EngineRun
 from validation.scenario.compiled import CompiledScene
+from validation.scenario.engine_spec import parse_engine_spec
 
 COLUMNS = RESULTS_COLUMNS
 """The columns of results.csv, in order (``validation.contract``)."""
@@ -51,6 +56,30 @@ def signed_columns(result: Measurement) -> dict:
     return columns
 
 
+@functools.cache
+def _capabilities(label: str) -> Capabilities:
+    """The declared capabilities of the engine spec ``label`` (an installed engine's)."""
+    spec = parse_engine_spec(label)
+    return declaration_of(spec.name).capabilities_of(spec.as_dict())
+
+
+def _with_resolution_note(scene: CompiledScene, run: EngineRun, result: Measurement) -> str:
+    """A failing row's message, led by the float32 resolution note when the engine is float32
+    and the error is within what it resolves (``validation.measure.resolution``)."""
+    capabilities = _capabilities(run.engine)
+    if capabilities.precision != "float32" or result.value is None or result.expected is None:
+        return result.message
+    note = resolution_note(
+        result.metric,
+        float(result.value),
+        float(result.expected),
+        float(result.error),
+        scene.scenario.steps,
+        capabilities.substeps,
+    )
+    return "; ".join(part for part in (note, result.message) if part)
+
+
 def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str) -> dict:
     tolerance = scene.scenario.tolerance(result.metric, run.engine)
     passed = (
@@ -58,8 +87,10 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
         if tolerance is None
         else bool(math.isfinite(result.error) and result.error <= tolerance + result.band)
     )
+    message = result.message
     if status == "ok" and passed is False:
         status = "failed"
+        message = _with_resolution_note(scene, run, result)
     return {
         **_common(scene, run),
         "metric": result.metric,
@@ -71,7 +102,7 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
         "band": result.band,
         "passed": passed,
         "status": status,
-        "message": result.message,
+        "message": message,
         **signed_columns(result),
     }
 
@@ -86,7 +117,7 @@ def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
         "error": None,
         "tolerance": None,
         "band": None,
-        "passed": None if run.status == "unsupported" else False,  # not run: not judged
+        "passed": None if run.status in NOT_JUDGED_STATUSES else False,  # not run: not judged
         "status": run.status,
         "message": run.message,
         **dict.fromkeys(SIGNED_COLUMNS),

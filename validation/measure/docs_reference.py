@@ -47,7 +47,7 @@ def render() -> str:
         *_table("Statuses (results.csv `status`)", STATUS_DESCRIPTIONS),
         "## Columns and conventions",
         "",
-        f"- Between observed steps: {INTERPOLATION_BOUND}.",
+        f"- Between observed steps: {INTERPOLATION_BOUND.removeprefix('between observed steps: ')}.",
         f"- {SIGNED_ERROR_DEFINITION}.",
         f"- `expected_kind`: what a row was compared against, one of {', '.join(EXPECTED_KINDS)}"
         " (a closed form, a conserved quantity whose value is its drift, another engine).",

@@ -12,7 +12,9 @@ returns an ``EngineRun`` whose ``status`` says what happened:
 - ``error``: the engine raised; the message carries the exception;
 - ``unsupported``: the scene needs a capability the engine's declaration lacks
   (``validation.scenario.needs``); the message names each and why; the engine is not even
-  imported.
+  imported;
+- ``not_installed``: the scene names an engine whose package is not installed here; the
+  message is the line that installs it.
 
 Metrics and the comparison with tolerances (``failed``) come on top of this
 (``validation.measure.comparator``).
@@ -33,7 +35,7 @@ from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
 from validation.measure.recording import Recording, record
 from validation.scenario.compiled import CompiledScene
-from validation.scenario.engine_spec import EngineSpec
+from validation.scenario.engine_spec import EngineSpec, not_installed
 from validation.scenario.needs import missing, unsupported_message
 
 
@@ -61,6 +63,10 @@ def run_engine(
     every engine failure becomes a status, never an exception."""
     start = time.perf_counter()
     run = EngineRun(scene.name, spec.label, "error")
+    absent = not_installed(spec.name)
+    if absent:
+        run.status, run.message = "not_installed", absent
+        return run
     capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
     lacking = missing(capabilities, scene.scenario)
     if lacking:

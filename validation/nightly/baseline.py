@@ -82,6 +82,7 @@ VERDICT_RANK = {
     "failed": 1,
     KNOWN: 1,
     "unsupported": 2,
+    "not_installed": 2,
     "no_tolerance": 2,
     "passed": 3,
     FIXED: 3,

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from fnmatch import fnmatchcase
 
-from validation.contract import BAD_STATUSES
+from validation.contract import BAD_STATUSES, NOT_JUDGED_STATUSES
 from validation.scenario.engine_spec import parse_engine_spec
 from validation.scenario.schema import ANY_METRIC, KnownFinding, Scenario
 
@@ -21,10 +21,10 @@ KNOWN, FIXED = "known", "fixed"
 
 def row_verdict(status: str, passed: object) -> str:
     """A row's own outcome before known findings: its bad status, ``failed``, ``passed``,
-    ``no_tolerance`` (measured, not judged) or ``unsupported``."""
+    ``no_tolerance`` (measured, not judged), ``unsupported`` or ``not_installed``."""
     if status in BAD_STATUSES:
         return status
-    if status == "unsupported":
+    if status in NOT_JUDGED_STATUSES:
         return status
     if passed is True or passed == "True":
         return "passed"

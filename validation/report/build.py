@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from validation.contract import SERIES_FILE, STATUS_DESCRIPTIONS
+from validation.contract import NOT_JUDGED_STATUSES, SERIES_FILE, STATUS_DESCRIPTIONS
 from validation.measure.definitions import (
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
@@ -29,6 +29,7 @@ from validation.measure.definitions import (
     SIGNED_ERROR_DEFINITION,
 )
 from validation.measure.noise import NOISE_RULE
+from validation.measure.resolution import RESOLUTION_MARK
 from validation.redact import shown_url
 from validation.report.closed_form import closed_form_charts, read_expectations
 from validation.report.news import build_news, build_sweep_cards
@@ -146,7 +147,7 @@ def build_cell(rows: CellRows | None, anchor: str) -> dict[str, Any]:
         return {"outcome": "not_run", "text": "–", "title": "not run", "anchor": anchor}
     worst, ratio = rows.worst, rows.ratio
     outcome = worst["outcome"]
-    if outcome in (*RUN_FAILURES, "unsupported", "no_tolerance") or math.isnan(ratio):
+    if outcome in (*RUN_FAILURES, *NOT_JUDGED_STATUSES, "no_tolerance") or math.isnan(ratio):
         text = outcome_label(outcome)
     else:
         text = format_ratio(ratio)
@@ -196,6 +197,7 @@ def build_rows(rows: pd.DataFrame, anchors: dict[str, str] | None = None) -> lis
             "outcome": row["outcome"],
             "outcome_label": outcome_label(row["outcome"]),
             "message": row["message"],
+            "resolution": str(row["message"]).startswith(RESOLUTION_MARK),
             "known": str(row.get("known", "") or "")
             if row["outcome"] in ("known", "fixed")
             else "",

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from validation.contract import RESULTS_FILE, STATUS_DESCRIPTIONS
+from validation.contract import NOT_JUDGED_STATUSES, RESULTS_FILE, STATUS_DESCRIPTIONS
 
 OUTCOME_ORDER = (
     "error",
@@ -20,6 +20,7 @@ OUTCOME_ORDER = (
     "passed",
     "no_tolerance",
     "unsupported",
+    "not_installed",
     "not_run",
 )
 """Outcomes worst first; a cell shows the worst outcome of its rows."""
@@ -30,7 +31,7 @@ RUN_FAILURES = ("error", "model_mismatch", "unstable")
 RED_OUTCOMES = (*RUN_FAILURES, "failed")
 """Outcomes that need a person's look (red, counted as offenders)."""
 
-OUTCOME_LABELS = {"no_tolerance": "no tolerance", "not_run": "not run"}
+OUTCOME_LABELS = {"no_tolerance": "no tolerance", "not_run": "not run", "not_installed": "not installed"}
 """Display words for outcomes that are not statuses of results.csv."""
 
 # Cell and chip backgrounds: red needs a look, green passed, grey nothing was judged,
@@ -48,6 +49,7 @@ OUTCOME_COLOURS = {
     "passed": GREEN,
     "no_tolerance": GREY,
     "unsupported": GREY,
+    "not_installed": GREY,
     "not_run": BLANK,
 }
 
@@ -59,7 +61,7 @@ def outcome_label(outcome: str) -> str:
 
 def row_outcome(status: str, passed: bool | None) -> str:
     """One row's outcome: a run failure or ``unsupported`` as such, else the check's verdict."""
-    if status in (*RUN_FAILURES, "unsupported"):
+    if status in (*RUN_FAILURES, *NOT_JUDGED_STATUSES):
         return status
     if status == "failed" or passed is False:
         return "failed"

@@ -128,12 +128,6 @@ def parse_engine_spec(text: str) -> EngineSpec:
             + _suggest(name, engines)
         )
     declaration = engines[name]
-    missing = declaration.missing()
-    if missing:
-        raise EngineSpecError(
-            f"engine {name!r} needs the {', '.join(missing)} package, not installed: "
-            + declaration.install
-        )
     options = {option.name: option.accepted for option in declaration.options}
     settings: list[tuple[str, str | int | float | bool]] = []
     for part in [p for p in (inner or "").split(",") if p.strip()]:
@@ -154,6 +148,29 @@ def parse_engine_spec(text: str) -> EngineSpec:
         except ValueError as error:
             raise EngineSpecError(f"{name}: {error}") from None
     return EngineSpec(name, tuple(settings))
+
+
+def not_installed(name: str) -> str | None:
+    """Why the engine ``name`` cannot run here (its package is missing, with the install
+    line), or None when it can. A scene may name such an engine (its rows are
+    ``not_installed``); a command line that names one is refused (``parse_installed_spec``)."""
+    declaration = declarations()[name]
+    missing = declaration.missing()
+    if not missing:
+        return None
+    return f"engine {name!r} needs the {', '.join(missing)} package, not installed: " + (
+        declaration.install
+    )
+
+
+def parse_installed_spec(text: str) -> EngineSpec:
+    """``parse_engine_spec``, refusing an engine whose package is not installed: what a
+    command line names must run."""
+    spec = parse_engine_spec(text)
+    reason = not_installed(spec.name)
+    if reason:
+        raise EngineSpecError(reason)
+    return spec
 
 
 def split_engine_list(text: str) -> list[str]:

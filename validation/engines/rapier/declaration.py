@@ -8,7 +8,7 @@ default, capabilities: shapes, features, integrators, precision).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
 
@@ -168,6 +168,25 @@ OPTIONS = (
 """The settings a Rapier spec may carry; unset ones take the profile's value (``PROFILES``)."""
 
 
+RAPIER_SUBSTEPS = 4
+"""``IntegrationParameters.num_solver_iterations``'s default: substeps per step (engines-rapier.md 3)."""
+
+CAPABILITIES = Capabilities(
+    shapes=SHAPES,
+    features=frozenset(FEATURES),
+    integrators=INTEGRATORS,
+    precision=PRECISION,
+    substeps=RAPIER_SUBSTEPS,
+)
+"""What every Rapier spec represents; only the substep count depends on the settings."""
+
+
+def capabilities_for(settings: dict[str, object]) -> Capabilities:
+    """The capabilities of a spec: ``solver_iterations`` substeps per step (Rapier's 4 unset)."""
+    substeps = settings.get("solver_iterations", RAPIER_SUBSTEPS)
+    return replace(CAPABILITIES, substeps=int(substeps))  # type: ignore[call-overload]
+
+
 DECLARATION = EngineDeclaration(
     name=NAME,
     api_version=API_VERSION,
@@ -175,12 +194,8 @@ DECLARATION = EngineDeclaration(
     distribution=DISTRIBUTION,
     summary=SUMMARY,
     options=OPTIONS,
-    capabilities=Capabilities(
-        shapes=SHAPES,
-        features=frozenset(FEATURES),
-        integrators=INTEGRATORS,
-        precision=PRECISION,
-    ),
+    capabilities=CAPABILITIES,
+    capabilities_for=capabilities_for,
     requires=(DISTRIBUTION,),
     install=INSTALL_HINT,
 )
