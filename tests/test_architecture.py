@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -343,8 +344,9 @@ pydantic, mini_engine's model for the overlap check) and nothing else."""
 @pytest.mark.parametrize("command", sorted(LIGHT_COMMANDS))
 def test_a_light_command_imports_only_what_it_uses(command, tmp_path):
     """``physval check FILE``, ``list``, ``--help`` and ``--version`` run in a fresh
-    interpreter; the top-level packages loaded by then exclude the engines, pandas and
-    matplotlib (each command imports what it uses when it runs)."""
+    interpreter; the modules loaded by then exclude the engines (``HEAVY_PACKAGES``, every
+    installed engine's ``requires`` and every ``validation.engines.<name>.adapter``), pandas,
+    matplotlib and SciPy (each command imports what it uses when it runs)."""
     scene = ROOT / "scenarios" / "formulas" / "projectile.yaml"
     argv = {"check": ["check", str(scene)], "list": ["list", str(scene)]}.get(command, [command])
     program = (
@@ -354,7 +356,7 @@ def test_a_light_command_imports_only_what_it_uses(command, tmp_path):
         f"    code = main({argv!r})\n"
         "except SystemExit as stop:\n"
         "    code = stop.code\n"
-        "print(sorted({m.split('.')[0] for m in sys.modules}), file=sys.stderr)\n"
+        "print(sorted(sys.modules), file=sys.stderr)\n"
         "sys.exit(code)\n"
     )
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -366,9 +368,22 @@ def test_a_light_command_imports_only_what_it_uses(command, tmp_path):
         cwd=tmp_path,
     )
     assert done.returncode == 0, done.stderr[-2000:]
-    loaded = set(ast.literal_eval(done.stderr.strip().splitlines()[-1]))
-    forbidden = loaded & {*HEAVY_PACKAGES, *LIGHT_COMMANDS[command]}
+    modules = set(ast.literal_eval(done.stderr.strip().splitlines()[-1]))
+    loaded = {m.split(".")[0] for m in modules}
+    forbidden = loaded & {*HEAVY_PACKAGES, *_engine_packages(), *LIGHT_COMMANDS[command]}
+    forbidden |= {m for m in modules if re.fullmatch(ENGINE_ADAPTER_MODULE, m)}
     assert not forbidden, f"physval {command} imported {sorted(forbidden)}"
+
+
+ENGINE_ADAPTER_MODULE = r"validation\.engines\.[A-Za-z0-9_]+\.adapter"
+"""An engine adapter's module: it imports its engine (a declaration never does)."""
+
+
+def _engine_packages() -> set[str]:
+    """The top-level packages every installed engine's adapter may need (``requires``)."""
+    from validation.engine_api import declarations
+
+    return {m.split(".")[0] for d in declarations().values() for m in d.requires}
 
 
 def test_the_baseline_actions_the_command_line_offers_are_the_ones_it_has():
@@ -378,3 +393,21 @@ def test_the_baseline_actions_the_command_line_offers_are_the_ones_it_has():
     from validation.nightly.baseline import BASELINE_ACTIONS
 
     assert tuple(BASELINE_ACTIONS) == BASELINE_ACTION_NAMES, (BASELINE_ACTIONS, BASELINE_ACTION_NAMES)
+
+
+def test_the_sabotage_module_imports_neither_numpy_nor_mini_engine():
+    """Every command checks ``PHYSVAL_SABOTAGE`` before any work (``physval check`` too): in
+    a fresh interpreter, importing the sabotage module and checking the variable loads no
+    NumPy and no mini_engine module (they come when a sabotage is applied)."""
+    program = (
+        "import sys\n"
+        "from validation.engines.sabotage import chosen\n"
+        "chosen({'PHYSVAL_SABOTAGE': 'sphere_box_normal_flipped'})\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'mini_engine'}))\n"
+    )
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", program], capture_output=True, text=True, env=environment
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]", f"loaded with the sabotage module: {done.stdout.strip()}"

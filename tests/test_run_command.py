@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -198,3 +199,33 @@ def test_a_report_that_cannot_be_rendered_is_exit_2_with_the_record_published(
     assert code == 2, printed
     assert (out / "results.csv").exists() and not (out / "report.html").exists()
     assert "report.html not rendered" in printed and "physval report" in printed, printed
+
+
+def test_timings_name_every_phase_in_order_and_change_no_record(tmp_path, capsys):
+    """``--timings`` prints one line on stderr naming each phase of ``phases.PHASES`` in
+    order, each with its seconds, and the run's job kinds with their counts; results.csv is
+    the one a run without it writes (but for its wall times)."""
+    from validation.jobs.phases import PHASES
+
+    path = scene_file(
+        tmp_path,
+        """\
+dt: 0.001
+duration: 0.05
+bodies: [{name: b, shape: {type: sphere, radius: 0.1}, mass: 1.0}]
+""",
+    )
+    common = ["run", str(path), "--engines", "mini", "--history", "none", "--jobs", "1"]
+    assert main([*common, "--out", str(tmp_path / "plain")]) == 0
+    assert "timings:" not in capsys.readouterr().err
+    assert main([*common, "--out", str(tmp_path / "timed"), "--timings"]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("timings:")]
+    assert len(lines) == 1, lines
+    shown = re.findall(r"(\w+) \d+\.\d\d s", re.sub(r"\(.*?\)", "", lines[0]))
+    assert shown == [*PHASES, "total"], lines[0]
+    assert "run: 1 jobs" in lines[0], lines[0]
+    plain, timed = (
+        pd.read_csv(tmp_path / name / "results.csv").drop(columns="wall_time_s")
+        for name in ("plain", "timed")
+    )
+    pd.testing.assert_frame_equal(plain, timed)

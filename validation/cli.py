@@ -36,7 +36,11 @@ def command_check(args: argparse.Namespace) -> int:
 
 def command_run(args: argparse.Namespace) -> int:
     """Run scenes in engines, measure, compare, write the report; 0 passed, 1 failed, 2 bad input."""
-    from validation.jobs.run import RESUME_ALONE, run_main
+    from validation.jobs.phases import PhaseClock
+
+    clock = PhaseClock(shown=args.timings)
+    with clock.phase("imports"):  # the harness, NumPy, pandas, ...: not paid by a light command
+        from validation.jobs.run import RESUME_ALONE, run_main
 
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
     if args.resume is not None and any(selection):
@@ -59,6 +63,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.junit,
         args.history,
         args.scheduler,
+        clock,
     )
 
 
@@ -255,6 +260,12 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
         metavar="URL",
         help="record the run in this history database (default sqlite:///<the --out "
         "folder's parent>/history.sqlite; 'none': not recorded)",
+    )
+    command.add_argument(
+        "--timings",
+        action="store_true",
+        help="print the wall time of each phase (planning, jobs, write, report, publish, "
+        "history) on stderr at the end",
     )
     _jobs_argument(command)
 

@@ -27,8 +27,6 @@ import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 SABOTAGE_VARIABLE = "PHYSVAL_SABOTAGE"
 """Environment variable naming the sabotage of every mini spec (unset or empty: none)."""
 
@@ -65,12 +63,20 @@ class Patch:
         name: the attribute.
         make: the original value -> the sabotaged one.
         key: a key of the dict ``owner.name`` (a registry entry), or None.
+        key_of: a function returning that key, called when the patch is first applied (a key
+            made of mini_engine's values: this module imports nothing of mini_engine, nor
+            NumPy, until a sabotage is active, so ``physval check`` stays light), or None.
     """
 
     owner: str
     name: str
     make: Callable[[object], object]
     key: object = None
+    key_of: Callable[[], object] | None = None
+
+    def entry(self) -> object:
+        """The dict key this patch replaces (``key`` or ``key_of()``), or None for an attribute."""
+        return self.key if self.key_of is None else self.key_of()
 
     def sites(self) -> list[tuple[object, str | None, object]]:
         """(holder, attribute or None for a dict entry, original) of every place to replace."""
@@ -80,8 +86,9 @@ class Patch:
         if class_name:
             holder = getattr(holder, class_name)
         original = getattr(holder, self.name)
-        if self.key is not None:
-            return [(original, None, original[self.key])]
+        key = self.entry()
+        if key is not None:
+            return [(original, None, original[key])]
         if class_name:  # a method: one class attribute
             return [(holder, self.name, original)]
         return [
@@ -116,7 +123,7 @@ class Sabotage:
         found = []
         for patch in self.patches:
             for holder, attribute, original in patch.sites():
-                found.append((holder, attribute, original, patch.make(original), patch.key))
+                found.append((holder, attribute, original, patch.make(original), patch.entry()))
         return found
 
     @contextlib.contextmanager
@@ -196,6 +203,7 @@ def _gyroscopic_sign(original):
 
 def _box_axes_swapped(original):
     """``Ixx`` and ``Izz`` of a box exchanged (a diagonal written in the wrong order)."""
+    import numpy as np
 
     def unit_inertia(self):
         return np.diag(np.diagonal(original(self))[::-1])
@@ -205,6 +213,7 @@ def _box_axes_swapped(original):
 
 def _capsule_without_parallel_axis(original):
     """Each cap's transverse moment about its own base, not moved to the capsule's centre."""
+    import numpy as np
 
     def unit_inertia(self):
         r, length = self.radius, 2.0 * self.half_length
@@ -300,6 +309,8 @@ def _clock_ahead(original):
 
 
 def _no_torque(original):
+    import numpy as np
+
     def constant_loads(model):
         force, torque = original(model)
         return force, np.zeros_like(torque)
@@ -406,7 +417,11 @@ SABOTAGES: dict[str, Sabotage] = {
             "sphere_box_normal_flipped",
             "the sphere-box contact normal points the wrong way",
             "narrowphase.NARROW_PHASE[sphere, box]",
-            (Patch("mini_engine.narrowphase", "NARROW_PHASE", _flipped_normal, key=_sphere_box()),),
+            (
+                Patch(
+                    "mini_engine.narrowphase", "NARROW_PHASE", _flipped_normal, key_of=_sphere_box
+                ),
+            ),
         ),
         Sabotage(
             "warm_start_doubled",

@@ -17,7 +17,7 @@ from pathlib import Path
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engine_api import FEATURES, SHAPES, Count, EngineDeclaration, EngineOption, discover
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
-from validation.scenario.load import check_scenario, scenario_files
+from validation.scenario.load import scenario_files, validate_scenario
 from validation.versions import version_of
 
 LIST_WIDTH = 100
@@ -95,7 +95,7 @@ def scene_lines(paths: list[Path]) -> tuple[list[str], list[str]]:
     files = scenario_files(paths)
     lines, broken = [f"scenes ({len(files)}, in {', '.join(map(str, paths))}):"], []
     for file in files:
-        scenario, problems = check_scenario(file)
+        scenario, problems = validate_scenario(file)  # valid or not; the warnings are check's
         if scenario is None:
             broken.append(f"{file}: does not load ({len(problems)} problems: physval check {file})")
             continue

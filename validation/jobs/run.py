@@ -19,6 +19,7 @@ import os
 import platform
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +57,7 @@ from validation.jobs.nightly_run import (
     write_ci_files,
 )
 from validation.jobs.output import Output, claim
+from validation.jobs.phases import PhaseClock
 from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
 from validation.jobs.sweep import (
     SWEEP_METRICS,
@@ -277,6 +279,14 @@ def _do(job: tuple[str, tuple]) -> object:
     return JOB_KINDS[kind](payload)
 
 
+def _timed(job: tuple[str, tuple]) -> tuple[float, object]:
+    """``(seconds, result)``: ``_do(job)`` and the wall seconds it took in its worker
+    (``--timings``; the seconds never reach a record)."""
+    start = time.perf_counter()
+    result = _do(job)
+    return time.perf_counter() - start, result
+
+
 def _cost(job: tuple[str, tuple]) -> float:
     """A tagged job's expected cost (``plan.expected_cost``): a run at its scene's dt, or a
     sweep over its grid."""
@@ -321,6 +331,7 @@ def execute(
     journal: Journal | None = None,
     done: dict | None = None,
     scheduler: str | None = None,
+    clock: PhaseClock | None = None,
 ) -> Executed:
     """Run every (scene, engine) and every scene's sweep on ``jobs`` workers (or on the Dask
     cluster at ``scheduler``), all in plan order whatever order the jobs finished in.
@@ -328,19 +339,23 @@ def execute(
     ``journal``, each new result is committed to it as it finishes (sweeps after the runs,
     indexed after them), in this process whatever the backend. A job the cluster lost gets
     its error rows in this run but is not committed: the cluster failed, not the job, so a
-    ``--resume`` of this run (killed later) runs it again."""
+    ``--resume`` of this run (killed later) runs it again. ``clock``: where each job's worker
+    seconds are added up (``PhaseClock.job``)."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     ids = job_ids(plan)
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
     lost_jobs: list[tuple] = []  # the cluster lost them: their error rows are not journaled
 
-    def lost(job: tuple, message: str) -> object:
+    def lost(job: tuple, message: str) -> tuple[float, object]:
         lost_jobs.append(job)
-        return _lost(job, message)
+        return 0.0, _lost(job, message)
 
-    def finished(position: int, result) -> None:
+    def finished(position: int, timed: tuple[float, object]) -> None:
+        seconds, result = timed
         index = todo[position]
+        if clock is not None:
+            clock.job(work[index][0], seconds)
         if journal is not None and not any(work[index] is job for job in lost_jobs):
             journal.append(ids[index], result)  # a lost job is run again by --resume
         done[index] = result
@@ -352,7 +367,7 @@ def execute(
         )
 
     with Progress(len(todo)) as progress:
-        run_jobs(_do, [work[index] for index in todo], jobs, finished, scheduler, lost, _cost)
+        run_jobs(_timed, [work[index] for index in todo], jobs, finished, scheduler, lost, _cost)
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
@@ -618,13 +633,59 @@ def _finish(
     jobs: int,
     scheduler: str | None = None,
     keep_copy: bool | None = None,
+    clock: PhaseClock | None = None,
 ) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code.
-    ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``)."""
-    options = request.nightly()
-    done = _journaled(journal, plan)
+    ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``).
+    ``clock``: the clock that times the phases (printed on stderr at the end when it is
+    ``shown``: ``--timings``)."""
+    clock = PhaseClock() if clock is None else clock
+    with clock.phase("planning"):
+        options = request.nightly()
+        done = _journaled(journal, plan)
     resumed = len(done)
-    executed = execute(plan, jobs, journal, done, scheduler)  # Ctrl-C: Interrupted
+    with clock.phase("jobs"):
+        executed = execute(plan, jobs, journal, done, scheduler, clock)  # Ctrl-C: Interrupted
+    with clock.phase("write"):
+        rows, comparison = _written(output, plan, request, executed, options, resumed)
+    with clock.phase("report"):
+        note = render_html(output.run_folder, shown_as=output.destination)
+    with clock.phase("publish"):
+        output.publish()
+        if request.out is None if keep_copy is None else keep_copy:  # with a unique stamp
+            output.keep_history()
+    with clock.phase("history"):
+        recorded = record_history(output.destination, options)
+    print(summary(rows, color=sys.stdout.isatty()))
+    print(news(rows, comparison, options.baseline))
+    total = len(plan.jobs) + len(_sweep_work(plan))
+    journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
+    written = f"{len(rows)} rows -> {output.destination / RESULTS_FILE}"
+    print(
+        "\n".join(
+            packed_lines(
+                [n for n in (journaled, written, recorded, note) if n], SUMMARY_WIDTH, "", "; "
+            )
+        )
+    )
+    if clock.shown:
+        print(clock.text(), file=sys.stderr)
+    if note:  # the record is published, but the page a reader opens is not: never exit 0
+        return EXIT_BAD_INPUT
+    return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+
+
+def _written(
+    output: Output,
+    plan: Plan,
+    request: RunRequest,
+    executed: Executed,
+    options: NightlyOptions,
+    resumed: int,
+) -> tuple[list[dict], object]:
+    """The run's rows classified against the baseline, written with the record files
+    (results, series, impacts, provenance, trace, sweep, the CI files); the rows and the
+    baseline comparison."""
     rows = executed.rows + _sweep_rows(plan, executed)
     provenance = _provenance(executed.runs, request.argv)
     provenance["scenes"] = hashes = scene_hashes(plan)
@@ -647,26 +708,7 @@ def _finish(
     if executed.sweep_rows:
         write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
     write_ci_files(rows, options)
-    note = render_html(output.run_folder, shown_as=output.destination)
-    output.publish()
-    if request.out is None if keep_copy is None else keep_copy:  # with a unique stamp
-        output.keep_history()
-    recorded = record_history(output.destination, options)
-    print(summary(rows, color=sys.stdout.isatty()))
-    print(news(rows, comparison, options.baseline))
-    total = len(plan.jobs) + len(_sweep_work(plan))
-    journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
-    written = f"{len(rows)} rows -> {output.destination / RESULTS_FILE}"
-    print(
-        "\n".join(
-            packed_lines(
-                [n for n in (journaled, written, recorded, note) if n], SUMMARY_WIDTH, "", "; "
-            )
-        )
-    )
-    if note:  # the record is published, but the page a reader opens is not: never exit 0
-        return EXIT_BAD_INPUT
-    return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+    return rows, comparison
 
 
 RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported", "not_installed")
@@ -748,34 +790,26 @@ def run_main(
     junit: str | None = None,
     history: str | None = None,
     scheduler: str | None = None,
+    clock: PhaseClock | None = None,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
     or a new failure; 2 bad input, a refused output folder, or an output that failed while
-    writing)."""
+    writing). ``clock``: times the phases (``phases.PhaseClock``; printed on stderr at the
+    end when it is ``shown``, ``--timings``)."""
+    clock = PhaseClock() if clock is None else clock
     try:
         if resume is not None:
-            return _resume_main(resume, jobs, scheduler, junit, history)
-        request = RunRequest(
-            [str(p) for p in paths],
-            engines,
-            dt,
-            only,
-            None if out is None else str(out),
-            argv,
-            os.getcwd(),
-            baseline,
-            junit,
-            history,
-        )
-        request.nightly()  # the flags checked before any work
-        plan = request.plan()
-        if scheduler is None:  # on a cluster the workers' memory is the cluster's
-            check_memory(plan, jobs, _sample_every)
+            return _resume_main(resume, jobs, scheduler, junit, history, clock)
+        with clock.phase("planning"):
+            request, plan = _planned(paths, engines, out, dt, only, argv, baseline, junit, history)
+            if scheduler is None:  # on a cluster the workers' memory is the cluster's
+                check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
-            header = _header(request, plan)
-            journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
-            return _finish(output, journal, plan, request, jobs, scheduler)
+            with clock.phase("planning"):
+                header = _header(request, plan)
+                journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
+            return _finish(output, journal, plan, request, jobs, scheduler, clock=clock)
     except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -788,22 +822,43 @@ def run_main(
         return EXIT_BAD_INPUT
 
 
+def _planned(paths, engines, out, dt, only, argv, baseline, junit, history):
+    """The run's request (its flags checked before any work) and its plan."""
+    request = RunRequest(
+        [str(p) for p in paths],
+        engines,
+        dt,
+        only,
+        None if out is None else str(out),
+        argv,
+        os.getcwd(),
+        baseline,
+        junit,
+        history,
+    )
+    request.nightly()  # the flags checked before any work
+    return request, request.plan()
+
+
 def _resume_main(
     destination: Path,
     jobs: int,
     scheduler: str | None = None,
     junit: str | None = None,
     history: str | None = None,
+    clock: PhaseClock | None = None,
 ) -> int:
     """``--resume DIR``: the journal read, its header checked and its request run writing only
     to DIR and to this command line's ``junit`` and ``history``, before any work."""
     with claim(destination, resume=True) as output:
-        try:
-            journal = Journal.open(output.journal_folder, JOURNAL_SCHEMA)
-        except JournalError as error:
-            raise BadInputError(f"--resume {destination}: {error}") from None
-        request, plan = _resumed(journal, destination, junit, history)
-        if scheduler is None:
-            check_memory(plan, jobs, _sample_every)
+        clock = PhaseClock() if clock is None else clock
+        with clock.phase("planning"):
+            try:
+                journal = Journal.open(output.journal_folder, JOURNAL_SCHEMA)
+            except JournalError as error:
+                raise BadInputError(f"--resume {destination}: {error}") from None
+            request, plan = _resumed(journal, destination, junit, history)
+            if scheduler is None:
+                check_memory(plan, jobs, _sample_every)
         keep_copy = journal.header["request"]["out"] is None
-        return _finish(output, journal, plan, request, jobs, scheduler, keep_copy)
+        return _finish(output, journal, plan, request, jobs, scheduler, keep_copy, clock)

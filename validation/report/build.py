@@ -105,25 +105,57 @@ def metric_anchor(metric: str) -> str | None:
     return f"expectation-{kind}" if kind in EXPECTATION_DEFINITIONS and "." in metric else None
 
 
-def build_cell(rows: pd.DataFrame, anchor: str) -> dict[str, Any]:
+@dataclasses.dataclass(frozen=True)
+class CellRows:
+    """What a matrix cell shows of a (scene, engine)'s rows (``cell_rows``).
+
+    Attributes:
+        worst: the worst row (``worst_first``'s first) as a dict of its columns.
+        ratio: the largest error/tolerance of the judged rows (NaN when none is judged).
+        failed: how many rows failed. judged: how many have a ratio.
+    """
+
+    worst: dict[str, Any]
+    ratio: float
+    failed: int
+    judged: int
+
+
+def cell_rows(table: pd.DataFrame) -> dict[tuple[str, str], CellRows]:
+    """(scene, engine) -> its ``CellRows``, for every pair that has rows: the table ranked
+    once (``worst_first``, stable, so a cell's worst row is the one ranking its rows alone
+    would put first) and grouped once, instead of once per cell."""
+    keys = ["scenario", "engine"]
+    worst = worst_first(table).drop_duplicates(keys)
+    groups = table.assign(
+        _failed=table["outcome"] == "failed", _judged=table["ratio"].notna()
+    ).groupby(keys, sort=False, dropna=False)
+    ratio, failed, judged = (
+        groups[column].agg(how).to_dict()
+        for column, how in (("ratio", "max"), ("_failed", "sum"), ("_judged", "sum"))
+    )
+    cells = {}
+    for row in worst.to_dict("records"):
+        key = (row["scenario"], row["engine"])
+        cells[key] = CellRows(row, float(ratio[key]), int(failed[key]), int(judged[key]))
+    return cells
+
+
+def build_cell(rows: CellRows | None, anchor: str) -> dict[str, Any]:
     """One matrix cell: the worst outcome of a (scene, engine)'s rows, shown as a ratio or word."""
-    if rows.empty:
+    if rows is None:
         return {"outcome": "not_run", "text": "–", "title": "not run", "anchor": anchor}
-    ordered = worst_first(rows)
-    worst = ordered.iloc[0]
+    worst, ratio = rows.worst, rows.ratio
     outcome = worst["outcome"]
-    judged = rows[rows["ratio"].notna()]
-    ratio = judged["ratio"].max() if not judged.empty else math.nan
     if outcome in (*RUN_FAILURES, *NOT_JUDGED_STATUSES, "no_tolerance") or math.isnan(ratio):
         text = outcome_label(outcome)
     else:
         text = format_ratio(ratio)
-    failed = int((rows["outcome"] == "failed").sum())
     title = f"{outcome_label(outcome)}: {worst['metric']}"
     if not math.isnan(worst["ratio"]):
         title += f" at {format_ratio(worst['ratio'])} its tolerance"
-    if len(judged):
-        title += f"; {failed} of {len(judged)} checks failed"
+    if rows.judged:
+        title += f"; {rows.failed} of {rows.judged} checks failed"
     if worst["message"]:
         title += f" — {worst['message']}"
     return {"outcome": outcome, "text": text, "title": title, "anchor": anchor}
@@ -170,7 +202,7 @@ def build_rows(rows: pd.DataFrame, anchors: dict[str, str] | None = None) -> lis
             if row["outcome"] in ("known", "fixed")
             else "",
         }
-        for _, row in worst_first(rows).iterrows()
+        for row in worst_first(rows).to_dict("records")
     ]
 
 
@@ -212,18 +244,25 @@ def build_runs(
     specs = (provenance or {}).get("engines")
     specs = specs if isinstance(specs, dict) else {}
     runs = []
-    by_engine = dict(tuple(rows.groupby("engine", sort=False)))
+    # each engine's first row, its worst outcome and its status messages, the table ranked
+    # and grouped once (ranking is stable: an engine's worst is the one its rows alone give)
+    firsts = {row["engine"]: row for row in rows.drop_duplicates("engine").to_dict("records")}
+    ranked = worst_first(rows).drop_duplicates("engine")
+    worst_of = dict(zip(ranked["engine"], ranked["outcome"], strict=True))
+    status = rows[rows["metric"] == "status"]
+    status_messages: dict[str, list] = {}
+    for engine, message in zip(status["engine"], status["message"], strict=True):
+        status_messages.setdefault(engine, []).append(message)
     for engine in engines:
-        mine = by_engine.get(engine)
-        if mine is None:
+        first = firsts.get(engine)
+        if first is None:
             continue
-        first = mine.iloc[0]
-        worst = worst_first(mine).iloc[0]["outcome"]
+        worst = worst_of[engine]
         spec = specs.get(engine)
         common = spec.get("settings") if isinstance(spec, dict) else None
         settings, count, same = _pretty_settings(first["settings"], common)
         own = count - same
-        messages = [m for m in dict.fromkeys(mine.loc[mine["metric"] == "status", "message"]) if m]
+        messages = [m for m in dict.fromkeys(status_messages.get(engine, [])) if m]
         runs.append(
             {
                 "engine": engine,
@@ -271,7 +310,7 @@ def build_impacts(impacts: pd.DataFrame | None, scene: str) -> dict[str, Any]:
             "v_before": format_number(row["normal_velocity_before"]),
             "v_after": format_number(row["normal_velocity_after"]),
         }
-        for _, row in shown.iterrows()
+        for row in shown.to_dict("records")
     ]
     return {
         "available": True,
@@ -348,8 +387,8 @@ def build_provenance(provenance: dict[str, Any] | None, table: pd.DataFrame) -> 
 def _engine_order(table: pd.DataFrame, series: pd.DataFrame | None) -> list[str]:
     """Engines in the order of first appearance (the reference engine, listed first, leads)."""
     engines = list(dict.fromkeys(table["engine"]))
-    if series is not None:
-        engines += [e for e in dict.fromkeys(series["engine"]) if e not in engines]
+    if series is not None:  # pd.unique keeps the order of first appearance
+        engines += [e for e in pd.unique(series["engine"]) if e not in engines]
     return engines
 
 
@@ -476,16 +515,12 @@ def build_context(run: RunData) -> dict[str, Any]:
     scenes = scene_order(table)
     taken: set[str] = set()
     anchors = {scene: slug(scene, taken) for scene in scenes}
-    cells = dict(tuple(table.groupby(["scenario", "engine"], sort=False)))
-    no_rows = table.iloc[0:0]
+    cells = cell_rows(table)
     matrix = [
         {
             "scene": scene,
             "anchor": anchors[scene],
-            "cells": [
-                build_cell(cells.get((scene, engine), no_rows), anchors[scene])
-                for engine in engines
-            ],
+            "cells": [build_cell(cells.get((scene, engine)), anchors[scene]) for engine in engines],
         }
         for scene in scenes
     ]

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pydantic
 
@@ -42,7 +43,7 @@ from validation.contract import (
     TRACE_COLUMNS,
     TRACE_FILE,
 )
-from validation.csv_safe import restored
+from validation.csv_safe import is_text_column, original, restored
 from validation.files import open_regular, read_regular
 
 NUMERIC_RESULTS_COLUMNS = (
@@ -131,6 +132,21 @@ def read_results(path: Path) -> pd.DataFrame:
     return table
 
 
+def _restored_by_value(table: pd.DataFrame, text_columns: tuple[str, ...]) -> None:
+    """``csv_safe.restored`` of ``text_columns`` (in place), each distinct text restored once:
+    series.csv repeats a few scene and engine names over 200,000 rows, and restoring cell by
+    cell was a tenth of the report's time. A column with a missing cell is restored cell by
+    cell."""
+    for name in (c for c in text_columns if c in table.columns):
+        if not is_text_column(table[name]):
+            continue
+        codes, distinct = pd.factorize(table[name])
+        if (codes < 0).any() or not all(isinstance(text, str) for text in distinct):
+            restored(table, [name])
+            continue
+        table[name] = np.asarray([original(text) for text in distinct], dtype=object)[codes]
+
+
 def _read_optional_table(
     path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...], warnings: list[str]
 ) -> pd.DataFrame | None:
@@ -149,7 +165,7 @@ def _read_optional_table(
     if missing:
         warnings.append(f"{path.name}: missing columns {', '.join(missing)}; not shown")
         return None
-    restored(table, text_columns)
+    _restored_by_value(table, text_columns)
     for column in columns:
         if column not in text_columns:
             table[column] = pd.to_numeric(table[column], errors="coerce")

@@ -108,9 +108,16 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario
 
 
+def validate_scenario(path: str | Path) -> tuple[Scenario | None, list[Problem]]:
+    """The scenario (or None) and its problems, without the check for overlaps at t = 0
+    (``check_scenario`` adds it): that check only ever warns, so whether a file is valid is
+    decided here (``physval list``, which shows no warning, stops here)."""
+    return _load(Path(path))
+
+
 def check_scenario(path: str | Path) -> tuple[Scenario | None, list[Problem]]:
     """The scenario (or None) and all its problems, warnings included (overlaps at t = 0)."""
-    scenario, problems = _load(Path(path))
+    scenario, problems = validate_scenario(path)
     if scenario is not None:
         problems += [
             Problem(str(path), f"bodies[{i}]", message, *(None, None), warning=True)
