@@ -35,7 +35,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mini_engine.contacts import PairContacts
-from mini_engine.rotation import last_axis_sum
+from mini_engine.rotation import einsum, last_axis_sum
 from mini_engine.shapes import ShapeType
 
 # ---------------------------------------------------------------------------------------
@@ -187,12 +187,12 @@ def _column(rot: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 def _to_world(pos: np.ndarray, rot: np.ndarray, local: np.ndarray) -> np.ndarray:
     """World points ``pos + R local``: ``pos (n, 3)``, ``rot (n, 3, 3)``, ``local (n, m, 3)``."""
-    return pos[:, None, :] + np.einsum("nij,nmj->nmi", rot, local)
+    return pos[:, None, :] + einsum("nij,nmj->nmi", rot, local)
 
 
 def _to_local(rot: np.ndarray, vector: np.ndarray) -> np.ndarray:
     """Body-frame vectors ``Rᵀ v`` (n, 3) of world ``vector (n, 3)``, ``rot (n, 3, 3)``."""
-    return np.einsum("nji,nj->ni", rot, vector)
+    return einsum("nji,nj->ni", rot, vector)
 
 
 def _emit(
@@ -711,7 +711,7 @@ def _capsule_box(
     candidate = np.stack([use_face, use_face, np.ones(k, dtype=bool)], axis=1)
     keep, valid = _deepest_and_farthest(depth, param, candidate & (depth >= -margin))
     point = _to_world(pos_b, rot_b, np.take_along_axis(local_point, keep[..., None], axis=1))
-    normal = np.einsum(
+    normal = einsum(
         "kij,kmj->kmi", rot_b, np.take_along_axis(local_normal, keep[..., None], axis=1)
     )
     return _emit(valid, point, normal, np.take_along_axis(depth, keep, axis=1))
@@ -794,7 +794,7 @@ def _projected_radius(rot: np.ndarray, size: np.ndarray, axes: np.ndarray) -> np
 
     Boxes: ``rot (k, 3, 3)`` body to world, ``size (k, 3)`` m half extents.
     """
-    return np.sum(np.abs(np.einsum("kji,kmj->kmi", rot, axes)) * size[:, None, :], axis=2)
+    return np.sum(np.abs(einsum("kji,kmj->kmi", rot, axes)) * size[:, None, :], axis=2)
 
 
 def _clearly_better(new: np.ndarray, old: np.ndarray, absolute: np.ndarray) -> np.ndarray:
@@ -941,7 +941,7 @@ def _face_contacts(
         ],
         axis=1,
     )
-    corners = incident_centre[:, None, :] + np.einsum("cs,nsj->ncj", _QUAD_SIGNS, spans)
+    corners = incident_centre[:, None, :] + einsum("cs,nsj->ncj", _QUAD_SIGNS, spans)
 
     relative = corners - face_centre[:, None, :]
     polygon = np.zeros((n, CLIP_CAPACITY, 3))
@@ -989,8 +989,8 @@ def _edge_contacts(
     toward_a[rows, i] = 0.0
     toward_b = -_sign(_to_local(rot_b, normal)) * size_b
     toward_b[rows, j] = 0.0
-    centre_a = pos_a + np.einsum("nij,nj->ni", rot_a, toward_a)
-    centre_b = pos_b + np.einsum("nij,nj->ni", rot_b, toward_b)
+    centre_a = pos_a + einsum("nij,nj->ni", rot_a, toward_a)
+    centre_b = pos_b + einsum("nij,nj->ni", rot_b, toward_b)
     axis_a, axis_b = _column(rot_a, i), _column(rot_b, j)
     s, t = _closest_segment_params(
         centre_a, axis_a, size_a[rows, i], centre_b, axis_b, size_b[rows, j]
