@@ -525,7 +525,7 @@ def _per_colour(batches: list[slice], *arrays: np.ndarray) -> list[tuple[np.ndar
     of once per sweep (one colour: the arrays themselves)."""
     if len(batches) == 1:
         return [arrays]
-    return [tuple(array[s] for array in arrays) for s in batches]
+    return list(zip(*[[array[s] for s in batches] for array in arrays], strict=True))
 
 
 def _normal_colours(
@@ -702,7 +702,8 @@ def _friction_update(
     """
     sticking = contact_impulse - (sticking_mass @ contact_slip[:, :, None])[:, :, 0]
     sticks = np.sqrt(einsum("ik,ik->i", sticking, sticking)) <= disc_radius
-    if sticks.all():  # resting contacts: the sliding step is not needed (the same values)
+    if np.logical_and.reduce(sticks):  # all stick (sticks.all() without its Python layer):
+        # resting contacts: the sliding step is not needed (the same values)
         return sticking
     sliding = contact_impulse - step_mass[:, None] * contact_slip
     sliding_norm = np.sqrt(einsum("ik,ik->i", sliding, sliding))
@@ -891,11 +892,10 @@ def _apply_impulses(body_twist, graph: _ContactGraph, response, impulse) -> None
     if not np.count_nonzero(impulse):
         return
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for rows, index, rows_response, rows_impulse in _per_colour(
-        graph.batches, graph.pair_rows, graph.twist_index, response, impulse
+    for index, rows_response, rows_impulse in _per_colour(
+        graph.batches, graph.twist_index, response, impulse
     ):  # contacts of one colour share no dynamic body: gather, add, store
-        twist = body_twist.take(rows, axis=0).reshape(-1, 12)
-        flat_twist[index] = twist + rows_impulse[:, None] * rows_response
+        flat_twist.put(index, flat_twist.take(index) + rows_impulse[:, None] * rows_response)
 
 
 def _warm_start_impulses(
