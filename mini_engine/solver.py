@@ -41,7 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mini_engine.contacts import Contacts
+from mini_engine.contacts import Contacts, read_only
 from mini_engine.model import Model
 from mini_engine.rotation import apply, cross, einsum, last_axis_sum
 from mini_engine.settings import Settings
@@ -110,15 +110,20 @@ class ContactReport(NamedTuple):
 
     @staticmethod
     def empty() -> ContactReport:
-        return ContactReport(
-            Contacts.empty(),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros((0, 3)),
-            0,
-        )
+        """The report of a step without contacts: one shared read-only instance."""
+        return NO_CONTACT_REPORT
+
+
+NO_CONTACT_REPORT = ContactReport(
+    Contacts.empty(),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros((0, 3))),
+    0,
+)
+"""``ContactReport.empty()``."""
 
 
 class _Rows(NamedTuple):
