@@ -6,7 +6,9 @@ to (the scene's ``engines:`` list, as ``validation.jobs.plan`` expands it), plus
 scene has a ratio), the scene is built and stepped the way a job does it: the spec's adapter
 (``validation.engines.registry``) loads the compiled scene, and its ``advance`` steps it
 through the scene's whole duration in blocks of the recording's sample interval. Only the
-stepping is timed (no parity gate, no recording, no metrics), per step. Specs the scene
+stepping is timed (no parity gate, no recording, no metrics), per step; ``--mode job`` times
+the whole job instead (``run_engine``: load, parity gate, recording with its observations
+and stability checks, the job's own wall time over its steps). Specs the scene
 cannot run (an engine whose declaration lacks a capability the scene needs, or one not
 installed) are left out.
 
@@ -17,6 +19,7 @@ plain ``mujoco``). Not a test: the machine is shared, so the ratios, measured in
 are what to compare, not the times.
 
     python benchmarks/library_cost.py [--only GLOB] [--engines mini,mujoco] [--clock cpu]
+                                      [--mode step|job]
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from validation.engine_api import declaration_of
 from validation.engines.registry import create_adapter
 from validation.jobs.plan import plan_run
 from validation.jobs.run import _sample_every as sample_every
+from validation.measure.runner import run_engine
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec, parse_engine_spec
 from validation.scenario.needs import missing
@@ -92,8 +96,23 @@ def seconds_per_step(scene: CompiledScene, spec: EngineSpec, clock) -> tuple[flo
     return elapsed / steps, steps
 
 
-def measure(paths: list[Path], only: str | None, engines: set[str] | None, clock) -> pd.DataFrame:
-    """One row per (scene, spec) timed."""
+def job_seconds_per_step(scene: CompiledScene, spec: EngineSpec, clock) -> tuple[float, int]:
+    """Seconds per step of the whole job of ``spec`` on ``scene`` (``run_engine`` as a run's
+    job calls it: load, parity gate, recording), and the steps."""
+    steps = scene.scenario.steps
+    start = clock()
+    run_engine(scene, spec, sample_every(scene), keep="positions")
+    return (clock() - start) / steps, steps
+
+
+MODES = {"step": seconds_per_step, "job": job_seconds_per_step}
+"""``--mode``: what is timed, the adapter's stepping alone or the whole job."""
+
+
+def measure(
+    paths: list[Path], only: str | None, engines: set[str] | None, clock, timer=seconds_per_step
+) -> pd.DataFrame:
+    """One row per (scene, spec) timed by ``timer`` (a ``MODES`` value)."""
     plan = plan_run(paths, None, None, only)
     rows = []
     for scene, listed in plan.scenes:
@@ -102,7 +121,7 @@ def measure(paths: list[Path], only: str | None, engines: set[str] | None, clock
                 continue
             if not runnable(scene, spec):
                 continue
-            cost, steps = seconds_per_step(scene, spec, clock)
+            cost, steps = timer(scene, spec, clock)
             rows.append(
                 {
                     "scene": scene.name,
@@ -140,14 +159,17 @@ def main() -> None:
     parser.add_argument("--only", help="only scenes whose name or path matches this glob")
     parser.add_argument("--engines", help="comma-separated spec labels to time (default all)")
     parser.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
-    parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument("--mode", choices=sorted(MODES), default="step")
+    parser.add_argument("--out", type=Path, default=None, help=f"default {RESULTS}")
     args = parser.parse_args()
     engines = None
     if args.engines:
         engines = {parse_engine_spec(t.strip()).label for t in args.engines.split(",")}
-    table = measure(args.paths, args.only, engines, CLOCKS[args.clock])
+    table = measure(args.paths, args.only, engines, CLOCKS[args.clock], MODES[args.mode])
     table["numpy_version"] = np.__version__
-    table["clock"] = args.clock
+    table["clock"], table["mode"] = args.clock, args.mode
+    if args.out is None:
+        args.out = RESULTS if args.mode == "step" else RESULTS.with_name("library_cost_job.csv")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     temporary = args.out.with_suffix(".tmp")
     table.to_csv(temporary, index=False)

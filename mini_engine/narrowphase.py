@@ -110,6 +110,16 @@ _QUAD_SIGNS = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 _CLIP_SLOTS = np.arange(CLIP_CAPACITY)
 """(CLIP_CAPACITY,) the vertex slots of a clipped polygon."""
 
+_USED_SLOTS = _CLIP_SLOTS[None, :] < np.arange(CLIP_CAPACITY + 1)[:, None]
+"""(CLIP_CAPACITY + 1, CLIP_CAPACITY) bool: row ``count``, which slots a polygon of
+``count`` vertices uses."""
+
+_FOLLOWING_SLOT = np.where(
+    _CLIP_SLOTS[None, :] + 1 < np.arange(CLIP_CAPACITY + 1)[:, None], _CLIP_SLOTS + 1, 0
+)
+"""(CLIP_CAPACITY + 1, CLIP_CAPACITY) int: row ``count``, the slot of each vertex's successor
+around a polygon of ``count`` vertices (the last one's is slot 0)."""
+
 _CUBE_SIGNS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 """(8, 3) box-vertex signs along the body axes."""
 
@@ -838,8 +848,7 @@ def _clip_polygon(
     """
     n, capacity, _ = polygon.shape
     pairs = np.arange(n)[:, None]
-    used = count[:, None] > _CLIP_SLOTS
-    following = np.where(count[:, None] > _CLIP_SLOTS + 1, _CLIP_SLOTS + 1, 0)
+    used, following = _USED_SLOTS[count], _FOLLOWING_SLOT[count]
     nxt = polygon[pairs, following]
     dist_here = sign * polygon[..., coord] - bound[:, None]
     dist_next = dist_here[pairs, following]  # the following vertex's own distance
