@@ -220,12 +220,10 @@ def _emit(
         depth: (k, m) m.
     """
     pair, slot = np.nonzero(valid)
-    if normal.ndim == 2:
-        normal = np.broadcast_to(normal[:, None, :], point.shape)
     return PairContacts(
-        pair=pair.astype(np.int64),
+        pair=pair.astype(np.int64, copy=False),
         point=point[pair, slot],
-        normal=normal[pair, slot],
+        normal=normal[pair] if normal.ndim == 2 else normal[pair, slot],  # one per pair
         depth=depth[pair, slot],
     )
 
@@ -491,9 +489,8 @@ def collide_plane_box(
     valid = depth >= -margin
     deepest_first = np.argsort(np.where(valid, -depth, np.inf), axis=1, kind="stable")
     keep = deepest_first[:, :MAX_MANIFOLD_POINTS]
-    valid = np.take_along_axis(valid, keep, axis=1)
-    depth = np.take_along_axis(depth, keep, axis=1)
-    vertices = np.take_along_axis(vertices, keep[..., None], axis=1)
+    pairs = np.arange(keep.shape[0])[:, None]
+    valid, depth, vertices = valid[pairs, keep], depth[pairs, keep], vertices[pairs, keep]
     point = vertices + (0.5 * depth)[..., None] * normal[:, None, :]
     return _emit(valid, point, normal, depth)
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from mini_engine.contacts import Contacts, read_only
 from mini_engine.model import Model
-from mini_engine.rotation import apply, cross, einsum, last_axis_sum
+from mini_engine.rotation import apply, cross, einsum, last_axis_sum, norm
 from mini_engine.settings import Settings
 from mini_engine.workspace import Workspace, workspace
 
@@ -469,7 +469,7 @@ def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         np.array([0.0, 1.0, 0.0]),
     )
     t1 = cross(normal, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t1 /= norm(t1, keepdims=True)
     return t1, cross(normal, t1)
 
 
