@@ -9,7 +9,11 @@ the left). Every function is batched over a leading axis of bodies.
 from __future__ import annotations
 
 import numpy as np
-from numpy._core.multiarray import c_einsum
+
+try:  # NumPy 2: the C kernel lives in numpy._core
+    from numpy._core.multiarray import c_einsum
+except ImportError:  # NumPy 1.26 (the oldest the project supports): in numpy.core
+    from numpy.core.multiarray import c_einsum
 
 einsum = c_einsum
 """``np.einsum`` without its Python layer: with ``optimize=False`` (its default) ``np.einsum``
