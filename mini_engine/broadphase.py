@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from mini_engine.model import SHARED_WORLD, Model, per_model
+from mini_engine.rotation import einsum
 from mini_engine.shapes import ShapeType
 
 LARGE_BODY_FACTOR = 4.0
@@ -174,7 +175,7 @@ def plane_pairs(
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     normal = rot.take(planes, axis=0)[:, :, 2]  # (P, 3) world frame
     offset = pos.take(finite, axis=0)[None, :, :] - pos.take(planes, axis=0)[:, None, :]
-    height = np.einsum("pfi,pi->pf", offset, normal)
+    height = einsum("pfi,pi->pf", offset, normal)
     plane_idx, body_idx = np.nonzero(
         (height <= work.finite_radius + padding) & work.plane_admissible
     )
@@ -192,7 +193,7 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
         a, b = work.direct_a, work.direct_b
         offset = pos.take(a, axis=0) - pos.take(b, axis=0)
         reach = work.direct_reach + 2.0 * padding
-        near = np.einsum("ij,ij->i", offset, offset) <= reach * reach
+        near = einsum("ij,ij->i", offset, offset) <= reach * reach
         a_parts.append(a[near]), b_parts.append(b[near])
     if work.small.size >= 2:
         small = work.small
@@ -207,7 +208,7 @@ def finite_pairs(model: Model, pos: np.ndarray, padding: float) -> tuple[np.ndar
             offset = pos.take(a, axis=0) - pos.take(b, axis=0)
             radius = model.body_bound_radius
             reach = radius.take(a) + radius.take(b) + 2.0 * padding
-            keep = np.einsum("ij,ij->i", offset, offset) <= reach * reach
+            keep = einsum("ij,ij->i", offset, offset) <= reach * reach
             if not work.small_all_admissible:
                 keep &= admissible(model, a, b)
             kept = keep.nonzero()[0]

@@ -64,10 +64,22 @@ class Contacts(NamedTuple):
 
     @staticmethod
     def empty() -> Contacts:
-        return Contacts(
-            body_a=np.zeros(0, dtype=np.int64),
-            body_b=np.zeros(0, dtype=np.int64),
-            point=np.zeros((0, 3)),
-            normal=np.zeros((0, 3)),
-            depth=np.zeros(0),
-        )
+        """No contacts: one shared instance of read-only empty arrays (a step without
+        contacts builds none)."""
+        return NO_CONTACTS
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """``array``, marked read-only (for arrays shared between steps)."""
+    array.flags.writeable = False
+    return array
+
+
+NO_CONTACTS = Contacts(
+    body_a=read_only(np.zeros(0, dtype=np.int64)),
+    body_b=read_only(np.zeros(0, dtype=np.int64)),
+    point=read_only(np.zeros((0, 3))),
+    normal=read_only(np.zeros((0, 3))),
+    depth=read_only(np.zeros(0)),
+)
+"""``Contacts.empty()``."""

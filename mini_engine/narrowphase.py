@@ -35,7 +35,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mini_engine.contacts import PairContacts
-from mini_engine.rotation import last_axis_sum
+from mini_engine.rotation import einsum, last_axis_sum, norm
 from mini_engine.shapes import ShapeType
 
 # ---------------------------------------------------------------------------------------
@@ -107,6 +107,19 @@ CLIP_CAPACITY = 8
 _QUAD_SIGNS = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 """(4, 2) face-corner signs along the two face tangents, in order around the face."""
 
+_CLIP_SLOTS = np.arange(CLIP_CAPACITY)
+"""(CLIP_CAPACITY,) the vertex slots of a clipped polygon."""
+
+_USED_SLOTS = _CLIP_SLOTS[None, :] < np.arange(CLIP_CAPACITY + 1)[:, None]
+"""(CLIP_CAPACITY + 1, CLIP_CAPACITY) bool: row ``count``, which slots a polygon of
+``count`` vertices uses."""
+
+_FOLLOWING_SLOT = np.where(
+    _CLIP_SLOTS[None, :] + 1 < np.arange(CLIP_CAPACITY + 1)[:, None], _CLIP_SLOTS + 1, 0
+)
+"""(CLIP_CAPACITY + 1, CLIP_CAPACITY) int: row ``count``, the slot of each vertex's successor
+around a polygon of ``count`` vertices (the last one's is slot 0)."""
+
 _CUBE_SIGNS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 """(8, 3) box-vertex signs along the body axes."""
 
@@ -171,8 +184,8 @@ def _first_within(score: np.ndarray) -> np.ndarray:
     An ``argmax`` that ignores rounding-level differences (see ``TIE_TOL``); entries equal
     to ``-inf`` are never preferred to finite ones.
     """
-    best = np.max(score, axis=-1, keepdims=True)
-    return np.argmax(score >= best - TIE_TOL, axis=-1)
+    best = score.max(axis=-1, keepdims=True)
+    return (score >= best - TIE_TOL).argmax(axis=-1)
 
 
 def _orient(direction: np.ndarray, towards: np.ndarray) -> np.ndarray:
@@ -187,12 +200,12 @@ def _column(rot: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 def _to_world(pos: np.ndarray, rot: np.ndarray, local: np.ndarray) -> np.ndarray:
     """World points ``pos + R local``: ``pos (n, 3)``, ``rot (n, 3, 3)``, ``local (n, m, 3)``."""
-    return pos[:, None, :] + np.einsum("nij,nmj->nmi", rot, local)
+    return pos[:, None, :] + einsum("nij,nmj->nmi", rot, local)
 
 
 def _to_local(rot: np.ndarray, vector: np.ndarray) -> np.ndarray:
     """Body-frame vectors ``Rᵀ v`` (n, 3) of world ``vector (n, 3)``, ``rot (n, 3, 3)``."""
-    return np.einsum("nji,nj->ni", rot, vector)
+    return einsum("nji,nj->ni", rot, vector)
 
 
 def _emit(
@@ -207,12 +220,10 @@ def _emit(
         depth: (k, m) m.
     """
     pair, slot = np.nonzero(valid)
-    if normal.ndim == 2:
-        normal = np.broadcast_to(normal[:, None, :], point.shape)
     return PairContacts(
-        pair=pair.astype(np.int64),
+        pair=pair.astype(np.int64, copy=False),
         point=point[pair, slot],
-        normal=normal[pair, slot],
+        normal=normal[pair] if normal.ndim == 2 else normal[pair, slot],  # one per pair
         depth=depth[pair, slot],
     )
 
@@ -478,9 +489,8 @@ def collide_plane_box(
     valid = depth >= -margin
     deepest_first = np.argsort(np.where(valid, -depth, np.inf), axis=1, kind="stable")
     keep = deepest_first[:, :MAX_MANIFOLD_POINTS]
-    valid = np.take_along_axis(valid, keep, axis=1)
-    depth = np.take_along_axis(depth, keep, axis=1)
-    vertices = np.take_along_axis(vertices, keep[..., None], axis=1)
+    pairs = np.arange(keep.shape[0])[:, None]
+    valid, depth, vertices = valid[pairs, keep], depth[pairs, keep], vertices[pairs, keep]
     point = vertices + (0.5 * depth)[..., None] * normal[:, None, :]
     return _emit(valid, point, normal, depth)
 
@@ -711,7 +721,7 @@ def _capsule_box(
     candidate = np.stack([use_face, use_face, np.ones(k, dtype=bool)], axis=1)
     keep, valid = _deepest_and_farthest(depth, param, candidate & (depth >= -margin))
     point = _to_world(pos_b, rot_b, np.take_along_axis(local_point, keep[..., None], axis=1))
-    normal = np.einsum(
+    normal = einsum(
         "kij,kmj->kmi", rot_b, np.take_along_axis(local_normal, keep[..., None], axis=1)
     )
     return _emit(valid, point, normal, np.take_along_axis(depth, keep, axis=1))
@@ -780,10 +790,10 @@ def _box_axes(rot_a: np.ndarray, rot_b: np.ndarray) -> tuple[np.ndarray, np.ndar
         axes: (k, 15, 3) unit (arbitrary where unusable);
         usable: (k, 15) bool, false for edge axes with ``|a_i × b_j| < EDGE_AXIS_MIN_SIN``.
     """
-    faces = [rot_a[:, :, i] for i in range(3)] + [rot_b[:, :, j] for j in range(3)]
-    edges = [_cross(rot_a[:, :, i], rot_b[:, :, j]) for i in range(3) for j in range(3)]
-    axes = np.stack(faces + edges, axis=1)
-    length = np.linalg.norm(axes, axis=2)
+    faces_a, faces_b = rot_a.transpose(0, 2, 1), rot_b.transpose(0, 2, 1)  # rows: body axes
+    edges = _cross(faces_a[:, :, None, :], faces_b[:, None, :, :]).reshape(-1, 9, 3)  # 3 i + j
+    axes = np.concatenate([faces_a, faces_b, edges], axis=1)
+    length = norm(axes)
     usable = np.ones(length.shape, dtype=bool)
     usable[:, 6:] = length[:, 6:] > EDGE_AXIS_MIN_SIN
     return axes / np.where(usable, length, 1.0)[..., None], usable
@@ -794,7 +804,7 @@ def _projected_radius(rot: np.ndarray, size: np.ndarray, axes: np.ndarray) -> np
 
     Boxes: ``rot (k, 3, 3)`` body to world, ``size (k, 3)`` m half extents.
     """
-    return np.sum(np.abs(np.einsum("kji,kmj->kmi", rot, axes)) * size[:, None, :], axis=2)
+    return last_axis_sum(np.abs(einsum("kji,kmj->kmi", rot, axes)) * size[:, None, :])
 
 
 def _clearly_better(new: np.ndarray, old: np.ndarray, absolute: np.ndarray) -> np.ndarray:
@@ -834,22 +844,26 @@ def _clip_polygon(
         The clipped polygons (n, CLIP_CAPACITY, 3) and their vertex counts (n,).
     """
     n, capacity, _ = polygon.shape
-    slots = np.arange(capacity)[None, :]
-    used = slots < count[:, None]
-    following = np.where(slots + 1 < count[:, None], slots + 1, 0)
-    nxt = np.take_along_axis(polygon, following[..., None], axis=1)
+    pairs = np.arange(n)[:, None]
+    used, following = _USED_SLOTS[count], _FOLLOWING_SLOT[count]
+    nxt = polygon[pairs, following]
     dist_here = sign * polygon[..., coord] - bound[:, None]
-    dist_next = sign * nxt[..., coord] - bound[:, None]
-    keep_here = used & (dist_here <= 0.0)
-    crosses = used & ((dist_here <= 0.0) != (dist_next <= 0.0))
+    dist_next = dist_here[pairs, following]  # the following vertex's own distance
+    inside_here = dist_here <= 0.0
+    keep_here = used & inside_here
+    crosses = used & (inside_here != (dist_next <= 0.0))
     fraction = dist_here / np.where(crosses, dist_here - dist_next, 1.0)
     crossing = polygon + fraction[..., None] * (nxt - polygon)
 
-    candidates = np.stack([polygon, crossing], axis=2).reshape(n, 2 * capacity, 3)
-    present = np.stack([keep_here, crosses], axis=2).reshape(n, 2 * capacity)
+    # each vertex, then its edge's crossing, in order: kept entries packed to the front
+    candidates = np.empty((n, capacity, 2, 3))
+    candidates[:, :, 0], candidates[:, :, 1] = polygon, crossing
+    present = np.empty((n, capacity, 2), dtype=bool)
+    present[:, :, 0], present[:, :, 1] = keep_here, crosses
+    present = present.reshape(n, 2 * capacity)
     order = np.argsort(~present, axis=1, kind="stable")[:, :capacity]
-    clipped = np.take_along_axis(candidates, order[..., None], axis=1)
-    return clipped, np.minimum(present.sum(axis=1), capacity)
+    clipped = candidates.reshape(n, 2 * capacity, 3)[pairs, order]
+    return clipped, np.minimum(np.count_nonzero(present, axis=1), capacity)
 
 
 def _reduce_manifold(
@@ -872,6 +886,9 @@ def _reduce_manifold(
     """
     n, m = valid.shape
     rows = np.arange(n)
+    points = np.count_nonzero(valid, axis=1)
+    if (points <= MAX_MANIFOLD_POINTS).all():  # every patch kept whole: nothing to choose
+        return _packed(valid, rows)
     chosen = np.zeros((n, m), dtype=bool)
 
     def take(index: np.ndarray) -> np.ndarray:
@@ -879,7 +896,7 @@ def _reduce_manifold(
         return plane_xy[rows, index]
 
     first = take(_first_within(np.where(valid, depth, -np.inf)))
-    spread = np.linalg.norm(plane_xy - first[:, None], axis=2)
+    spread = norm(plane_xy - first[:, None])
     second = take(_first_within(np.where(valid & ~chosen, spread, -np.inf)))
     edge, _ = _normalize(
         np.concatenate([second - first, np.zeros((n, 1))], axis=1), np.array([1.0, 0.0, 0.0])
@@ -889,9 +906,14 @@ def _reduce_manifold(
     take(_first_within(np.where(valid & ~chosen, offset, -np.inf)))
     take(_first_within(np.where(valid & ~chosen, -offset, -np.inf)))
 
-    keep = np.where((valid.sum(axis=1) <= MAX_MANIFOLD_POINTS)[:, None], valid, chosen)
+    return _packed(np.where((points <= MAX_MANIFOLD_POINTS)[:, None], valid, chosen), rows)
+
+
+def _packed(keep: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``MAX_MANIFOLD_POINTS`` slots (n, 4) of ``keep (n, m)`` once its kept slots
+    are moved to the front in slot order (a stable sort), and whether each is kept (n, 4)."""
     order = np.argsort(~keep, axis=1, kind="stable")[:, :MAX_MANIFOLD_POINTS]
-    return order, np.take_along_axis(keep, order, axis=1)
+    return order, keep[rows[:, None], order]
 
 
 def _face_contacts(
@@ -934,20 +956,15 @@ def _face_contacts(
     outward = -_sign(alignment[rows, incident])
     u, v = (incident + 1) % 3, (incident + 2) % 3
     incident_centre = pos_i + (outward * size_i[rows, incident])[:, None] * _column(rot_i, incident)
-    spans = np.stack(
-        [
-            size_i[rows, u][:, None] * _column(rot_i, u),
-            size_i[rows, v][:, None] * _column(rot_i, v),
-        ],
-        axis=1,
-    )
-    corners = incident_centre[:, None, :] + np.einsum("cs,nsj->ncj", _QUAD_SIGNS, spans)
+    spans = np.empty((n, 2, 3))
+    spans[:, 0] = size_i[rows, u][:, None] * _column(rot_i, u)
+    spans[:, 1] = size_i[rows, v][:, None] * _column(rot_i, v)
+    corners = incident_centre[:, None, :] + einsum("cs,nsj->ncj", _QUAD_SIGNS, spans)
 
     relative = corners - face_centre[:, None, :]
     polygon = np.zeros((n, CLIP_CAPACITY, 3))
-    polygon[:, :4] = np.stack(
-        [_dot(relative, axis[:, None, :]) for axis in (tangent_1, tangent_2, normal_r)], axis=2
-    )
+    for coord, axis in enumerate((tangent_1, tangent_2, normal_r)):
+        polygon[:, :4, coord] = _dot(relative, axis[:, None, :])
     count = np.full(n, 4)
     for coord, half in ((0, half_1), (1, half_2)):
         for sign in (1.0, -1.0):
@@ -955,9 +972,9 @@ def _face_contacts(
 
     height = polygon[..., 2]
     depth = -height
-    valid = (np.arange(CLIP_CAPACITY)[None, :] < count[:, None]) & (depth >= -margin)
+    valid = (count[:, None] > _CLIP_SLOTS) & (depth >= -margin)
     order, keep = _reduce_manifold(polygon[..., :2], depth, valid)
-    kept = np.take_along_axis(polygon, order[..., None], axis=1)
+    kept = polygon[rows[:, None], order]
     point = (
         face_centre[:, None, :]
         + kept[..., 0:1] * tangent_1[:, None, :]
@@ -989,8 +1006,8 @@ def _edge_contacts(
     toward_a[rows, i] = 0.0
     toward_b = -_sign(_to_local(rot_b, normal)) * size_b
     toward_b[rows, j] = 0.0
-    centre_a = pos_a + np.einsum("nij,nj->ni", rot_a, toward_a)
-    centre_b = pos_b + np.einsum("nij,nj->ni", rot_b, toward_b)
+    centre_a = pos_a + einsum("nij,nj->ni", rot_a, toward_a)
+    centre_b = pos_b + einsum("nij,nj->ni", rot_b, toward_b)
     axis_a, axis_b = _column(rot_a, i), _column(rot_b, j)
     s, t = _closest_segment_params(
         centre_a, axis_a, size_a[rows, i], centre_b, axis_b, size_b[rows, j]
@@ -1034,7 +1051,7 @@ def collide_box_box(
         - _projected_radius(rot_b, size_b, axes)
     )
     separation = np.where(usable, separation, -np.inf)
-    touching = np.all(separation <= margin, axis=1)
+    touching = (separation <= margin).all(axis=1)
     best = _choose_axis(separation, size_a, size_b)
     normal = _orient(axes[rows, best], offset)
     # Separation along the oriented normal: equals separation[rows, best] except where

@@ -41,9 +41,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mini_engine.contacts import Contacts
+from mini_engine.contacts import Contacts, read_only
 from mini_engine.model import Model
-from mini_engine.rotation import apply, cross, last_axis_sum
+from mini_engine.rotation import apply, cross, einsum, last_axis_sum, norm
 from mini_engine.settings import Settings
 from mini_engine.workspace import Workspace, workspace
 
@@ -110,15 +110,20 @@ class ContactReport(NamedTuple):
 
     @staticmethod
     def empty() -> ContactReport:
-        return ContactReport(
-            Contacts.empty(),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros((0, 3)),
-            0,
-        )
+        """The report of a step without contacts: one shared read-only instance."""
+        return NO_CONTACT_REPORT
+
+
+NO_CONTACT_REPORT = ContactReport(
+    Contacts.empty(),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros(0)),
+    read_only(np.zeros((0, 3))),
+    0,
+)
+"""``ContactReport.empty()``."""
 
 
 class _Rows(NamedTuple):
@@ -464,7 +469,7 @@ def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         np.array([0.0, 1.0, 0.0]),
     )
     t1 = cross(normal, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t1 /= norm(t1, keepdims=True)
     return t1, cross(normal, t1)
 
 
@@ -499,7 +504,7 @@ def _tangent_block(rows: _Rows) -> _TangentBlock:
     (< 1: K is positive definite), ``K⁻¹ = [[m1, -m1 m2 k12], [-m1 m2 k12, m2]] / (1 - c²)``,
     which is the rows' own masses, bit for bit, when ``k12`` is zero (a sphere on a
     level ground)."""
-    tangent_coupling = np.einsum("ij,ij->i", rows.jacobian[:, 0], rows.response[:, 1])  # k12
+    tangent_coupling = einsum("ij,ij->i", rows.jacobian[:, 0], rows.response[:, 1])  # k12
     mass_1, mass_2 = rows.mass[:, 0], rows.mass[:, 1]
     decoupling = 1.0 - mass_1 * mass_2 * tangent_coupling * tangent_coupling  # 1 - c²
     cross_mass = -(mass_1 * mass_2 * tangent_coupling) / decoupling
@@ -517,7 +522,7 @@ def _tangent_block(rows: _Rows) -> _TangentBlock:
 def _normal_velocity(body_twist: np.ndarray, graph: _ContactGraph, rows: _Rows) -> np.ndarray:
     """(c,) m/s, ``J · [twist_A, twist_B]`` of each contact's normal row."""
     twist = body_twist.take(graph.pair_rows, axis=0).reshape(-1, 12)
-    return np.einsum("ij,ij->i", rows.jacobian, twist)
+    return einsum("ij,ij->i", rows.jacobian, twist)
 
 
 def _per_colour(batches: list[slice], *arrays: np.ndarray) -> list[tuple[np.ndarray, ...]]:
@@ -525,17 +530,16 @@ def _per_colour(batches: list[slice], *arrays: np.ndarray) -> list[tuple[np.ndar
     of once per sweep (one colour: the arrays themselves)."""
     if len(batches) == 1:
         return [arrays]
-    return [tuple(array[s] for array in arrays) for s in batches]
+    return list(zip(*[[array[s] for s in batches] for array in arrays], strict=True))
 
 
 def _normal_colours(
     graph: _ContactGraph, rows: _Rows, target: np.ndarray, impulse: np.ndarray
 ) -> list[tuple[np.ndarray, ...]]:
-    """Per colour, the views ``_sweep_normal`` works on: twist rows and flat twist indices,
-    Jacobian, response, effective mass, target and accumulated impulse (updated in place)."""
+    """Per colour, the views ``_sweep_normal`` works on: flat twist indices, Jacobian,
+    response, effective mass, target and accumulated impulse (updated in place)."""
     return _per_colour(
         graph.batches,
-        graph.pair_rows,
         graph.twist_index,
         rows.jacobian,
         rows.response,
@@ -552,18 +556,18 @@ def _sweep_normal(
     rows' ``mass``); returns the largest velocity change, m/s.
 
     The change of a contact is its impulse change over its effective mass (what the sweep
-    did to its own relative normal velocity), measured once per sweep. Gathers take whole
-    rows (``take``, ~4x faster than fancy indexing), stores go through the flat indices.
+    did to its own relative normal velocity), measured once per sweep. Gathers and stores go
+    through the flat twist indices (``take`` and ``put``: faster than fancy indexing).
     Every step makes a new array: on arrays of a few elements an in-place update costs
     more than the allocation it saves.
     """
     start = impulse.copy()
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for rows, index, jacobian, response, rows_mass, target, rows_impulse in colours:
-        twist = body_twist.take(rows, axis=0).reshape(-1, 12)
-        flat_twist[index], _ = _colour_update(
-            twist, jacobian, response, rows_mass, target, rows_impulse
+    for index, jacobian, response, rows_mass, target, rows_impulse in colours:
+        twist, _ = _colour_update(
+            flat_twist.take(index), jacobian, response, rows_mass, target, rows_impulse
         )
+        flat_twist.put(index, twist)
     return float((np.abs(impulse - start) / mass).max())
 
 
@@ -575,40 +579,73 @@ def _colour_update(
     impulse reaches its target velocity ``target (k,)`` m/s, the accumulated ``impulse (k,)``
     N·s (updated in place) kept >= 0; ``jacobian, response (k, 12)`` and effective
     ``mass (k,)`` kg are its rows'."""
-    velocity = np.einsum("ij,ij->i", jacobian, twist)
+    velocity = einsum("ij,ij->i", jacobian, twist)
     accumulated = np.maximum(impulse + mass * (target - velocity), 0.0)
     delta = accumulated - impulse
     impulse[...] = accumulated
     return twist + delta[:, None] * response, delta
 
 
-def _sweep_friction(
-    body_twist, graph: _ContactGraph, rows: _Rows, block: _TangentBlock, normal_impulse, impulse
-) -> float:
-    """One Gauss-Seidel sweep over the colours of the two tangent rows per contact, each
-    contact's accumulated impulse ``impulse (c, 2)`` N·s (in place) updated by
-    ``_friction_update`` within its disc ``μ λ_n`` (``normal_impulse (c,)`` N·s).
+def _friction_colours(
+    graph: _ContactGraph,
+    rows: _Rows,
+    block: _TangentBlock,
+    normal_impulse: np.ndarray,
+    impulse: np.ndarray,
+) -> list[tuple[np.ndarray, ...]]:
+    """Per colour, the views ``_sweep_friction`` works on: flat twist indices, the tangent
+    rows' Jacobian and response (k, 2, 12), the block's sticking and step masses, the
+    friction coefficients, the normal impulses and the accumulated friction impulses (both
+    updated in place by the sweeps)."""
+    return _per_colour(
+        graph.batches,
+        graph.twist_index,
+        rows.jacobian,
+        rows.response,
+        block.sticking_mass,
+        block.step_mass,
+        graph.friction,
+        normal_impulse,
+        impulse,
+    )
 
-    ``rows`` hold both tangents: jacobian and response (c, 2, 12), mass (c, 2); ``block``
-    their ``_TangentBlock``. Returns the largest tangential velocity change, m/s (each
-    row's impulse change over its own effective mass, as ``_sweep_normal`` measures).
+
+def _sweep_friction(
+    body_twist: np.ndarray, colours: list, impulse: np.ndarray, mass: np.ndarray
+) -> float:
+    """One Gauss-Seidel sweep over the colours (``_friction_colours``) of the two tangent rows
+    per contact, each contact's accumulated impulse ``impulse (c, 2)`` N·s (in place) updated
+    by ``_friction_update`` within its disc ``μ λ_n``.
+
+    ``mass (c, 2)`` kg are the tangent rows' effective masses. Returns the largest tangential
+    velocity change, m/s (each row's impulse change over its own effective mass, as
+    ``_sweep_normal`` measures).
     """
     start = impulse.copy()
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for s in graph.batches:
-        twist = body_twist.take(graph.pair_rows[s], axis=0).reshape(-1, 12)
+    for (
+        index,
+        jacobian,
+        response,
+        sticking_mass,
+        step_mass,
+        friction,
+        normal_impulse,
+        rows_impulse,
+    ) in colours:
+        twist = flat_twist.take(index)
         accumulated = _friction_update(
-            np.einsum("ikj,ij->ik", rows.jacobian[s], twist),
-            impulse[s],
-            block.sticking_mass[s],
-            block.step_mass[s],
-            graph.friction[s] * normal_impulse[s],
+            einsum("ikj,ij->ik", jacobian, twist),
+            rows_impulse,
+            sticking_mass,
+            step_mass,
+            friction * normal_impulse,
         )
-        delta = accumulated - impulse[s]
-        impulse[s] = accumulated
-        twist += np.einsum("ik,ikj->ij", delta, rows.response[s])
-        flat_twist[graph.twist_index[s]] = twist
-    return float(np.max(np.abs(impulse - start) / rows.mass))
+        delta = accumulated - rows_impulse
+        rows_impulse[...] = accumulated
+        twist += einsum("ik,ikj->ij", delta, response)
+        flat_twist.put(index, twist)
+    return float(np.max(np.abs(impulse - start) / mass))
 
 
 def _friction_update(
@@ -669,11 +706,12 @@ def _friction_update(
     ``λ - τ v`` gives a zero impulse for this update (``TINY_IMPULSE``).
     """
     sticking = contact_impulse - (sticking_mass @ contact_slip[:, :, None])[:, :, 0]
-    sticks = np.sqrt(np.einsum("ik,ik->i", sticking, sticking)) <= disc_radius
-    if sticks.all():  # resting contacts: the sliding step is not needed (the same values)
+    sticks = np.sqrt(einsum("ik,ik->i", sticking, sticking)) <= disc_radius
+    if np.logical_and.reduce(sticks):  # all stick (sticks.all() without its Python layer):
+        # resting contacts: the sliding step is not needed (the same values)
         return sticking
     sliding = contact_impulse - step_mass[:, None] * contact_slip
-    sliding_norm = np.sqrt(np.einsum("ik,ik->i", sliding, sliding))
+    sliding_norm = np.sqrt(einsum("ik,ik->i", sliding, sliding))
     on_disc = (
         sliding * np.minimum(1.0, disc_radius / np.maximum(sliding_norm, TINY_IMPULSE))[:, None]
     )
@@ -733,7 +771,7 @@ def solve_contacts(
     body_twist = np.zeros((n + 1, 6))
     body_twist[:n, :3], body_twist[:n, 3:] = vel, ang_vel
     contact_twist = body_twist.take(graph.pair_rows, axis=0).reshape(-1, 12)
-    before = np.einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
+    before = einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
     target = _normal_targets(contacts.depth, before, graph.negative_restitution, settings)
 
     # warm start (last step's impulses at the matching contacts), then sequential impulses
@@ -795,15 +833,17 @@ def _solve_coloured(
             _apply_impulses(body_twist, graph, tangent_rows.response[:, k], tangent_impulse[:, k])
 
     colours = _normal_colours(graph, normal_rows, target, impulse)
+    if graph.use_friction:
+        friction_colours = _friction_colours(
+            graph, tangent_rows, tangent_block, impulse, tangent_impulse
+        )
     sweeps = 0
     for sweeps in range(1, settings.solver_iterations + 1):  # noqa: B007 (count kept for the report)
         largest = _sweep_normal(body_twist, colours, impulse, normal_rows.mass)
         if graph.use_friction:
             largest = max(
                 largest,
-                _sweep_friction(
-                    body_twist, graph, tangent_rows, tangent_block, impulse, tangent_impulse
-                ),
+                _sweep_friction(body_twist, friction_colours, tangent_impulse, tangent_rows.mass),
             )
         if largest <= settings.solver_tolerance:
             break
@@ -849,7 +889,7 @@ def _solve_gathered(
         if float((np.abs(delta) / normal_rows.mass).max()) <= settings.solver_tolerance:
             break
     body_twist.reshape(-1)[graph.twist_index] = contact_twist
-    return sweeps, np.einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
+    return sweeps, einsum("ij,ij->i", normal_rows.jacobian, contact_twist)
 
 
 def _apply_impulses(body_twist, graph: _ContactGraph, response, impulse) -> None:
@@ -857,11 +897,10 @@ def _apply_impulses(body_twist, graph: _ContactGraph, response, impulse) -> None
     if not np.count_nonzero(impulse):
         return
     flat_twist = body_twist.reshape(-1)  # a view: body_twist is C-contiguous
-    for rows, index, rows_response, rows_impulse in _per_colour(
-        graph.batches, graph.pair_rows, graph.twist_index, response, impulse
+    for index, rows_response, rows_impulse in _per_colour(
+        graph.batches, graph.twist_index, response, impulse
     ):  # contacts of one colour share no dynamic body: gather, add, store
-        twist = body_twist.take(rows, axis=0).reshape(-1, 12)
-        flat_twist[index] = twist + rows_impulse[:, None] * rows_response
+        flat_twist.put(index, flat_twist.take(index) + rows_impulse[:, None] * rows_response)
 
 
 def _warm_start_impulses(
