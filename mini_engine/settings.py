@@ -15,9 +15,8 @@ anything else when it is built.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
-
-import numpy as np
 
 INTEGRATORS = ("semi_implicit_euler", "explicit_euler")
 """``semi_implicit_euler``: v ← v + a dt, then x ← x + v dt (the articles' choice).
@@ -132,7 +131,7 @@ class Settings:
                 raise ValueError(
                     f"Settings.{name}: expected one of {', '.join(allowed)}; got {value!r}"
                 )
-        if not (isinstance(self.dt, int | float) and np.isfinite(self.dt) and self.dt > 0.0):
+        if not (isinstance(self.dt, int | float) and math.isfinite(self.dt) and self.dt > 0.0):
             raise ValueError(
                 f"Settings.dt: expected a finite number of seconds > 0; got {self.dt!r}"
             )
