@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from validation.reference.rotation import cross
+
 WORLD = -1
 """``Springs.body_b`` of a spring whose second end is a fixed point of the world."""
 
@@ -108,8 +110,8 @@ def spring_loads(
     ends = spring_ends(springs, pos, rot)
     to_world = springs.body_b == WORLD
     body_b = np.where(to_world, 0, springs.body_b)
-    speed_a = vel[..., springs.body_a, :] + np.cross(ang_vel[..., springs.body_a, :], ends.arm_a)
-    speed_b = vel[..., body_b, :] + np.cross(ang_vel[..., body_b, :], ends.arm_b)
+    speed_a = vel[..., springs.body_a, :] + cross(ang_vel[..., springs.body_a, :], ends.arm_a)
+    speed_b = vel[..., body_b, :] + cross(ang_vel[..., body_b, :], ends.arm_b)
     speed_b = np.where(to_world[:, None], 0.0, speed_b)
     offset = ends.point_b - ends.point_a
     length = np.linalg.norm(offset, axis=-1)
@@ -125,8 +127,8 @@ def spring_loads(
     on_b = _incidence(body_b, bodies, ~to_world)
     force = np.einsum("kn,...ki->...ni", on_a, pull_on_a)
     force -= np.einsum("kn,...ki->...ni", on_b, pull_on_a)
-    torque = np.einsum("kn,...ki->...ni", on_a, np.cross(ends.arm_a, pull_on_a))
-    torque -= np.einsum("kn,...ki->...ni", on_b, np.cross(ends.arm_b, pull_on_a))
+    torque = np.einsum("kn,...ki->...ni", on_a, cross(ends.arm_a, pull_on_a))
+    torque -= np.einsum("kn,...ki->...ni", on_b, cross(ends.arm_b, pull_on_a))
     return force, torque
 
 
