@@ -282,7 +282,7 @@ def _marker_path(kind: str, x: np.ndarray, y: np.ndarray) -> str:
             parts.append(f"M{_number(xi - 2 * r)} {_number(yi)}h{4 * r:.1f}")
         else:  # "o" and "s": a zero-length segment drawn with a round or square cap
             parts.append(f"M{_number(xi)} {_number(yi)}h0")
-    return "".join(parts)
+    return "".join(dict.fromkeys(parts))  # an opaque marker drawn twice at one spot shows once
 
 
 def _markers(trace: Trace, x: np.ndarray, y: np.ndarray) -> str:
@@ -301,11 +301,13 @@ def _markers(trace: Trace, x: np.ndarray, y: np.ndarray) -> str:
         r = MARKER_RADIUS + 0.8
         good = np.isfinite(x) & np.isfinite(y)
         body = "".join(
-            f'<circle cx="{_number(xi)}" cy="{_number(yi)}" r="{r:.1f}"/>'
-            if trace.marker == "o"
-            else f'<rect x="{_number(xi - r)}" y="{_number(yi - r)}" width="{2 * r:.1f}" '
-            f'height="{2 * r:.1f}"/>'
-            for xi, yi in zip(x[good].tolist(), y[good].tolist(), strict=True)
+            dict.fromkeys(
+                f'<circle cx="{_number(xi)}" cy="{_number(yi)}" r="{r:.1f}"/>'
+                if trace.marker == "o"
+                else f'<rect x="{_number(xi - r)}" y="{_number(yi - r)}" width="{2 * r:.1f}" '
+                f'height="{2 * r:.1f}"/>'
+                for xi, yi in zip(x[good].tolist(), y[good].tolist(), strict=True)
+            )
         )
         return f'<g fill="none" stroke="{colour}" stroke-width="1.2">{title}{body}</g>'
     fill = "none" if trace.hollow or trace.marker in ("x", "-") else colour
