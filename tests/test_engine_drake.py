@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from validation.cli import main
 from validation.engines.parity import PRECISION_TOLERANCE, compare
 from validation.engines.reference import reference_report
 from validation.reference.rotation import quat_multiply
@@ -185,18 +184,23 @@ def mixed_scene() -> Scenario:
     )
 
 
-@pytest.mark.parametrize("text", PROFILES)
-def test_parity_gate_passes_on_a_scene_with_everything(text):
-    scenario = mixed_scene()
+def parity_mismatches(text: str, scenario: Scenario) -> list:
+    """The parity gate of ``scenario`` loaded in the spec ``text``: its mismatches."""
     adapter = adapter_for(text, scenario)
     try:
-        mismatches = compare(
+        return compare(
             adapter.model_report(),
             reference_report(compile_scene(scenario)),
             PRECISION_TOLERANCE["float64"],
         )
     finally:
         adapter.close()
+
+
+@pytest.mark.parametrize("text", PROFILES)
+def test_parity_gate_passes_on_a_scene_with_everything(text):
+    scenario = mixed_scene()
+    mismatches = parity_mismatches(text, scenario)
     assert mismatches == [], [str(m) for m in mismatches]
 
 
@@ -206,15 +210,7 @@ def test_parity_gate_names_a_wrong_inertia(monkeypatch):
     right = DrakeAdapter._inertia
     monkeypatch.setattr(DrakeAdapter, "_inertia", lambda self, k: 1.01 * right(self, k))
     scenario = mixed_scene()
-    adapter = adapter_for(DISCRETE, scenario)
-    try:
-        mismatches = compare(
-            adapter.model_report(),
-            reference_report(compile_scene(scenario)),
-            PRECISION_TOLERANCE["float64"],
-        )
-    finally:
-        adapter.close()
+    mismatches = parity_mismatches(DISCRETE, scenario)
     assert {m.quantity for m in mismatches} >= {"inertia_world"}, [str(m) for m in mismatches]
 
 
@@ -440,33 +436,3 @@ def test_a_library_scene_runs_through_the_runner():
     run = run_engine(compile_scene(scenario), parse_engine_spec(DISCRETE))
     assert run.status == "ok", run.message
     assert run.provenance.engine == "drake"
-
-
-# --- 6. without pydrake ----------------------------------------------------------------------
-
-NOT_INSTALLED = ("physval_no_such_module",)
-"""Drake's declared ``requires`` as a machine without pydrake sees it."""
-
-
-def _without_pydrake(monkeypatch) -> None:
-    from dataclasses import replace
-
-    from validation.engine_api import discover
-
-    engines = discover().engines
-    monkeypatch.setitem(engines, "drake", replace(engines["drake"], requires=NOT_INSTALLED))
-
-
-def test_run_with_drake_missing_is_one_line_and_exit_2(monkeypatch, tmp_path, capsys):
-    _without_pydrake(monkeypatch)
-    scene_file = Path(__file__).resolve().parent.parent / "scenarios/formulas/projectile.yaml"
-    code = main(
-        [
-            "run", str(scene_file), "--engines", "drake(profile=continuous)",
-            "--out", str(tmp_path / "out"), "--history", "none", "--baseline", "none",
-        ]
-    )
-    err = capsys.readouterr().err
-    assert code == 2, err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and 'pip install "physval[drake]"' in lines[0], err

@@ -9,17 +9,14 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from validation.cli import main
-from validation.contract import BAD_STATUSES
 from validation.engines.parity import PRECISION_TOLERANCE, compare
 from validation.engines.reference import reference_report
 from validation.reference.rotation import quat_multiply
 from validation.scenario import Scenario, load_scenario, scenario_files
 from validation.scenario.compiled import compile_scene
-from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec, parse_installed_spec
+from validation.scenario.engine_spec import parse_engine_spec
 
 RAPIER_MISSING = importlib.util.find_spec("rapier3d") is None
 needs_rapier = pytest.mark.skipif(
@@ -376,78 +373,3 @@ def test_a_library_scene_runs_through_the_runner():
     run = run_engine(compile_scene(scenario), parse_engine_spec("rapier"))
     assert run.status == "ok", run.message
     assert run.provenance.engine == "rapier"
-
-
-# --- 6. without rapier3d --------------------------------------------------------------------
-
-NOT_INSTALLED = ("physval_no_such_module",)
-"""Rapier's declared ``requires`` as a machine without rapier3d sees it."""
-
-
-def _without_rapier3d(monkeypatch) -> None:
-    """The installed Rapier declaration, requiring a module that no machine has."""
-    from dataclasses import replace
-
-    from validation.engine_api import discover
-
-    engines = discover().engines
-    monkeypatch.setitem(engines, "rapier", replace(engines["rapier"], requires=NOT_INSTALLED))
-
-
-def test_naming_rapier_without_rapier3d_is_a_spec_error_with_the_install_line(monkeypatch):
-    _without_rapier3d(monkeypatch)
-    with pytest.raises(EngineSpecError) as error:
-        parse_installed_spec("rapier(profile=defaults)")
-    assert 'pip install "physval[rapier]"' in str(error.value), error.value
-
-
-def test_run_with_rapier_missing_is_one_line_and_exit_2(monkeypatch, tmp_path, capsys):
-    _without_rapier3d(monkeypatch)
-    scene_file = Path(__file__).resolve().parent.parent / "scenarios/formulas/projectile.yaml"
-    code = main(
-        [
-            "run",
-            str(scene_file),
-            "--engines",
-            "rapier",
-            "--out",
-            str(tmp_path / "out"),
-            "--history",
-            "none",
-            "--baseline",
-            "none",
-        ]
-    )
-    err = capsys.readouterr().err
-    assert code == 2, err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and 'pip install "physval[rapier]"' in lines[0], err
-
-
-def test_a_scene_naming_rapier_without_rapier3d_gets_not_installed_rows(monkeypatch, tmp_path, capsys):
-    """A scene's ``engines:`` may name an engine that is not installed here (the library names
-    rapier): the other engines run, rapier's row says ``not_installed`` with the install line,
-    the run passes and the terminal says how to install it."""
-    _without_rapier3d(monkeypatch)
-    scene_file = tmp_path / "projectile.yaml"
-    scene_file.write_text(
-        "dt: 0.001\nduration: 0.5\nengines: [mini, rapier]\n"
-        "bodies: [{name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0,"
-        " position: [0, 0, 1], velocity: [1, 0, 2]}]\n"
-        "expect: [{kind: velocity_at, body: ball, time: 0.5, value: [1.0, 0.0, -2.905]}]\n"
-        "checks: {velocity_at.ball: 1.0e-9}\n"
-    )
-    out = tmp_path / "out"
-    code = main(["run", str(scene_file), "--out", str(out), "--history", "none",
-                 "--baseline", "none", "--jobs", "1"])  # fmt: skip
-    printed = capsys.readouterr().out
-    rows = pd.read_csv(out / "results.csv", keep_default_na=False)
-    rapier = rows[rows["engine"] == "rapier"]
-    assert code == 0, printed
-    assert list(rapier["status"]) == ["not_installed"], rapier.to_dict("records")
-    assert 'pip install "physval[rapier]"' in rapier["message"].iloc[0], rapier["message"].iloc[0]
-    mini = rows[rows["engine"] == "mini"]
-    assert (mini["status"] == "ok").any() and not mini["status"].isin(BAD_STATUSES).any(), (
-        mini[["metric", "status"]].to_dict("records")
-    )
-    assert 'rapier not installed: 1 scene not run in it (pip install "physval[rapier]")' in printed, printed
