@@ -47,6 +47,12 @@ CELL_TABLE_LIMIT = 1 << 20
 """Grids with at most this many cells (8 MiB of int64) get a dense cell-start table;
 sparser grids fall back to binary search. Sized for piles of thousands of bodies."""
 
+CELL_TABLE_CELLS_PER_BODY = 128
+"""A grid with more cells than this per body (a pile spread over the ground) falls back to
+binary search too: the table costs a pass over every cell, the search 28 lookups per body.
+Measured (216 bodies): table 48 us and search 298 us at 64 cells a body, 1,459 us against
+349 us at 1,024."""
+
 HALF_NEIGHBOURHOOD = np.array(
     [(0, 0, 0)]
     + [
@@ -328,8 +334,10 @@ def _cell_pairs(
     rank = np.empty(m, dtype=np.int64)
     rank[order] = np.arange(m)
 
-    if n_cells <= CELL_TABLE_LIMIT:  # dense table: where each cell's run starts in sorted order
-        cell_start = np.searchsorted(sorted_key, np.arange(n_cells + 1))
+    if n_cells <= min(CELL_TABLE_LIMIT, CELL_TABLE_CELLS_PER_BODY * m):
+        # dense table: where each cell's run starts in sorted order (the bodies before it)
+        cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+        np.cumsum(np.bincount(key, minlength=n_cells), out=cell_start[1:])
 
         def run(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return cell_start[keys], cell_start[keys + 1]
@@ -341,8 +349,11 @@ def _cell_pairs(
                 np.searchsorted(sorted_key, keys, side="right"),
             )
 
-    # all 14 neighbourhoods at once, (14, m): offset-major, then body order, as one flat list
-    start, end = run(key[None, :] + (HALF_NEIGHBOURHOOD @ strides)[:, None])
+    # all 14 neighbourhoods at once, (14, m): offset-major, then body order, as one flat list;
+    # looked up in sorted order (each offset's keys ascending, so the binary searches walk the
+    # sorted keys once) and put back in body order
+    sorted_start, sorted_end = run(sorted_key[None, :] + (HALF_NEIGHBOURHOOD @ strides)[:, None])
+    start, end = sorted_start[:, rank], sorted_end[:, rank]
     start[0] = np.maximum(start[0], rank + 1)  # own cell (offset 0): each pair once
     count = np.maximum(end - start, 0).ravel()
     total = int(count.sum())

@@ -189,3 +189,27 @@ def test_grid_pairs_of_kept_cells_are_the_pairs_found_afresh():
         reused += kept is last
         assert [kept[0].tobytes(), kept[1].tobytes()] == [fresh[0].tobytes(), fresh[1].tobytes()]
     assert 0 < reused < 300
+
+
+@pytest.mark.parametrize("spread", [1.0, 40.0], ids=["packed_table", "spread_search"])
+def test_grid_pairs_by_table_or_search_are_the_pairs_of_neighbouring_cells(spread, monkeypatch):
+    """The cell-start table (a packed grid) and the binary search (a grid with more than
+    CELL_TABLE_CELLS_PER_BODY cells a body) find, in the same order, the pairs whose cells are
+    within one of each other, and each of those pairs once."""
+    rng = np.random.default_rng(7)
+    count = 300
+    centre = rng.uniform(0.0, spread, (count, 3)) * np.array([1.0, 1.0, 0.2])
+    radius = np.full(count, 0.1)
+    body, world = np.arange(count), np.zeros(count, np.int64)
+    found = _grid_pairs(centre, radius, body, world, {})
+    cell = np.floor((centre - centre.min(axis=0)) / 0.2).astype(np.int64)
+    first, second = np.triu_indices(count, k=1)
+    near = np.abs(cell[first] - cell[second]).max(axis=1) <= 1
+    want = {(int(a), int(b)) for a, b in zip(first[near], second[near], strict=True)}
+    got = [tuple(sorted((int(a), int(b)))) for a, b in zip(*found, strict=True)]
+    assert len(got) == len(set(got)), f"{len(got) - len(set(got))} pairs found twice"
+    assert set(got) == want, f"{len(want - set(got))} missed, {len(set(got) - want)} extra"
+    other_path = 10**9 if spread > 1.0 else 0  # force the table, or the search
+    monkeypatch.setattr("mini_engine.broadphase.CELL_TABLE_CELLS_PER_BODY", other_path)
+    again = _grid_pairs(centre, radius, body, world, {})
+    assert [a.tobytes() for a in again] == [a.tobytes() for a in found]

@@ -25,6 +25,7 @@ import types
 import typing
 import zipfile
 from collections.abc import Callable
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -117,6 +118,13 @@ def _members(archive: zipfile.ZipFile, size: int) -> dict[str, zipfile.ZipInfo]:
     return members
 
 
+@cache
+def _field_types(kind: type) -> dict[str, Any]:
+    """A record dataclass's field types, resolved once per class (``typing.get_type_hints``
+    compiles every string annotation again on each call: 2 s a job for a 216-body pile)."""
+    return typing.get_type_hints(kind)
+
+
 # -- writing ---------------------------------------------------------------------------
 
 
@@ -136,7 +144,7 @@ def _encode(value: Any, kind: Any, field: str, arrays: list[np.ndarray]) -> Any:
     if dataclasses.is_dataclass(kind):
         if not isinstance(value, kind):
             raise TypeError(f"{field}: expected {kind.__name__}; got {type(value).__name__}")
-        hints = typing.get_type_hints(kind)
+        hints = _field_types(kind)
         return {
             f.name: _encode(getattr(value, f.name), hints[f.name], f"{field}.{f.name}", arrays)
             for f in dataclasses.fields(kind)
@@ -281,7 +289,7 @@ class _Reader:
         for name in names:
             if name not in tree:
                 raise RecordError(f"{field}.{name}", f"missing (a field of {kind.__name__})")
-        hints = typing.get_type_hints(kind)
+        hints = _field_types(kind)
         shapes = self.shapes.get(kind, {})
         lengths = dict(self.bindings)  # the instance's own lengths (samples) bound as read
         values = {}
