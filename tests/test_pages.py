@@ -25,7 +25,7 @@ from validation.report import render
 from validation.report.palette import SPEC_STYLES, engine_colour
 from validation.report.svgchart import Chart, Trace, render_chart, tick_labels
 from validation.report.sweep_page import render_sweep
-from validation.report.templating import ENVIRONMENT
+from validation.report.templating import ENVIRONMENT, compact
 
 HEX = r"#[0-9A-Fa-f]{6}"
 
@@ -82,10 +82,12 @@ def sweep_rows() -> list[dict]:
 
 
 def line_colours(html: str, label: str = r"[^<]+") -> dict[str, set[str]]:
-    """Each line's title (its engine) -> the stroke colours it is drawn in."""
+    """Each line's title (its engine) -> the stroke colours it is drawn in (a line's path is a
+    move and relative line-tos only: markers draw with h, m or z too)."""
     found: dict[str, set[str]] = {}
     pattern = (
-        rf'<polyline points="[^"]*" fill="none" stroke="({HEX})"[^>]*><title>({label})</title>'
+        rf'<path d="M[-0-9. ]+(?:l[-0-9. ]*)?" fill="none" stroke="({HEX})"[^>]*>'
+        rf"<title>({label})</title>"
     )
     for colour, title in re.findall(pattern, html):
         found.setdefault(title, set()).add(colour)
@@ -177,7 +179,7 @@ def style_of(html: str) -> str:
 
 
 def test_every_page_uses_the_shared_stylesheet(report_html, tmp_path):
-    shared = ENVIRONMENT.get_template("style.css").render().strip()
+    shared = compact(ENVIRONMENT.get_template("style.css").render()).strip()
     assert "figure.chart" in shared and ".o-failed" in shared
     sweep = render_sweep(sweep_rows(), tmp_path / "sweep.html").read_text()
     compare = render_page("compare.html.j2", compare_context(tmp_path))

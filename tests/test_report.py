@@ -37,7 +37,8 @@ from validation.measure.definitions import (
 )
 from validation.report import build, render
 from validation.report.outcomes import GREEN, RED
-from validation.report.svgchart import thin_line
+from validation.report.svgchart import _runs, thin_line
+from validation.report.templating import compact
 
 RUN_FILES = {"results.csv", "series.csv", "impacts.csv", "trace.csv", "provenance.json"}
 URL_ATTRIBUTES = {"src", "href", "xlink:href", "srcset", "action", "formaction", "data", "poster"}
@@ -111,7 +112,7 @@ def test_the_matrix_has_every_scene_and_engine_and_marks_the_bad_cells(rendered)
 
 def test_each_scene_has_a_section_with_a_plot_impacts_and_its_rows(rendered):
     _, html = rendered
-    sections = re.findall(r'<section class="scene" id="([^"]+)">(.*?)\n  </section>', html, re.S)
+    sections = re.findall(r'<section class="scene" id="([^"]+)">(.*?)\n</section>', html, re.S)
     assert [re.search(r"<h3>(\S+)", body).group(1) for _, body in sections] == list(SCENES)
     for _, body in sections:
         for engine in ENGINES:
@@ -211,6 +212,29 @@ def test_thin_line_keeps_spikes_and_bounds_points():
     tt, yy = thin_line(t, y, max_points=1000)
     assert tt.size <= 1000 and np.nanmax(yy) == 7.0 and np.all(np.diff(tt) > 0)
     assert np.isnan(yy[-1]) or tt[-1] < 1.0
+
+
+def test_a_line_path_passes_through_every_drawn_point():
+    """A line's path data (a move, then relative line-tos) read back as absolute pixels is the
+    rounded points, less repeats, split at the gap."""
+    rng = np.random.default_rng(7)
+    x = np.cumsum(rng.uniform(0.0, 4.0, 60))
+    y = rng.uniform(-50.0, 150.0, 60)
+    y[30] = np.nan
+    drawn = []
+    for path in _runs(x, y):
+        numbers = [float(v) for v in re.findall(r"-?[0-9.]+", path)]
+        points = np.cumsum(np.reshape(numbers, (-1, 2)), axis=0)  # relative after the move
+        drawn.append(points)
+    for points, part in zip(drawn, (slice(0, 30), slice(31, 60)), strict=True):
+        expected = np.column_stack([np.round(x[part]), np.round(y[part])])
+        expected = expected[np.r_[True, np.any(np.diff(expected, axis=0) != 0, axis=1)]]
+        assert np.array_equal(points, expected), f"path points {points} != {expected}"
+
+
+def test_compact_pages_keep_preformatted_text():
+    html = "<div>\n    <p>a</p>\n  <pre class=s>x\n    y</pre>\n\t<b>c</b></div>"
+    assert compact(html) == "<div>\n<p>a</p>\n<pre class=s>x\n    y</pre>\n<b>c</b></div>"
 
 
 # ------------------------------------------------------------------------------ writing

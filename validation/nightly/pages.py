@@ -12,6 +12,7 @@ import matplotlib
 from matplotlib.figure import Figure
 
 from validation.report.plots import svg_for_html
+from validation.report.templating import render_page as render_template
 from validation.report.templating import template_environment
 
 matplotlib.use("Agg")  # headless: rendering must never need a display
@@ -22,8 +23,8 @@ ENVIRONMENT = template_environment(TEMPLATE_DIR)
 
 
 def render_page(template: str, context: dict[str, Any]) -> str:
-    """``templates/<template>`` rendered with ``context`` (every value escaped)."""
-    return ENVIRONMENT.get_template(template).render(**context)
+    """``templates/<template>`` rendered with ``context`` (every value escaped), compact."""
+    return render_template(ENVIRONMENT, template, context)
 
 
 def figure_svg(figure: Figure, salt: str) -> str:

@@ -31,7 +31,11 @@ RUN_FAILURES = ("error", "model_mismatch", "unstable")
 RED_OUTCOMES = (*RUN_FAILURES, "failed")
 """Outcomes that need a person's look (red, counted as offenders)."""
 
-OUTCOME_LABELS = {"no_tolerance": "no tolerance", "not_run": "not run", "not_installed": "not installed"}
+OUTCOME_LABELS = {
+    "no_tolerance": "no tolerance",
+    "not_run": "not run",
+    "not_installed": "not installed",
+}
 """Display words for outcomes that are not statuses of results.csv."""
 
 # Cell and chip backgrounds: red needs a look, green passed, grey nothing was judged,

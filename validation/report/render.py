@@ -22,14 +22,14 @@ from validation.contract import EXIT_BAD_INPUT, EXIT_OK, REPORT_FILE
 from validation.files import write_atomically
 from validation.report.build import build_context
 from validation.report.read import ReportInputError, load_run
-from validation.report.templating import ENVIRONMENT
+from validation.report.templating import ENVIRONMENT, render_page
 
 TEMPLATE_NAME = "report.html.j2"
 
 
 def render_html(context: dict[str, Any]) -> str:
-    """The page: ``templates/report.html.j2`` with autoescaping on."""
-    return ENVIRONMENT.get_template(TEMPLATE_NAME).render(**context)
+    """The page: ``templates/report.html.j2`` with autoescaping on, compact."""
+    return render_page(ENVIRONMENT, TEMPLATE_NAME, context)
 
 
 def render_report(run_dir: Path, shown_as: Path | None = None) -> Path:

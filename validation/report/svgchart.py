@@ -228,7 +228,7 @@ class _Scale:
 
 
 def _runs(x: np.ndarray, y: np.ndarray) -> list[str]:
-    """Polyline point lists at line resolution (``LINE_DECIMALS``), split where a point is not
+    """Path data (``_path_data``) of the line's runs at line resolution (``LINE_DECIMALS``), split where a point is not
     drawable (a gap); a point that repeats its predecessor, or lies between two neighbours on
     the same horizontal or vertical pixel line, adds nothing drawn and is left out (a flat
     conserved quantity is two points, not 240)."""
@@ -251,10 +251,21 @@ def _runs(x: np.ndarray, y: np.ndarray) -> list[str]:
             continue
         current.append(point)
     runs = [*found, current] if current else found
-    return [
-        " ".join(f"{_number(a, LINE_DECIMALS)},{_number(b, LINE_DECIMALS)}" for a, b in run)
-        for run in runs
-    ]
+    return [_path_data(run) for run in runs]
+
+
+def _path_data(run: list[tuple[float, float]]) -> str:
+    """SVG path data of the points ``run`` (px, at ``LINE_DECIMALS``): a move to the first,
+    then relative line-tos ``l dx dy ...``: the same polyline in about 60 % of the bytes of
+    absolute ``x,y`` pairs (neighbouring points are a few pixels apart). The separator
+    before a minus sign is left out, as the path grammar allows."""
+    x_px, y_px = np.array(run).T
+    moves = np.column_stack([np.diff(x_px), np.diff(y_px)]).ravel().tolist()
+    text = [f"M{_number(x_px[0], LINE_DECIMALS)} {_number(y_px[0], LINE_DECIMALS)}"]
+    for i, move in enumerate(moves):
+        step = _number(move, LINE_DECIMALS)
+        text.append(("l" if i == 0 else "" if step.startswith("-") else " ") + step)
+    return "".join(text)
 
 
 def _between(first: tuple, middle: tuple, last: tuple) -> bool:
@@ -334,10 +345,10 @@ def _trace_svg(trace: Trace, sx: _Scale, sy: _Scale) -> str:
     if trace.line:
         tx, ty = thin_line(x, y, MAX_POINTS) if x.size > MAX_POINTS else (x, y)
         dash = f' stroke-dasharray="{escape(trace.dash)}"' if trace.dash else ""
-        for points in _runs(sx(tx), sy(ty)):
+        for path in _runs(sx(tx), sy(ty)):
             parts.append(
-                f'<polyline points="{points}" fill="none" stroke="{escape(trace.colour)}" '
-                f'stroke-width="{trace.width}"{dash}><title>{escape(trace.label)}</title></polyline>'
+                f'<path d="{path}" fill="none" stroke="{escape(trace.colour)}" '
+                f'stroke-width="{trace.width}"{dash}><title>{escape(trace.label)}</title></path>'
             )
     if trace.marker:
         parts.append(_markers(trace, sx(x), sy(y)))

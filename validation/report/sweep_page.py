@@ -30,7 +30,7 @@ from validation.report.svgchart import (
     legend_items,
     render_chart,
 )
-from validation.report.templating import ENVIRONMENT
+from validation.report.templating import ENVIRONMENT, render_page
 
 FITTED, FLOOR, SATURATED, OUTSIDE, UNMEASURED = FIT_ROLES = (
     "fitted",
@@ -279,12 +279,16 @@ def render_sweep(rows: list[dict], path: Path, fit_rule: str = "") -> Path:
                 "zero": [v for v in views if v["zero"]],
             }
         )
-    html = ENVIRONMENT.get_template(SWEEP_TEMPLATE).render(
-        definitions=DEFINITIONS,
-        fit_rule=fit_rule,
-        scenes=scenes,
-        engine_legend=Markup(engine_legend(list(dict.fromkeys(points.get("engine", []))))),
-        roles=ROLE_LABELS,
+    html = render_page(
+        ENVIRONMENT,
+        SWEEP_TEMPLATE,
+        {
+            "definitions": DEFINITIONS,
+            "fit_rule": fit_rule,
+            "scenes": scenes,
+            "engine_legend": Markup(engine_legend(list(dict.fromkeys(points.get("engine", []))))),
+            "roles": ROLE_LABELS,
+        },
     )
     write_atomically(path, html)
     return path
