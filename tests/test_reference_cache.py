@@ -9,7 +9,7 @@ import pytest
 from validation.reference import newton_euler
 from validation.reference.newton_euler import reference_motion
 from validation.scenario import Scenario
-from validation.scenario.compiled import compile_scene
+from validation.scenario.compiled import compile_scene, rotations, world_inertia
 
 DURATION = 0.5
 """s: a few tenths of a flip of the tumbling box below, a fraction of a second to integrate."""
@@ -96,3 +96,20 @@ def test_a_scene_that_differs_gets_its_own_integration(integrations):
     reference_motion(compile_scene(tumbling_box()), samples(0.5, 1e-3))
     reference_motion(compile_scene(Scenario.model_validate(changed)), samples(0.5, 1e-3))
     assert len(integrations) == 2, f"integrations to {integrations}"
+
+
+def test_a_recorded_blocks_world_inertia_is_computed_once_and_anew_for_other_states():
+    """The measurement side keeps the last block's ``R I Rᵀ`` (energy, angular momentum and
+    the stability check read the same states): the same object for the same orientations,
+    fresh products as soon as one quaternion differs."""
+    scene = compile_scene(tumbling_box())
+    rng = np.random.default_rng(3)
+    quat = rng.normal(size=(5, 1, 4))
+    quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
+    first = scene.inertia_world(quat)
+    assert scene.inertia_world(quat.copy()) is first
+    turned = quat.copy()
+    turned[3, 0] = [np.cos(0.1), np.sin(0.1), 0.0, 0.0]
+    expected = world_inertia(scene.inertia, rotations(turned))
+    assert np.array_equal(scene.inertia_world(turned), expected), "stale R I Rᵀ after a turn"
+    assert not np.array_equal(expected, first)

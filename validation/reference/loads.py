@@ -10,10 +10,11 @@ acceleration, added where the motion is integrated.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from validation.reference.rotation import cross
+from validation.reference.rotation import cross, norm
 
 WORLD = -1
 """``Springs.body_b`` of a spring whose second end is a fixed point of the world."""
@@ -48,6 +49,28 @@ class Springs:
     def count(self) -> int:
         return int(self.body_a.size)
 
+    @cached_property
+    def to_world(self) -> np.ndarray:
+        """(k,) bool: end B is a fixed point of the world."""
+        return self.body_b == WORLD
+
+    @cached_property
+    def body_b_or_any(self) -> np.ndarray:
+        """(k,) int: ``body_b``, with body 0 for a world end (any body: its values are masked)."""
+        return np.where(self.to_world, 0, self.body_b)
+
+    def incidence(self, bodies: int) -> tuple[np.ndarray, np.ndarray]:
+        """(k, n) each, 1 where spring k's end A (B) is on body n of ``bodies``, else 0 (a
+        world end on none): built once per body count, as they depend on nothing else."""
+        built = self.__dict__.setdefault("_incidence", {})  # a frozen dataclass's own cache
+        if bodies not in built:
+            attached = np.ones(self.count, dtype=bool)
+            built[bodies] = (
+                _incidence(self.body_a, bodies, attached),
+                _incidence(self.body_b_or_any, bodies, ~self.to_world),
+            )
+        return built[bodies]
+
 
 @dataclass(frozen=True)
 class SpringEnds:
@@ -67,8 +90,7 @@ class SpringEnds:
 
 def spring_ends(springs: Springs, pos: np.ndarray, rot: np.ndarray) -> SpringEnds:
     """The springs' ends at the poses ``pos (..., n, 3)`` m and ``rot (..., n, 3, 3)``."""
-    to_world = springs.body_b == WORLD
-    body_b = np.where(to_world, 0, springs.body_b)  # any body: its values are masked
+    to_world, body_b = springs.to_world, springs.body_b_or_any
     arm_a = np.einsum("...kij,kj->...ki", rot[..., springs.body_a, :, :], springs.anchor_a)
     arm_b = np.einsum("...kij,kj->...ki", rot[..., body_b, :, :], springs.anchor_b)
     arm_b = np.where(to_world[:, None], 0.0, arm_b)
@@ -81,7 +103,7 @@ def spring_energies(springs: Springs, pos: np.ndarray, rot: np.ndarray) -> np.nd
     """(..., k) J, each spring's elastic energy ``½ k (L - rest)²`` at the poses ``pos
     (..., n, 3)`` and ``rot (..., n, 3, 3)``, ``L`` its anchors' distance."""
     ends = spring_ends(springs, pos, rot)
-    length = np.linalg.norm(ends.point_b - ends.point_a, axis=-1)
+    length = norm(ends.point_b - ends.point_a)
     return 0.5 * springs.stiffness * (length - springs.rest_length) ** 2
 
 
@@ -108,13 +130,12 @@ def spring_loads(
     are not special here (the caller keeps them still).
     """
     ends = spring_ends(springs, pos, rot)
-    to_world = springs.body_b == WORLD
-    body_b = np.where(to_world, 0, springs.body_b)
+    to_world, body_b = springs.to_world, springs.body_b_or_any
     speed_a = vel[..., springs.body_a, :] + cross(ang_vel[..., springs.body_a, :], ends.arm_a)
     speed_b = vel[..., body_b, :] + cross(ang_vel[..., body_b, :], ends.arm_b)
     speed_b = np.where(to_world[:, None], 0.0, speed_b)
     offset = ends.point_b - ends.point_a
-    length = np.linalg.norm(offset, axis=-1)
+    length = norm(offset)
     has_axis = length >= MIN_SPRING_LENGTH
     axis = np.where(
         has_axis[..., None], offset / np.maximum(length, MIN_SPRING_LENGTH)[..., None], 0.0
@@ -123,8 +144,7 @@ def spring_loads(
     tension = springs.stiffness * (length - springs.rest_length)
     tension = tension + springs.damping * stretch_speed
     pull_on_a = tension[..., None] * axis
-    on_a = _incidence(springs.body_a, bodies, np.ones(springs.count, dtype=bool))
-    on_b = _incidence(body_b, bodies, ~to_world)
+    on_a, on_b = springs.incidence(bodies)
     force = np.einsum("kn,...ki->...ni", on_a, pull_on_a)
     force -= np.einsum("kn,...ki->...ni", on_b, pull_on_a)
     torque = np.einsum("kn,...ki->...ni", on_a, cross(ends.arm_a, pull_on_a))

@@ -25,7 +25,7 @@ from scipy.integrate import OdeSolution, solve_ivp
 
 from validation.reference.loads import Springs, applied_loads
 from validation.reference.motion import Motion
-from validation.reference.rotation import quat_multiply, quat_to_matrix
+from validation.reference.rotation import norm, quat_multiply, quat_to_matrix
 
 RELATIVE_TOLERANCE = 3e-14
 """DOP853's rtol, near the smallest SciPy accepts (100 machine epsilons, 2.2e-14). Near a
@@ -84,7 +84,12 @@ class RigidBodyScene(Protocol):
 def _unpack(y: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
     """``pos (..., n, 3)``, ``quat (..., n, 4)``, ``vel (..., n, 3)``, ``momentum (..., n,
     3)`` of flat integrator states ``y (..., 13 n)``."""
-    pos, quat, vel, momentum = np.split(y, [3 * n, 7 * n, 10 * n], axis=-1)
+    pos, quat, vel, momentum = (
+        y[..., : 3 * n],
+        y[..., 3 * n : 7 * n],
+        y[..., 7 * n : 10 * n],
+        y[..., 10 * n :],
+    )  # the views np.split makes, without its Python layer
     lead = y.shape[:-1]
     return (
         pos.reshape(*lead, n, 3),
@@ -96,7 +101,7 @@ def _unpack(y: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
 
 def _unit(quat: np.ndarray) -> np.ndarray:
     """(..., 4) the quaternions ``quat (..., 4)`` scaled to unit length."""
-    return quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    return quat / norm(quat, keepdims=True)
 
 
 def _omega(
