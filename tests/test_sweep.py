@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from validation.cli import BUNDLED_SCENARIOS, main
+from validation.jobs.plan import plan_run
 from validation.jobs.sweep import GridError, parse_dt_grid, run_sweep
 from validation.scenario import Scenario, load_scenario
 from validation.scenario.engine_spec import parse_engine_spec
@@ -339,3 +340,13 @@ def test_a_fixed_step_sweep_keeps_its_dt_rows():
     rows = [{"scenario": "s", "engine": "mini", "metric": "position_error", "dt": 1e-3,
              "value": 1.0, "error": 1.0}]
     assert [r["metric"] for r in sweep_result_rows(rows)] == ["sweep_error.position_error@dt=0.001"]
+
+
+def test_a_run_in_chosen_engines_sweeps_those_engines_only():
+    """``--engines`` replaces every scene's engine list, its ``sweep:`` list too: a run in
+    MuJoCo does not step mini or PyBullet for the stiff spring's sweep."""
+    scene = BUNDLED_SCENARIOS / "stiff" / "stiff_spring_oscillator.yaml"
+    own = {spec.label for _, spec, _ in plan_run([scene], None, None, None).sweeps}
+    assert own == {"mini", "mujoco", "mujoco(integrator=RK4)", "pybullet"}, own
+    chosen = {spec.label for _, spec, _ in plan_run([scene], "mujoco", None, None).sweeps}
+    assert chosen == {"mujoco"}, chosen

@@ -28,6 +28,9 @@ class Plan:
     scenes: list[tuple[CompiledScene, list[EngineSpec]]]
     """Each scene compiled once, with the engine specs it runs in."""
 
+    engines_replaced: bool = False
+    """``--engines`` replaced every scene's engine list: its sweep's list too."""
+
     @property
     def jobs(self) -> list[tuple[CompiledScene, EngineSpec]]:
         """(scene, spec) in plan order: scenes in file order, specs in the scene's order."""
@@ -36,15 +39,16 @@ class Plan:
     @property
     def sweeps(self) -> list[tuple[Scenario, EngineSpec, list[float]]]:
         """(scenario, spec, dts) of the scenes that declare ``sweep:``, in plan order: the
-        sweep's own engines, or the specs the scene runs in, leaving out engines not
-        installed here (the scene's own rows say ``not_installed``)."""
+        sweep's own engines, or the specs the scene runs in (always these when ``--engines``
+        replaced the scenes' lists: a run in one engine sweeps that engine only), leaving out
+        engines not installed here (the scene's own rows say ``not_installed``)."""
         return [
             (scene.scenario, spec, list(scene.scenario.sweep.dt))
             for scene, specs in self.scenes
             if scene.scenario.sweep is not None
             for spec in (
                 [parse_engine_spec(t) for t in scene.scenario.sweep.engines]
-                if scene.scenario.sweep.engines
+                if scene.scenario.sweep.engines and not self.engines_replaced
                 else specs
             )
             if not not_installed(spec.name)
@@ -154,4 +158,4 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
     if problems:
         raise BadInputError("\n".join(problems))
-    return Plan(scenes)
+    return Plan(scenes, engines_replaced=overrides is not None)
