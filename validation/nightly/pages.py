@@ -11,20 +11,19 @@ from typing import Any
 import matplotlib
 from matplotlib.figure import Figure
 
+from validation.report import templating
 from validation.report.plots import svg_for_html
-from validation.report.templating import render_page as render_template
-from validation.report.templating import template_environment
 
 matplotlib.use("Agg")  # headless: rendering must never need a display
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 
-ENVIRONMENT = template_environment(TEMPLATE_DIR)
+ENVIRONMENT = templating.template_environment(TEMPLATE_DIR)
 
 
 def render_page(template: str, context: dict[str, Any]) -> str:
     """``templates/<template>`` rendered with ``context`` (every value escaped), compact."""
-    return render_template(ENVIRONMENT, template, context)
+    return templating.render_page(ENVIRONMENT, template, context)
 
 
 def figure_svg(figure: Figure, salt: str) -> str:

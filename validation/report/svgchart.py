@@ -228,8 +228,8 @@ class _Scale:
 
 
 def _runs(x: np.ndarray, y: np.ndarray) -> list[str]:
-    """Path data (``_path_data``) of the line's runs at line resolution (``LINE_DECIMALS``), split where a point is not
-    drawable (a gap); a point that repeats its predecessor, or lies between two neighbours on
+    """Path data (``_path_data``) of the line's runs at line resolution (``LINE_DECIMALS``),
+    split where a point is not drawable (a gap); a point that repeats its predecessor, or lies between two neighbours on
     the same horizontal or vertical pixel line, adds nothing drawn and is left out (a flat
     conserved quantity is two points, not 240)."""
     good = np.isfinite(x) & np.isfinite(y)
