@@ -25,8 +25,33 @@ SMALL_ANGLE = 1e-12
 (sin(θ/2)/θ → 1/2), avoiding 0/0; far below double-precision significance."""
 
 
+QUAT_PRODUCT_ROWS = 64
+"""Batches of at most this many quaternions build their matrices and products from a table
+of products ``a_i b_j`` (``_matrices_from_products``, ``_product_from_products``): a dozen
+whole-array operations instead of twenty to thirty, which is what a step of a few bodies pays
+for (one body's matrix: 4 µs against 12 µs, a product 5.6 against 9.4). From about 128 rows
+on, the table's 16 products a row cost more than the formulas' own arithmetic."""
+
+PRODUCT_FIRST = np.array([10, 6, 7, 6, 5, 11, 7, 11, 5])
+"""Flat index ``4 i + j`` (``q_i q_j``, w x y z = 0 1 2 3) of each entry's first product, in
+row-major entry order: yy xy xz, xy xx yz, xz yz xx."""
+
+PRODUCT_SECOND = np.array([15, 3, 2, 3, 15, 1, 2, 1, 10])
+"""The second product of each entry: zz wz wy, wz zz wx, wy wx yy."""
+
+SIGN_FIRST = np.array([-1.0, 1.0, 1.0, 1.0, -1.0, 1.0, 1.0, 1.0, -1.0])
+SIGN_SECOND = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, -1.0, -1.0, 1.0, -1.0])
+"""Each product's sign in its entry, ``2 (±first ± second)``."""
+
+DIAGONAL_ENTRIES = np.eye(3, dtype=bool).ravel()
+"""(9,) the diagonal entries, ``1 - 2 (...)``: only they get the 1 (adding 0 to the others would
+turn a -0.0 into +0.0)."""
+
+
 def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     """Rotation matrices (n, 3, 3), body to world, from unit quaternions ``quat (n, 4)`` w x y z."""
+    if quat.shape[0] <= QUAT_PRODUCT_ROWS:
+        return _matrices_from_products(quat)
     w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
     xx, yy, zz = x * x, y * y, z * z  # each product once: it appears in two entries
     xy, xz, yz = x * y, x * z, y * z
@@ -44,13 +69,54 @@ def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     return rot
 
 
+def _matrices_from_products(quat: np.ndarray) -> np.ndarray:
+    """``quat_to_matrix``'s entries from the table of products ``q_i q_j`` (n, 16): each entry
+    ``2 (±first ± second)``, plus 1 on the diagonal: the same operations on the same products
+    (``a - b`` is ``a + (-b)`` in IEEE arithmetic, signed zeros included), so bit for bit the
+    entries written out above."""
+    products = (quat[:, :, None] * quat[:, None, :]).reshape(-1, 16)
+    entries = products.take(PRODUCT_FIRST, axis=1)
+    entries *= SIGN_FIRST
+    second = products.take(PRODUCT_SECOND, axis=1)
+    second *= SIGN_SECOND
+    entries += second
+    entries *= 2.0
+    np.add(entries, 1.0, out=entries, where=DIAGONAL_ENTRIES)
+    return entries.reshape(-1, 3, 3)
+
+
+CROSS_FIRST = np.array([11, 13, 6])
+CROSS_SECOND = np.array([14, 7, 9])
+"""Flat indices ``4 i + j`` of ``p_i q_j`` in the cross product ``p_v × q_v = first - second``:
+(yz, zx, xy) less (zy, xz, yx)."""
+
+
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton products ``p ⊗ q`` (n, 4) of quaternions ``p, q (n, 4)`` w x y z."""
+    """Hamilton products ``p ⊗ q`` (n, 4) of quaternions ``p, q (n, 4)`` w x y z:
+    ``(p_w q_w - p_v·q_v, p_w q_v + q_w p_v + p_v × q_v)``."""
+    if p.shape[0] <= QUAT_PRODUCT_ROWS:
+        return _product_from_products(p, q)
     pw, pv = p[:, :1], p[:, 1:]
     qw, qv = q[:, :1], q[:, 1:]
     product = np.empty((p.shape[0], 4))  # filled in place: cheaper than np.concatenate
     np.subtract(pw * qw, last_axis_sum(pv * qv)[:, None], out=product[:, :1])
     np.add(pw * qv + qw * pv, cross(pv, qv), out=product[:, 1:])
+    return product
+
+
+def _product_from_products(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``quat_multiply`` from the table of products ``p_i q_j`` (n, 16) (as
+    ``_matrices_from_products``): the same sums of the same products in the same order, so
+    bit for bit the same quaternions."""
+    products = (p[:, :, None] * q[:, None, :]).reshape(-1, 16)
+    product = np.empty((p.shape[0], 4))
+    dot = 0.0 + products[:, 5]  # last_axis_sum's order: 0 + xx + yy + zz
+    dot += products[:, 10]
+    dot += products[:, 15]
+    np.subtract(products[:, 0], dot, out=product[:, 0])
+    spin = products.take(CROSS_FIRST, axis=1)
+    spin -= products.take(CROSS_SECOND, axis=1)
+    np.add(products[:, 1:4] + products[:, 4::4], spin, out=product[:, 1:])  # p_w q_v + q_w p_v
     return product
 
 
