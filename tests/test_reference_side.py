@@ -5,6 +5,7 @@ the solid, SciPy's rotations, the spring energy's gradient)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
@@ -340,3 +341,29 @@ def test_rotations_agree_with_scipy(seed):
     angle = rotation.rotation_angle(p, q)
     scipy_angle = (rot_q.inv() * rot_p).magnitude()
     assert np.allclose(angle, scipy_angle, rtol=0.0, atol=1e-12), (angle, scipy_angle)
+
+
+@pytest.mark.parametrize("shape", [(1,), (3,), (32,), (33,), (4, 8), (5, 7), (300,)])
+def test_small_arrays_from_the_product_table_are_the_formulas_bit_for_bit(shape, monkeypatch):
+    """Why rotation.TABLE_ROWS may switch small arrays (the integration's right-hand side) to
+    the table of products: matrices, Hamilton and cross products equal the written-out
+    formulas' in every bit, signed zeros included, on either side of the switch and with
+    leading axes."""
+    rng = np.random.default_rng(sum(shape))
+    p, q = rng.normal(size=(*shape, 4)), rng.normal(size=(*shape, 4))
+    p.reshape(-1, 4)[1::3, 1:3] = -0.0  # signed zeros among random entries
+    q.reshape(-1, 4)[2::4, 0] = -0.0
+
+    def results() -> dict[str, np.ndarray]:
+        return {
+            "matrix": rotation.quat_to_matrix(p),
+            "product": rotation.quat_multiply(p, q),
+            "cross": rotation.cross(p[..., 1:], q[..., :3]),
+        }
+
+    table = results()
+    monkeypatch.setattr(rotation, "TABLE_ROWS", -1)  # the written-out formulas only
+    for name, slow in results().items():
+        assert table[name].shape == slow.shape, (name, table[name].shape, slow.shape)
+        differing = int(np.count_nonzero(table[name].view(np.uint64) != slow.view(np.uint64)))
+        assert differing == 0, f"{shape}: {differing} {name} entries differ in their bits"
