@@ -436,3 +436,20 @@ def test_a_library_scene_runs_through_the_runner():
     run = run_engine(compile_scene(scenario), parse_engine_spec(DISCRETE))
     assert run.status == "ok", run.message
     assert run.provenance.engine == "drake"
+
+
+def test_a_spin_that_turns_non_finite_is_unstable_with_the_states_before_it():
+    """Drake's SceneGraph raises on a NaN pose (its message names a per-process source id):
+    the 1000 rad/s disc must read ``unstable`` at the time its state failed, the same message
+    in every process, with the energy growth of the states before it measured, not ``error``
+    (docs/engines-drake.md section 8)."""
+    from validation.measure.runner import run_engine
+
+    scenario = load_scenario(
+        Path(__file__).resolve().parent.parent / "scenarios/stiff/thin_disc_spin_1000.yaml"
+    )
+    run = run_engine(compile_scene(scenario), parse_engine_spec(DISCRETE))
+    assert run.status == "unstable", (run.status, run.message)
+    assert "source id" not in run.message and "t = 0.18" in run.message, run.message
+    kept = run.recording.trajectory
+    assert np.isfinite(kept.pos).all() and 0.18 < kept.t[-1] < scenario.duration, kept.t[-1]

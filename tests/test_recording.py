@@ -129,3 +129,38 @@ def test_a_plastic_impact_measures_e_zero(speed):
     adapter.load(compile_scene(scenario))
     (event,) = record(adapter, compile_scene(scenario)).impacts
     assert abs(event.restitution) < MINI_EVENT_RESTITUTION, f"e = {event.restitution:.3e}"
+
+
+def _short_batches(adapter, non_finite: bool):
+    """``adapter.advance_observed`` cut after half of its first batch, the last state kept
+    made non-finite or not: what an engine that refuses to go on hands the recorder."""
+    observed = adapter.advance_observed
+
+    def short(steps):
+        states = observed(steps).take(slice(0, steps // 2))
+        if non_finite:
+            states.pos[-1] = np.nan
+        return states
+
+    adapter.advance_observed = short
+
+
+@pytest.mark.parametrize("non_finite", [True, False])
+def test_a_batch_that_ends_early_is_unstable_only_at_a_non_finite_state(non_finite):
+    """A short batch ending at a non-finite state is an explosion at that state's time, the
+    states before it measured; a short batch of finite states is an engine error, never a
+    run silently shorter than its scene."""
+    scenario = ladder(0.5)
+    adapter = create_adapter(parse_engine_spec("mujoco"))
+    adapter.load(compile_scene(scenario))
+    _short_batches(adapter, non_finite)
+    try:
+        if not non_finite:
+            with pytest.raises(RuntimeError, match="stopped after"):
+                record(adapter, compile_scene(scenario))
+            return
+        recording = record(adapter, compile_scene(scenario))
+    finally:
+        adapter.close()
+    assert recording.unstable.startswith("non_finite"), recording.unstable
+    assert 0.0 < recording.trajectory.t[-1] < scenario.duration, recording.trajectory.t[-1]

@@ -185,6 +185,9 @@ class EngineAdapter(Protocol):
     # Optional: ``advance_observed(steps) -> Trajectory``, the state after each of ``steps``
     # steps, for engines whose per-step observation costs more than their step (MuJoCo,
     # PyBullet). Without it the recording calls ``advance(1)`` and ``observe()`` per step.
+    # An engine that refuses to step on from a non-finite state (Drake raises) returns the
+    # states up to and including that one: the run is then ``unstable`` at that time, with
+    # the states before it measured, as a step-by-step recording would find it.
 
     # Optional: ``precision``, ``"float64"`` (the default) or ``"float32"``: the floating-point
     # type the engine computes in, which sets the parity gate's tolerance

@@ -604,7 +604,9 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> 
 
 def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> float:
     """Every state observed by the adapter's own ``advance_observed``, a batch at a time.
-    Returns the seconds spent in it (stepping and the raw copies)."""
+    Returns the seconds spent in it (stepping and the raw copies). A batch may end early at
+    the state where the engine refused to go on (non-finite: ``EngineAdapter``), which then
+    fails the checks; a short batch of finite states is an engine error."""
     first = adapter.observe()
     states = Trajectory(
         np.array([first.time]),
@@ -620,8 +622,11 @@ def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> f
         start = time.perf_counter()
         states = adapter.advance_observed(chunk)
         stepping += time.perf_counter() - start
-        if not measurer.measure(states, np.arange(done + 1, done + chunk + 1), steps_total):
+        observed = len(states)  # fewer than asked: the engine stopped at a non-finite state
+        if not measurer.measure(states, np.arange(done + 1, done + observed + 1), steps_total):
             break
+        if observed < chunk:
+            raise RuntimeError(f"the engine stopped after {done + observed} steps of {steps_total}")
         done += chunk
     return stepping
 

@@ -437,12 +437,22 @@ class DrakeAdapter:
         self.simulator.AdvanceTo(self._time(self.steps_taken))
 
     def advance_observed(self, steps: int) -> Trajectory:
-        """``steps`` advances of one dt, the raw state read after each, converted at the end."""
+        """``steps`` advances of one dt, the raw state read after each, converted at the end;
+        fewer when Drake refuses to go on from a non-finite state (its SceneGraph raises on a
+        NaN pose, with a per-process source id in the message): the states up to that one."""
         raw = np.empty((steps, self.position_index.shape[0], 13))
         for k in range(steps):
-            self.advance(1)
+            try:
+                self.advance(1)
+            except RuntimeError:
+                raw[k] = self._raw_state()
+                if np.isfinite(raw[k]).all():
+                    raise  # not an explosion: an engine error
+                raw = raw[: k + 1]
+                break
             raw[k] = self._raw_state()
-        times = (self.steps_taken - steps + 1 + np.arange(steps)) * float(self.scenario.dt)
+        taken = raw.shape[0]
+        times = (self.steps_taken - taken + 1 + np.arange(taken)) * float(self.scenario.dt)
         return self._states(times, raw)
 
     # -- reading back ----------------------------------------------------------------------
