@@ -46,6 +46,7 @@ from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
+from validation.reference.rotation import cross
 from validation.scenario.compiled import CompiledScene, ObservedContacts
 from validation.scenario.definability import scene_traits, why_undefined
 from validation.scenario.physics import GROUND
@@ -277,8 +278,8 @@ class ImpactDetector:
         rest), arms and normal frozen at first contact: every observation of one impact is
         measured along the impulse's own direction (for spinning spheres the arms stay on the
         line of centres: ω × r adds nothing)."""
-        v_a = ext.vel[obs, a] + np.cross(ext.ang_vel[obs, a], arm_a)
-        v_b = ext.vel[obs, b] + np.cross(ext.ang_vel[obs, b], arm_b)
+        v_a = ext.vel[obs, a] + cross(ext.ang_vel[obs, a], arm_a)
+        v_b = ext.vel[obs, b] + cross(ext.ang_vel[obs, b], arm_b)
         return np.einsum("ci,ci->c", v_b - v_a, normal)
 
     def _follow(

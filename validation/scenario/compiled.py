@@ -101,7 +101,7 @@ def angular_momentum(
     """(s, 3) kg·m²/s about the system's centre of mass: ``Σ (x - c) × m v + I_world ω``."""
     moving = (mass > 0).astype(float)
     arm = pos - centre_of_mass(mass, pos)[:, None, :]
-    orbital = np.einsum("n,sni->si", mass, np.cross(arm, vel))
+    orbital = np.einsum("n,sni->si", mass, rotation.cross(arm, vel))
     spin = np.einsum("snij,snj,n->si", inertia_world, ang_vel, moving)
     return orbital + spin
 
