@@ -9,10 +9,12 @@ which makes them explicit in time whatever the integrator.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from mini_engine.model import WORLD_ANCHOR, Model, State
-from mini_engine.rotation import apply, cross
+from mini_engine.model import WORLD_ANCHOR, Model, State, per_model
+from mini_engine.rotation import apply, cross, norm
 
 MIN_SPRING_LENGTH = 1e-12
 """m. Below this anchor distance the spring axis is undefined; the spring then
@@ -39,6 +41,63 @@ def constant_loads(model: Model) -> tuple[np.ndarray, np.ndarray]:
     return np.zeros((n, 3)) + model.body_force, np.zeros((n, 3)) + model.body_torque
 
 
+class SpringEnds(NamedTuple):
+    """Which bodies the ``k`` springs of a model act on, derived once per model.
+
+    Attributes:
+        to_world: (k,) bool, end B is a fixed point of the world.
+        any_to_world: ``to_world.any()``.
+        body_b_or_any: (k,) int, end B's body, or body 0 for a world end (masked out).
+        on_body: (k,) bool, ``~to_world``; body_b_on_body: its springs' B bodies.
+        distinct_a, distinct_b: no two springs share a body at end A (at end B): each
+            accumulation is then a plain gather-add, the same sums as ``np.add.at``'s.
+        any_fixed: the model has a fixed body (whose loads are zeroed).
+    """
+
+    to_world: np.ndarray
+    any_to_world: bool
+    body_b_or_any: np.ndarray
+    on_body: np.ndarray
+    body_b_on_body: np.ndarray
+    distinct_a: bool
+    distinct_b: bool
+    any_fixed: bool
+
+
+@per_model
+def spring_ends(model: Model) -> SpringEnds:
+    """The ``SpringEnds`` of ``model`` (they depend on nothing else)."""
+    a, b = model.spring_body_a, model.spring_body_b
+    to_world = b == WORLD_ANCHOR
+    on_body = ~to_world
+    return SpringEnds(
+        to_world=to_world,
+        any_to_world=bool(to_world.any()),
+        body_b_or_any=np.where(to_world, 0, b),
+        on_body=on_body,
+        body_b_on_body=b[on_body],
+        distinct_a=np.unique(a).size == a.size,
+        distinct_b=np.unique(b[on_body]).size == int(on_body.sum()),
+        any_fixed=bool(model.body_fixed.any()),
+    )
+
+
+def _add_at(total: np.ndarray, rows: np.ndarray, values: np.ndarray, distinct: bool) -> None:
+    """``total[rows] += values`` summing repeated rows one after another (``np.add.at``);
+    for ``distinct`` rows a fancy-indexed add, the same sums without add.at's slow path."""
+    if distinct:
+        total[rows] += values
+    else:
+        np.add.at(total, rows, values)
+
+
+def _where_world(ends: SpringEnds, world_value, body_value: np.ndarray) -> np.ndarray:
+    """(k, 3) ``world_value`` for the springs whose end B is the world, else ``body_value``."""
+    if not ends.any_to_world:
+        return body_value
+    return np.where(ends.to_world[:, None], world_value, body_value)
+
+
 def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Forces (n, 3) N and torques (n, 3) N·m about each centre of mass, world frame, from springs.
 
@@ -54,21 +113,18 @@ def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarr
     torque = np.zeros((n, 3))
     if model.n_springs == 0:
         return force, torque
-    a, b = model.spring_body_a, model.spring_body_b
-    to_world = b == WORLD_ANCHOR
-    b_safe = np.where(to_world, 0, b)
+    ends = spring_ends(model)
+    a, b_safe = model.spring_body_a, ends.body_b_or_any
 
     arm_a = apply(rot[a], model.spring_anchor_a)
-    arm_b = np.where(to_world[:, None], 0.0, apply(rot[b_safe], model.spring_anchor_b))
+    arm_b = _where_world(ends, 0.0, apply(rot[b_safe], model.spring_anchor_b))
     point_a = state.pos[a] + arm_a
-    point_b = np.where(to_world[:, None], model.spring_anchor_b, state.pos[b_safe] + arm_b)
+    point_b = _where_world(ends, model.spring_anchor_b, state.pos[b_safe] + arm_b)
     vel_a = state.vel[a] + cross(state.ang_vel[a], arm_a)
-    vel_b = np.where(
-        to_world[:, None], 0.0, state.vel[b_safe] + cross(state.ang_vel[b_safe], arm_b)
-    )
+    vel_b = _where_world(ends, 0.0, state.vel[b_safe] + cross(state.ang_vel[b_safe], arm_b))
 
     offset = point_b - point_a
-    length = np.linalg.norm(offset, axis=1)
+    length = norm(offset)
     axis = offset / np.maximum(length, MIN_SPRING_LENGTH)[:, None]
     axis[length < MIN_SPRING_LENGTH] = 0.0
     stretch_speed = np.sum((vel_b - vel_a) * axis, axis=1)
@@ -76,13 +132,15 @@ def spring_forces(model: Model, state: State, rot: np.ndarray) -> tuple[np.ndarr
     tension += model.spring_damping * stretch_speed
     force_on_a = tension[:, None] * axis
 
-    np.add.at(force, a, force_on_a)
-    np.add.at(torque, a, cross(arm_a, force_on_a))
-    on_body = ~to_world
-    np.add.at(force, b[on_body], -force_on_a[on_body])
-    np.add.at(torque, b[on_body], cross(arm_b[on_body], -force_on_a[on_body]))
-    force[model.body_fixed] = 0.0
-    torque[model.body_fixed] = 0.0
+    _add_at(force, a, force_on_a, ends.distinct_a)
+    _add_at(torque, a, cross(arm_a, force_on_a), ends.distinct_a)
+    on_body, b = ends.on_body, ends.body_b_on_body
+    if b.size:
+        _add_at(force, b, -force_on_a[on_body], ends.distinct_b)
+        _add_at(torque, b, cross(arm_b[on_body], -force_on_a[on_body]), ends.distinct_b)
+    if ends.any_fixed:
+        force[model.body_fixed] = 0.0
+        torque[model.body_fixed] = 0.0
     return force, torque
 
 

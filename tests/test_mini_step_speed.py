@@ -14,7 +14,7 @@ import pickle
 import numpy as np
 import pytest
 
-from mini_engine import Body, Plane, Settings, Sphere, build_model, rotation, step
+from mini_engine import Body, Plane, Settings, Sphere, Spring, build_model, forces, rotation, step
 from mini_engine.broadphase import _grid_pairs, broadphase_plan, candidate_pairs
 from mini_engine.collision import detect_contacts
 from mini_engine.integrate import GYROSCOPIC_RULES, BodyInertia, body_inertia
@@ -141,6 +141,61 @@ def test_small_batches_from_the_product_table_are_the_formulas_bit_for_bit(rows,
     for name, slow in results().items():
         differing = int(np.count_nonzero(table[name].view(np.uint64) != slow.view(np.uint64)))
         assert differing == 0, f"{rows} rows: {differing} {name} entries differ in their bits"
+
+
+def _spring_scene(seed: int, bodies: int, springs: int, rng_fixed: float):
+    """A random model of ``bodies`` boxes and ``springs`` springs (ends on any body, the world
+    or the same body twice), with its state."""
+    rng = np.random.default_rng(seed)
+    boxes = [
+        Body(
+            Box(rng.uniform(0.05, 0.3, size=3)),
+            mass=float(rng.uniform(0.5, 3.0)),
+            position=rng.normal(size=3),
+            orientation=rotation_quat(rng.normal(size=(1, 3)))[0],
+            velocity=rng.normal(size=3),
+            angular_velocity=3.0 * rng.normal(size=3),
+            fixed=bool(rng.random() < rng_fixed),
+        )
+        for _ in range(bodies)
+    ]
+    ends = [(int(rng.integers(0, bodies)), int(rng.integers(-1, bodies))) for _ in range(springs)]
+    spring_list = [
+        Spring(
+            body_a=a,
+            body_b=None if b in (-1, a) else b,
+            anchor_a=0.3 * rng.normal(size=3),
+            anchor_b=0.3 * rng.normal(size=3),
+            stiffness=float(rng.uniform(0.0, 1e4)),
+            damping=float(rng.uniform(0.0, 10.0)),
+            rest_length=float(rng.uniform(0.0, 2.0)),
+        )
+        for a, b in ends
+    ]
+    return build_model(boxes, spring_list)
+
+
+@pytest.mark.parametrize(
+    ("seed", "bodies", "springs"), [(1, 1, 1), (2, 3, 2), (3, 4, 9), (4, 6, 3)]
+)
+def test_spring_forces_of_distinct_ends_are_the_accumulated_forces_bit_for_bit(
+    seed, bodies, springs, monkeypatch
+):
+    """Why forces.SpringEnds may skip ``np.add.at`` for springs whose ends share no body, the
+    world masks without world ends and the zeroing without fixed bodies: the same forces and
+    torques, bit for bit, as the long way (add.at, masks and zeroing always)."""
+    model, state = _spring_scene(seed, bodies, springs, rng_fixed=0.3)
+    rot = quat_to_matrix(state.quat)
+    short = forces.spring_forces(model, state, rot)
+    long_way = forces.spring_ends(model)._replace(
+        any_to_world=True, distinct_a=False, distinct_b=False, any_fixed=True
+    )
+    monkeypatch.setattr(forces, "spring_ends", lambda _model: long_way)
+    for name, fast, slow in zip(
+        ("force", "torque"), short, forces.spring_forces(model, state, rot), strict=True
+    ):
+        differing = int(np.count_nonzero(fast.view(np.uint64) != slow.view(np.uint64)))
+        assert differing == 0, f"seed {seed}: {differing} {name} entries differ in their bits"
 
 
 def test_fixed_bodies_touching_each_other_are_never_candidates():
