@@ -76,18 +76,24 @@ def test_every_state_is_observed_and_the_trajectory_keeps_the_samples():
     )
     adapter = create_adapter(parse_engine_spec("mini"))
     adapter.load(compile_scene(scenario))
-    calls = {"observe": 0}
-    observe = adapter.observe
+    observed = {"start": 0, "steps": []}
+    observe, advance_observed = adapter.observe, adapter.advance_observed
 
-    def counting():
-        calls["observe"] += 1
+    def counting_observe():
+        observed["start"] += 1
         return observe()
 
-    adapter.observe = counting
+    def counting_steps(steps):
+        states = advance_observed(steps)
+        observed["steps"] += states.t.tolist()
+        return states
+
+    adapter.observe, adapter.advance_observed = counting_observe, counting_steps
     recording = record(adapter, compile_scene(scenario), sample_every=25)
     assert recording.trajectory.t.tolist() == pytest.approx([0.0, 0.025, 0.05, 0.075, 0.1])
     assert recording.trajectory.pos.shape == (5, 1, 3)
-    assert calls["observe"] == scenario.steps + 1, f"observed {calls['observe']} times"
+    every_step = pytest.approx([0.001 * (k + 1) for k in range(scenario.steps)])
+    assert observed["start"] == 1 and observed["steps"] == every_step, observed
     assert recording.impacts == []
 
 

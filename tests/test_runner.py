@@ -47,15 +47,26 @@ def test_wrong_inertia_gives_a_model_mismatch_naming_the_quantity(monkeypatch):
     assert "inertia_world of body 0" in run.message and run.recording is None, run.message
 
 
-def test_a_crashing_engine_becomes_an_error_row(monkeypatch):
+@pytest.mark.parametrize("crash_at", [1, 57])
+def test_a_crashing_engine_becomes_an_error_row(crash_at, monkeypatch):
+    """mini_engine's step raising on its first step, or part of the way through a batch of
+    observed steps (whose earlier states pass every check): an ``error`` row with the
+    engine's own message."""
     from validation.engines.mini import adapter as mini
 
-    def explode(self, steps):
-        raise RuntimeError("solver fell over")
+    calls = {"steps": 0}
+    stepped = mini.step
 
-    monkeypatch.setattr(mini.MiniAdapter, "advance", explode)
+    def explode(*args, **kwargs):
+        calls["steps"] += 1
+        if calls["steps"] >= crash_at:
+            raise RuntimeError("solver fell over")
+        return stepped(*args, **kwargs)
+
+    monkeypatch.setattr(mini, "step", explode)
     run = run_engine(compile_scene(Scenario.model_validate(BALL)), parse_engine_spec("mini"))
-    assert run.status == "error" and "solver fell over" in run.message, run
+    assert run.status == "error" and run.message == "RuntimeError: solver fell over", run
+    assert calls["steps"] == crash_at, calls
 
 
 def test_an_exploding_engine_becomes_an_unstable_row_and_stops_early():

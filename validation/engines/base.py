@@ -67,6 +67,7 @@ __all__ = [
     "ModelReport",
     "Provenance",
     "Snapshot",
+    "StoppedEarlyError",
     "Trajectory",
 ]
 
@@ -131,6 +132,18 @@ class Trajectory:
         return Trajectory(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields))
 
 
+class StoppedEarlyError(Exception):
+    """Raised by an adapter's ``advance_observed`` when the engine raised part of the way
+    through: ``states`` are the states observed before it, the engine's own exception is the
+    ``__cause__``. The recorder measures them, as it would have step by step: if one of them
+    had failed the checks that failure is the run's finding, else the engine's exception is
+    (an ``error`` row with the engine's message)."""
+
+    def __init__(self, states: Trajectory):
+        super().__init__(f"the engine raised after {len(states)} observed steps")
+        self.states = states
+
+
 @dataclass(frozen=True)
 class ModelReport:
     """What an engine built, read back from the engine itself after loading (parity gate).
@@ -187,7 +200,8 @@ class EngineAdapter(Protocol):
     # PyBullet). Without it the recording calls ``advance(1)`` and ``observe()`` per step.
     # An engine that refuses to step on from a non-finite state (Drake raises) returns the
     # states up to and including that one: the run is then ``unstable`` at that time, with
-    # the states before it measured, as a step-by-step recording would find it.
+    # the states before it measured, as a step-by-step recording would find it. An engine
+    # that raises otherwise part of the way through raises ``StoppedEarlyError`` from its error.
 
     # Optional: ``precision``, ``"float64"`` (the default) or ``"float32"``: the floating-point
     # type the engine computes in, which sets the parity gate's tolerance

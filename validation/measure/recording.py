@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from validation.engines.base import EngineAdapter, Snapshot
+from validation.engines.base import EngineAdapter, Snapshot, StoppedEarlyError
 from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
 from validation.measure.impact_log import ImpactEvent, ImpactLog
@@ -621,7 +621,14 @@ def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> f
     while done < steps_total:
         chunk = min(size, steps_total - done)
         start = time.perf_counter()
-        states = adapter.advance_observed(chunk)
+        try:
+            states = adapter.advance_observed(chunk)
+        except StoppedEarlyError as stopped:
+            before = stopped.states
+            steps = np.arange(done + 1, done + len(before) + 1)
+            if not len(before) or measurer.measure(before, steps, steps_total):
+                raise stopped.__cause__ from None  # the engine failed on states that passed
+            return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
         observed = len(states)  # fewer than asked: the engine stopped at a non-finite state
         if not measurer.measure(states, np.arange(done + 1, done + observed + 1), steps_total):

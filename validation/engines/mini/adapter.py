@@ -9,7 +9,7 @@ import numpy as np
 
 from mini_engine import Settings, step
 from mini_engine.rotation import quat_to_matrix, world_inertia
-from validation.engines.base import ModelReport, Provenance, Snapshot
+from validation.engines.base import ModelReport, Provenance, Snapshot, StoppedEarlyError, Trajectory
 from validation.engines.reference import scene_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -45,6 +45,33 @@ class MiniAdapter:
         for _ in range(steps):
             state, _ = step(self.model, state, self.settings)
         self.state = state
+
+    def advance_observed(self, steps: int) -> Trajectory:
+        """``steps`` steps, the scene bodies' state after each copied into one trajectory (the
+        step-by-step ``advance(1)`` and ``observe()``, without a snapshot per step); it ends
+        at the first state whose positions or velocities are not finite, which is not stepped
+        on from (the recorder names it)."""
+        n, model, settings = self.count, self.model, self.settings
+        observed = Trajectory(np.empty(steps), *(np.empty((steps, n, k)) for k in (3, 4, 3, 3)))
+        state, taken = self.state, 0
+        try:
+            while taken < steps:
+                state, _ = step(model, state, settings)
+                self.state = state
+                observed.t[taken] = state.time
+                observed.pos[taken] = state.pos[:n]
+                observed.quat[taken] = state.quat[:n]
+                observed.vel[taken] = state.vel[:n]
+                observed.ang_vel[taken] = state.ang_vel[:n]
+                taken += 1
+                if not (
+                    np.isfinite(observed.pos[taken - 1]).all()
+                    and np.isfinite(observed.vel[taken - 1]).all()
+                ):
+                    break
+        except Exception as error:
+            raise StoppedEarlyError(observed.take(slice(0, taken))) from error
+        return observed if taken == steps else observed.take(slice(0, taken))
 
     def observe(self) -> Snapshot:
         s, n = self.state, self.count
