@@ -604,39 +604,53 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> 
 
 
 def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> float:
-    """Every state observed by the adapter's own ``advance_observed``, a batch at a time.
-    Returns the seconds spent in it (stepping and the raw copies). A batch may end early at
-    the state where the engine refused to go on (non-finite: ``EngineAdapter``), which then
-    fails the checks; a short batch of finite states is an engine error."""
+    """Every state observed by the adapter's own ``advance_observed``, a batch at a time:
+    the same batches as ``_stepwise`` (the start with the first steps, then ``batch_size``
+    states), so that running sums over the states (``PrecessionRate``) do not depend on the
+    path. Returns the seconds spent in it (stepping and the raw copies). A batch may end
+    early at the state where the engine refused to go on (non-finite: ``EngineAdapter``),
+    which then fails the checks; a short batch of finite states is an engine error."""
     first = adapter.observe()
-    states = Trajectory(
+    pending = Trajectory(
         np.array([first.time]),
         *(a[None] for a in (first.pos, first.quat, first.vel, first.ang_vel)),
-    )
-    if not measurer.measure(states, [0], steps_total):
-        return 0.0
+    )  # observed, not yet measured: the start, measured with the first batch's steps
+    size = batch_size(measurer.scene)
     stepping = 0.0
     done = 0
-    size = batch_size(measurer.scene)
-    while done < steps_total:
-        chunk = min(size, steps_total - done)
+    chunk = min(max(size - 1, 1), steps_total)
+    while chunk > 0:
         start = time.perf_counter()
         try:
             states = adapter.advance_observed(chunk)
         except StoppedEarlyError as stopped:
-            before = stopped.states
-            steps = np.arange(done + 1, done + len(before) + 1)
-            if not len(before) or measurer.measure(before, steps, steps_total):
+            batch = Trajectory.concat(pending, stopped.states)
+            passed = not len(batch) or measurer.measure(
+                batch, _batch_steps(done, batch, pending), steps_total
+            )
+            if passed:
                 raise stopped.__cause__ from None  # the engine failed on states that passed
             return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
-        observed = len(states)  # fewer than asked: the engine stopped at a non-finite state
-        if not measurer.measure(states, np.arange(done + 1, done + observed + 1), steps_total):
+        batch = Trajectory.concat(pending, states)
+        steps = _batch_steps(done, batch, pending)
+        pending = pending.take(slice(0, 0))
+        if not measurer.measure(batch, steps, steps_total):
             break
-        if observed < chunk:
-            raise RuntimeError(f"the engine stopped after {done + observed} steps of {steps_total}")
+        if len(states) < chunk:  # fewer than asked, all finite: not an explosion
+            raise RuntimeError(
+                f"the engine stopped after {done + len(states)} steps of {steps_total}"
+            )
         done += chunk
+        chunk = min(size, steps_total - done)
+    if steps_total == 0:  # a scene of no steps: the start alone
+        measurer.measure(pending, [0], steps_total)
     return stepping
+
+
+def _batch_steps(done: int, batch: Trajectory, pending: Trajectory) -> np.ndarray:
+    """The step numbers of ``batch``: ``pending`` states then the steps after ``done``."""
+    return np.arange(done + 1 - len(pending), done + 1 - len(pending) + len(batch))
 
 
 def measure_trajectory(scene: CompiledScene, states: Trajectory) -> Recording:
