@@ -624,6 +624,7 @@ def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> f
         try:
             states = adapter.advance_observed(chunk)
         except StoppedEarlyError as stopped:
+            stepping += time.perf_counter() - start
             batch = Trajectory.concat(pending, stopped.states)
             passed = not len(batch) or measurer.measure(
                 batch, _batch_steps(done, batch, pending), steps_total
