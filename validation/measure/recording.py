@@ -633,7 +633,7 @@ def _batched(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> f
                 raise stopped.__cause__ from None  # the engine failed on states that passed
             return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
-        batch = Trajectory.concat(pending, states)
+        batch = Trajectory.concat(pending, states) if len(pending) else states
         steps = _batch_steps(done, batch, pending)
         pending = pending.take(slice(0, 0))
         if not measurer.measure(batch, steps, steps_total):
