@@ -97,3 +97,27 @@ def test_an_exploding_engine_becomes_an_unstable_row_and_stops_early():
     # about 7 steps in, before the energy passes a million times its scale
     assert run.message.startswith("speed_limit"), run.message
     assert run.recording.trajectory.t[-1] < 0.1, "the run must stop at the explosion"
+
+
+def test_an_engine_that_raises_right_after_a_measured_batch_keeps_its_message(monkeypatch):
+    """Step by step (an adapter without ``advance_observed``), an exception on the first
+    step after a full batch was measured leaves nothing pending: the row is the engine's
+    ``error``, not a failure of the recorder on an empty batch."""
+    from validation.engines.mini import adapter as mini
+    from validation.measure import recording
+
+    monkeypatch.delattr(mini.MiniAdapter, "advance_observed")
+    scene = compile_scene(Scenario.model_validate({**BALL, "duration": 1.0}))
+    size = recording.batch_size(scene)
+    calls = {"steps": 0}
+    stepped = mini.step
+
+    def explode(*args, **kwargs):
+        calls["steps"] += 1
+        if calls["steps"] == size:  # the first step after the first batch (the start + size - 1)
+            raise RuntimeError("solver fell over")
+        return stepped(*args, **kwargs)
+
+    monkeypatch.setattr(mini, "step", explode)
+    run = run_engine(scene, parse_engine_spec("mini"))
+    assert run.status == "error" and run.message == "RuntimeError: solver fell over", run

@@ -587,7 +587,7 @@ def _stepwise(adapter: EngineAdapter, measurer: _Measurer, steps_total: int) -> 
         try:
             adapter.advance(1)
         except Exception:
-            if measurer.measure(Trajectory.stack(batch), steps, steps_total):
+            if not batch or measurer.measure(Trajectory.stack(batch), steps, steps_total):
                 raise  # the engine failed on states that all passed the checks
             return stepping  # an earlier state had already failed: that is the finding
         stepping += time.perf_counter() - start
