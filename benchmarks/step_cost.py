@@ -235,9 +235,7 @@ def _drake_sphere(plant, k: int) -> object:
     from pydrake.multibody.plant import CoulombFriction
     from pydrake.multibody.tree import SpatialInertia
 
-    body = plant.AddRigidBody(
-        f"sphere{k}", SpatialInertia.SolidSphereWithMass(1.0, SPHERE_RADIUS)
-    )
+    body = plant.AddRigidBody(f"sphere{k}", SpatialInertia.SolidSphereWithMass(1.0, SPHERE_RADIUS))
     plant.RegisterCollisionGeometry(
         body, RigidTransform(), Sphere(SPHERE_RADIUS), f"sphere{k}", CoulombFriction(0.0, 0.0)
     )
@@ -289,7 +287,9 @@ def drake_sphere() -> tuple[float, int]:
     builder, plant = _drake_plant(PILE_DT)
     _drake_planes(plant, [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))])
     body = _drake_sphere(plant, 0)
-    return _drake_settled_cost(builder, plant, [body], [(0.0, 0.0, SPHERE_RADIUS)], SMALL_TIMED_STEPS)
+    return _drake_settled_cost(
+        builder, plant, [body], [(0.0, 0.0, SPHERE_RADIUS)], SMALL_TIMED_STEPS
+    )
 
 
 SPHERE_ENGINES = {
@@ -625,9 +625,7 @@ def main() -> None:
     table["rapier3d_version"] = (
         importlib.metadata.version("rapier3d") if rapier3d is not None else "not installed"
     )
-    table["drake_version"] = (
-        importlib.metadata.version("drake") if HAVE_DRAKE else "not installed"
-    )
+    table["drake_version"] = importlib.metadata.version("drake") if HAVE_DRAKE else "not installed"
     table["clock"] = args.clock
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     temporary = RESULTS.with_suffix(".tmp")

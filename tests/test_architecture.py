@@ -392,7 +392,10 @@ def test_the_baseline_actions_the_command_line_offers_are_the_ones_it_has():
     from validation.contract import BASELINE_ACTION_NAMES
     from validation.nightly.baseline import BASELINE_ACTIONS
 
-    assert tuple(BASELINE_ACTIONS) == BASELINE_ACTION_NAMES, (BASELINE_ACTIONS, BASELINE_ACTION_NAMES)
+    assert tuple(BASELINE_ACTIONS) == BASELINE_ACTION_NAMES, (
+        BASELINE_ACTIONS,
+        BASELINE_ACTION_NAMES,
+    )
 
 
 def test_the_sabotage_module_imports_neither_numpy_nor_mini_engine():

@@ -72,7 +72,9 @@ def test_frames_fails_on_a_body_frame_angular_velocity(monkeypatch):
 def test_parity_fails_on_a_mass_off_by_a_millionth(monkeypatch):
     original = MiniAdapter.model_report
     monkeypatch.setattr(
-        MiniAdapter, "model_report", lambda self: replace(original(self), mass=original(self).mass * (1 + 1e-6))
+        MiniAdapter,
+        "model_report",
+        lambda self: replace(original(self), mass=original(self).mass * (1 + 1e-6)),
     )
     result = _only("mini", "parity")
     assert not result.passed and "mass of body 0" in result.problems[0], result
@@ -80,7 +82,9 @@ def test_parity_fails_on_a_mass_off_by_a_millionth(monkeypatch):
 
 def test_advance_fails_when_advance_n_is_not_n_steps(monkeypatch):
     original = MiniAdapter.advance
-    monkeypatch.setattr(MiniAdapter, "advance", lambda self, n: original(self, n if n == 1 else n - 1))
+    monkeypatch.setattr(
+        MiniAdapter, "advance", lambda self, n: original(self, n if n == 1 else n - 1)
+    )
     result = _only("mini", "advance")
     assert not result.passed and "advance(200) vs 200 x advance(1)" in result.problems[0], result
 
@@ -149,7 +153,8 @@ def test_a_capability_declared_missing_is_refused_without_building_the_engine(mo
     found = engine_api.discover()
     mini = found.engines["mini"]
     lacking = replace(
-        mini, capabilities=replace(mini.capabilities, features=mini.capabilities.features - {"springs"})
+        mini,
+        capabilities=replace(mini.capabilities, features=mini.capabilities.features - {"springs"}),
     )
     monkeypatch.setattr(
         engine_api, "discover", lambda: replace(found, engines={**found.engines, "mini": lacking})
@@ -185,9 +190,22 @@ def test_conformance_exit_codes(monkeypatch, capsys):
 
 def test_the_pytest_option_runs_one_test_per_check(tmp_path):
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--physval-conformance",
-         "mini", "-k", "declaration or frames or provenance"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "--physval-conformance",
+            "mini",
+            "-k",
+            "declaration or frames or provenance",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert done.returncode == 0, done.stdout + done.stderr
     assert "3 passed" in done.stdout, done.stdout
@@ -201,6 +219,9 @@ def test_the_fixture_is_run_conformance(tmp_path):
     )
     done = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_engine.py"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert done.returncode == 0 and "1 passed" in done.stdout, done.stdout + done.stderr

@@ -176,8 +176,13 @@ def mixed_scene() -> Scenario:
         ],
         springs=[
             {"a": "box", "b": "capsule", "anchor_a": [0.1, 0, 0], "stiffness": 100.0},
-            {"a": "capsule", "b": "world", "anchor_b": [0, 0, 3], "stiffness": 50.0,
-             "rest_length": 0.0},
+            {
+                "a": "capsule",
+                "b": "world",
+                "anchor_b": [0, 0, 3],
+                "stiffness": 50.0,
+                "rest_length": 0.0,
+            },
             {"a": "box", "b": "post", "anchor_b": [0, 0.1, 0], "stiffness": 20.0, "damping": 1.0},
         ],
         ground={"normal": [0.1, 0.0, 1.0], "point": [0.0, 0.0, -1.0]},
@@ -271,7 +276,9 @@ def test_a_constant_force_and_torque_are_applied_at_the_centre_of_mass(text):
     gravity: ω = τ t / I = 10 rad/s at 1 s, and x = F t²/(2m) (+ F t dt/(2m) = 1 mm for the
     discrete plant's semi-implicit Euler); no sideways drift (a force applied off the centre
     would turn it)."""
-    scenario = scene(gravity=[0.0, 0.0, 0.0], bodies=[sphere(force=[2.0, 0.0, 0.0], torque=[0.0, 0.0, 0.04])])
+    scenario = scene(
+        gravity=[0.0, 0.0, 0.0], bodies=[sphere(force=[2.0, 0.0, 0.0], torque=[0.0, 0.0, 0.04])]
+    )
     state = final_state(text, scenario, 1000)
     offset = 2.0 * DT / 2 if text == DISCRETE else 0.0
     assert abs(state.pos[0, 0] - (1.0 + offset)) <= CLOSED_FORM_ROUND_OFF, state.pos[0]
@@ -424,7 +431,9 @@ def test_provenance_records_the_plant_and_the_integrator():
     integration = continuous.settings["integration"]
     assert continuous.settings["time_step"] == 0.0
     assert integration["target_accuracy"] == 1e-5 and integration["steps_taken"] > 0, integration
-    assert any(note.startswith("spring 1: rest length 0") for note in discrete.notes), discrete.notes
+    assert any(note.startswith("spring 1: rest length 0") for note in discrete.notes), (
+        discrete.notes
+    )
 
 
 def test_a_library_scene_runs_through_the_runner():

@@ -88,8 +88,8 @@ def test_a_scene_naming_an_engine_without_its_package_gets_not_installed_rows(
     assert list(absent["status"]) == ["not_installed"], absent.to_dict("records")
     assert _install_line(engine) in absent["message"].iloc[0], absent["message"].iloc[0]
     mini = rows[rows["engine"] == "mini"]
-    assert (mini["status"] == "ok").any() and not mini["status"].isin(BAD_STATUSES).any(), (
-        mini[["metric", "status"]].to_dict("records")
-    )
+    assert (mini["status"] == "ok").any() and not mini["status"].isin(BAD_STATUSES).any(), mini[
+        ["metric", "status"]
+    ].to_dict("records")
     line = f"{engine} not installed: 1 scene not run in it ({_install_line(engine)})"
     assert line in printed, printed

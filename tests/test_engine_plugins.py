@@ -68,7 +68,9 @@ def test_every_built_in_declaration_is_well_formed_and_imports_no_engine():
         "print(sorted(m for m in sys.modules if m.split('.')[0] in ('mujoco', 'pybullet', 'rapier3d', 'pydrake')))\n"
     )
     done = subprocess.run(
-        [sys.executable, "-c", program], capture_output=True, text=True,
+        [sys.executable, "-c", program],
+        capture_output=True,
+        text=True,
         env={**os.environ, "PYTHONPATH": str(ROOT)},
     )
     assert done.returncode == 0, done.stderr
@@ -103,7 +105,9 @@ def test_a_broken_plugin_is_one_line_naming_it_and_the_others_still_load(broken_
 
 
 def test_a_spec_naming_a_broken_plugin_says_it_is_broken(broken_plugins):
-    with pytest.raises(EngineSpecError, match=r"engine 'noimport' is installed but broken: .*no solver here"):
+    with pytest.raises(
+        EngineSpecError, match=r"engine 'noimport' is installed but broken: .*no solver here"
+    ):
         parse_engine_spec("noimport")
     assert parse_engine_spec("mini").name == "mini"
 
@@ -112,9 +116,20 @@ def test_list_and_run_go_on_past_broken_plugins(broken_plugins, tmp_path, capsys
     assert main(["list", str(SCENES / "formulas" / "projectile.yaml")]) == 0
     captured = capsys.readouterr()
     assert "  mini " in captured.out and "  pybullet " in captured.out
-    assert sum(line.startswith("engine plugin ") for line in captured.err.splitlines()) == 4, captured.err
+    assert sum(line.startswith("engine plugin ") for line in captured.err.splitlines()) == 4, (
+        captured.err
+    )
     out = tmp_path / "run"
-    code = main(["run", str(SCENES / "formulas" / "projectile.yaml"), "--engines", "mini", "--out", str(out)])
+    code = main(
+        [
+            "run",
+            str(SCENES / "formulas" / "projectile.yaml"),
+            "--engines",
+            "mini",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0, capsys.readouterr()
     assert "engine plugin 'noimport'" in capsys.readouterr().err
 
@@ -145,8 +160,17 @@ def _pip_install(source: Path, target: Path) -> subprocess.CompletedProcess:
     into ``target`` (no dependencies: physval and numpy are here); offline when setuptools and
     wheel are installed, else pip builds it in isolation."""
     offline = all(importlib.util.find_spec(m) for m in ("setuptools", "wheel"))
-    command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target",
-               str(target), str(source)]
+    command = [
+        sys.executable,
+        "-m",
+        "pip",
+        "install",
+        "--quiet",
+        "--no-deps",
+        "--target",
+        str(target),
+        str(source),
+    ]
     if offline:
         command.insert(4, "--no-build-isolation")
     return subprocess.run(command, capture_output=True, text=True, timeout=300)
@@ -155,7 +179,9 @@ def _pip_install(source: Path, target: Path) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def plugin_path(tmp_path_factory):
     source = tmp_path_factory.mktemp("source") / "engine_plugin"
-    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
+    shutil.copytree(
+        EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__")
+    )
     target = tmp_path_factory.mktemp("plugin")
     done = _pip_install(source, target)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -167,7 +193,11 @@ def _physval(plugin_path: Path, *args: str, cwd: Path) -> subprocess.CompletedPr
     environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(plugin_path), str(ROOT)])}
     return subprocess.run(
         [sys.executable, "-m", "validation.entry", *args],
-        capture_output=True, text=True, env=environment, cwd=cwd, timeout=600,
+        capture_output=True,
+        text=True,
+        env=environment,
+        cwd=cwd,
+        timeout=600,
     )
 
 
@@ -184,7 +214,9 @@ def test_the_example_plugin_passes_the_conformance_suite(plugin_path, tmp_path):
     done = _physval(plugin_path, "conformance", "freeflight(substeps=2)", cwd=tmp_path)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "conformance of freeflight(substeps=2): 9 of 9 checks pass" in done.stdout, done.stdout
-    assert "refused ground, tilted_ground, contacts, fixed_bodies, springs" in done.stdout, done.stdout
+    assert "refused ground, tilted_ground, contacts, fixed_bodies, springs" in done.stdout, (
+        done.stdout
+    )
 
 
 TOSS = """\
@@ -208,7 +240,13 @@ def test_the_example_plugin_runs_a_scene_and_refuses_contact_as_unsupported(plug
     scenes = [tmp_path / "toss.yaml", SCENES / "contact" / "box_drop_flat.yaml"]
     out = tmp_path / "run"
     done = _physval(
-        plugin_path, "run", *map(str, scenes), "--engines", "freeflight", "--out", str(out),
+        plugin_path,
+        "run",
+        *map(str, scenes),
+        "--engines",
+        "freeflight",
+        "--out",
+        str(out),
         cwd=tmp_path,
     )
     assert done.returncode == 0, done.stdout + done.stderr
@@ -218,7 +256,9 @@ def test_the_example_plugin_runs_a_scene_and_refuses_contact_as_unsupported(plug
     assert flight["status"] == "ok" and flight["passed"] == "True", flight
     (refused,) = [r for r in rows if r["scenario"] == "box_drop_flat"]
     assert refused["status"] == "unsupported" and refused["passed"] == "", refused
-    assert refused["message"].startswith("freeflight cannot represent: ground (the scene has a ground)")
+    assert refused["message"].startswith(
+        "freeflight cannot represent: ground (the scene has a ground)"
+    )
 
 
 def test_engine_api_names_the_builtins_it_falls_back_to():
@@ -227,7 +267,9 @@ def test_engine_api_names_the_builtins_it_falls_back_to():
     for name, value in BUILTIN_ENGINES.items():
         module = value.split(":")[0]
         assert module == f"validation.engines.{name}.declaration"
-        assert engine_api.declaration_of(name).adapter.startswith(f"validation.engines.{name}.adapter:")
+        assert engine_api.declaration_of(name).adapter.startswith(
+            f"validation.engines.{name}.adapter:"
+        )
 
 
 # --- what a scene needs ----------------------------------------------------------------------
@@ -248,8 +290,13 @@ def test_a_lone_body_with_restitution_and_friction_needs_neither():
     from validation.scenario import Scenario
     from validation.scenario.needs import scene_needs
 
-    body = {"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0,
-            "restitution": 0.5, "friction": 0.4}
+    body = {
+        "name": "b",
+        "shape": {"type": "sphere", "radius": 0.1},
+        "mass": 1.0,
+        "restitution": 0.5,
+        "friction": 0.4,
+    }
     alone = Scenario.model_validate({"dt": 1e-3, "duration": 0.1, "bodies": [body]})
     assert set(scene_needs(alone)) == {"sphere"}
     grounded = Scenario.model_validate({**alone.model_dump(), "ground": {}})
@@ -264,8 +311,11 @@ def test_the_json_schema_names_the_installed_engines():
     from validation.scenario import json_schema
 
     schema = json_schema()
-    scene = {"dt": 1e-3, "duration": 0.1,
-             "bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0}]}
+    scene = {
+        "dt": 1e-3,
+        "duration": 0.1,
+        "bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0}],
+    }
     jsonschema.validate({**scene, "engines": ["mini(gyroscopic=implicit)", "pybullet"]}, schema)
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate({**scene, "engines": ["bullet"]}, schema)
@@ -295,4 +345,6 @@ def test_capabilities_can_depend_on_the_spec(monkeypatch):
     scene = compile_scene(CAPABILITY_SCENES["springs"]())
     assert run_engine(scene, parse_engine_spec("mini")).status == "ok"
     refused = run_engine(scene, parse_engine_spec("mini(gyroscopic=implicit)"))
-    assert refused.status == "unsupported" and "springs (1 spring(s)" in refused.message, refused.message
+    assert refused.status == "unsupported" and "springs (1 spring(s)" in refused.message, (
+        refused.message
+    )

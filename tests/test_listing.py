@@ -30,7 +30,10 @@ def test_list_names_every_scene_engine_option_metric_and_expectation(capsys):
         for key in options:
             assert f" {key}: " in out, (engine, key)
     for engine, declaration in declarations().items():
-        assert f"{declaration.distribution} {version_of(declaration.distribution)}: {declaration.summary}" in words
+        assert (
+            f"{declaration.distribution} {version_of(declaration.distribution)}: {declaration.summary}"
+            in words
+        )
         for option in declaration.options:
             assert f"{option.meaning}" in words, (engine, option.name)
     assert "supports every shape and scene feature" in words

@@ -135,7 +135,10 @@ def test_a_step_without_contacts_reports_the_shared_read_only_empty_record():
 
 def test_a_box_resting_on_the_ground_steps_alike_with_the_empty_record_shared():
     """A box that lands (contacts appear after steps without any) is unaffected by sharing."""
-    bodies = [Body(Plane(), fixed=True), Body(Box((0.1, 0.1, 0.1)), mass=1.0, position=(0, 0, 0.12))]
+    bodies = [
+        Body(Plane(), fixed=True),
+        Body(Box((0.1, 0.1, 0.1)), mass=1.0, position=(0, 0, 0.12)),
+    ]
     model, state = build_model(bodies)
     for _ in range(200):
         state, report = step(model, state, Settings(dt=1e-3))

@@ -307,9 +307,18 @@ reach the integrator would give order 0 (every point the same run)."""
 def observed_spring() -> Scenario:
     return Scenario.model_validate(
         {
-            "name": "observed_spring", "dt": 0.05, "duration": 2.0, "gravity": [0, 0, 0],
-            "bodies": [{"name": "bob", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0,
-                        "position": [0.55, 0, 0]}],
+            "name": "observed_spring",
+            "dt": 0.05,
+            "duration": 2.0,
+            "gravity": [0, 0, 0],
+            "bodies": [
+                {
+                    "name": "bob",
+                    "shape": {"type": "sphere", "radius": 0.1},
+                    "mass": 1.0,
+                    "position": [0.55, 0, 0],
+                }
+            ],
             "springs": [{"a": "bob", "b": "world", "stiffness": 100.0, "rest_length": 0.5}],
         }
     )
@@ -326,7 +335,9 @@ def test_an_error_controlled_spec_is_swept_over_its_accuracy_with_its_run_time()
     assert all(r["wall_time_s"] > 0 for r in points), points
     errors = [r["error"] for r in points]
     assert errors == sorted(errors, reverse=True), errors
-    (order,) = [r for r in rows if r["metric"] == "convergence_order" and r["of"] == "position_error"]
+    (order,) = [
+        r for r in rows if r["metric"] == "convergence_order" and r["of"] == "position_error"
+    ]
     assert abs(order["value"] - ACCURACY_ORDER) <= ACCURACY_ORDER_TOLERANCE, order
     assert "accuracy 1e-06 to 0.01" in order["message"], order
     names = {r["metric"] for r in sweep_result_rows(rows)}
@@ -337,8 +348,16 @@ def test_an_error_controlled_spec_is_swept_over_its_accuracy_with_its_run_time()
 def test_a_fixed_step_sweep_keeps_its_dt_rows():
     from validation.jobs.nightly_run import sweep_result_rows
 
-    rows = [{"scenario": "s", "engine": "mini", "metric": "position_error", "dt": 1e-3,
-             "value": 1.0, "error": 1.0}]
+    rows = [
+        {
+            "scenario": "s",
+            "engine": "mini",
+            "metric": "position_error",
+            "dt": 1e-3,
+            "value": 1.0,
+            "error": 1.0,
+        }
+    ]
     assert [r["metric"] for r in sweep_result_rows(rows)] == ["sweep_error.position_error@dt=0.001"]
 
 

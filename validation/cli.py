@@ -320,7 +320,9 @@ def _sweep_arguments(command: argparse.ArgumentParser) -> None:
 
 
 def _conformance_arguments(command: argparse.ArgumentParser) -> None:
-    command.add_argument("engine", metavar="ENGINE_SPEC", help="e.g. mujoco or mini(gyroscopic=implicit)")
+    command.add_argument(
+        "engine", metavar="ENGINE_SPEC", help="e.g. mujoco or mini(gyroscopic=implicit)"
+    )
     command.add_argument(
         "--only",
         action="append",

@@ -89,7 +89,9 @@ class ConformanceItem(pytest.Item):
 
         (result,) = run_conformance(self.spec, [self.check])
         if not result.passed:
-            raise ConformanceFailedError("\n".join([f"{self.spec} {self.check}:", *result.problems]))
+            raise ConformanceFailedError(
+                "\n".join([f"{self.spec} {self.check}:", *result.problems])
+            )
 
     def repr_failure(self, excinfo, style=None):
         if isinstance(excinfo.value, ConformanceFailedError):

@@ -111,8 +111,14 @@ def _full_inertia() -> list[list[float]]:
 
 def _scene(name: str, bodies: list[dict], duration: float, **extra) -> Scenario:
     return Scenario.model_validate(
-        {"name": name, "dt": DT, "duration": duration, "gravity": list(GRAVITY),
-         "bodies": bodies, **extra}
+        {
+            "name": name,
+            "dt": DT,
+            "duration": duration,
+            "gravity": list(GRAVITY),
+            "bodies": bodies,
+            **extra,
+        }
     )
 
 
@@ -123,8 +129,12 @@ def _body(name: str, shape: str, **fields) -> dict:
 def parity_scene(shape: str) -> Scenario:
     """One rotated body of ``shape`` with a full inertia, moving and spinning."""
     body = _body(
-        "body", shape, inertia=_full_inertia(), orientation=_unit(TILT),
-        velocity=list(START_VELOCITY), angular_velocity=[0.3, -1.2, 2.0],
+        "body",
+        shape,
+        inertia=_full_inertia(),
+        orientation=_unit(TILT),
+        velocity=list(START_VELOCITY),
+        angular_velocity=[0.3, -1.2, 2.0],
     )
     return _scene(f"conformance_parity_{shape}", [body], 10 * DT)
 
@@ -138,8 +148,12 @@ def spin_axis_world() -> np.ndarray:
 def frames_scene(shape: str) -> Scenario:
     """A rotated body spinning at ``SPIN_RATE`` about its major axis while it flies."""
     body = _body(
-        "spinner", shape, inertia=_full_inertia(), orientation=_unit(TILT),
-        position=[0.0, 0.0, 1.0], velocity=list(START_VELOCITY),
+        "spinner",
+        shape,
+        inertia=_full_inertia(),
+        orientation=_unit(TILT),
+        position=[0.0, 0.0, 1.0],
+        velocity=list(START_VELOCITY),
         angular_velocity=(SPIN_RATE * spin_axis_world()).tolist(),
     )
     return _scene("conformance_frames", [body], FRAME_DURATION)
@@ -148,43 +162,77 @@ def frames_scene(shape: str) -> Scenario:
 def contact_scene() -> Scenario:
     """A tilted box and a sphere dropped on a frictional, restitutive ground."""
     bodies = [
-        _body("box", "box", position=[0.0, 0.0, 0.36], orientation=_unit((1.0, 0.05, 0.03, 0.0)),
-              velocity=[0.3, 0.0, 0.0], restitution=0.4, friction=0.5),
-        _body("ball", "sphere", position=[0.8, 0.0, 0.2], velocity=[-0.2, 0.1, 0.0],
-              angular_velocity=[0.0, 0.0, 3.0], restitution=0.6, friction=0.3),
+        _body(
+            "box",
+            "box",
+            position=[0.0, 0.0, 0.36],
+            orientation=_unit((1.0, 0.05, 0.03, 0.0)),
+            velocity=[0.3, 0.0, 0.0],
+            restitution=0.4,
+            friction=0.5,
+        ),
+        _body(
+            "ball",
+            "sphere",
+            position=[0.8, 0.0, 0.2],
+            velocity=[-0.2, 0.1, 0.0],
+            angular_velocity=[0.0, 0.0, 3.0],
+            restitution=0.6,
+            friction=0.3,
+        ),
     ]
     return _scene("conformance_contact", bodies, RUN_STEPS * DT, ground={"friction": 0.5})
 
 
 CAPABILITY_SCENES: dict[str, Callable[[], Scenario]] = {
-    **{shape: (lambda s=shape: _scene(f"conformance_{s}", [_body("b", s)], 20 * DT))
-       for shape in SHAPES},
-    "ground": lambda: _scene("conformance_ground", [_body("b", "sphere", position=[0, 0, 0.1])],
-                             50 * DT, ground={}),
+    **{
+        shape: (lambda s=shape: _scene(f"conformance_{s}", [_body("b", s)], 20 * DT))
+        for shape in SHAPES
+    },
+    "ground": lambda: _scene(
+        "conformance_ground", [_body("b", "sphere", position=[0, 0, 0.1])], 50 * DT, ground={}
+    ),
     "tilted_ground": lambda: _scene(
-        "conformance_tilted_ground", [_body("b", "sphere", position=[0, 0, 0.12])], 50 * DT,
-        ground={"normal": [0.0, 0.2, 1.0]}),
+        "conformance_tilted_ground",
+        [_body("b", "sphere", position=[0, 0, 0.12])],
+        50 * DT,
+        ground={"normal": [0.0, 0.2, 1.0]},
+    ),
     "contacts": lambda: _scene(
         "conformance_contacts",
         [_body("a", "sphere", velocity=[1, 0, 0]), _body("b", "sphere", position=[0.3, 0, 0])],
-        100 * DT, gravity=[0, 0, 0]),
+        100 * DT,
+        gravity=[0, 0, 0],
+    ),
     "fixed_bodies": lambda: _scene(
         "conformance_fixed_bodies",
         [_body("base", "box", fixed=True), _body("b", "sphere", position=[0, 0, 0.45])],
-        100 * DT),
+        100 * DT,
+    ),
     "springs": lambda: _scene(
-        "conformance_springs", [_body("b", "sphere")], 100 * DT, gravity=[0, 0, 0],
-        springs=[{"a": "b", "b": "world", "anchor_b": [0.1, 0, 0], "stiffness": 50.0,
-                  "rest_length": 0.0}]),
+        "conformance_springs",
+        [_body("b", "sphere")],
+        100 * DT,
+        gravity=[0, 0, 0],
+        springs=[
+            {"a": "b", "b": "world", "anchor_b": [0.1, 0, 0], "stiffness": 50.0, "rest_length": 0.0}
+        ],
+    ),
     "loads": lambda: _scene(
-        "conformance_loads", [_body("b", "box", force=[1, 0, 0], torque=[0, 0, 0.1])], 50 * DT),
+        "conformance_loads", [_body("b", "box", force=[1, 0, 0], torque=[0, 0, 0.1])], 50 * DT
+    ),
     "restitution": lambda: _scene(
-        "conformance_restitution", [_body("b", "sphere", position=[0, 0, 0.15], restitution=0.5)],
-        200 * DT, ground={}),
+        "conformance_restitution",
+        [_body("b", "sphere", position=[0, 0, 0.15], restitution=0.5)],
+        200 * DT,
+        ground={},
+    ),
     "friction": lambda: _scene(
         "conformance_friction",
         [_body("b", "box", position=[0, 0, 0.3], velocity=[1, 0, 0], friction=0.3)],
-        100 * DT, ground={"friction": 0.3}),
+        100 * DT,
+        ground={"friction": 0.3},
+    ),
 }
 """Capability -> a small scene that needs it (and perhaps others: ``restitution`` needs a
 ground and contacts)."""
@@ -338,7 +386,9 @@ def check_declaration(subject: Subject) -> CheckResult:
             for m in PROTOCOL_METHODS
             if not callable(getattr(adapter_class, m, None))
         ]
-    return CheckResult("declaration", tuple(problems), f"API version {subject.declaration.api_version}")
+    return CheckResult(
+        "declaration", tuple(problems), f"API version {subject.declaration.api_version}"
+    )
 
 
 def check_parity(subject: Subject) -> CheckResult:
@@ -352,7 +402,9 @@ def check_parity(subject: Subject) -> CheckResult:
         finally:
             adapter.close()
         problems += [f"{shape}: {mismatch}" for mismatch in found]
-    return CheckResult("parity", tuple(problems), f"rotated {', '.join(shapes)} with a full inertia")
+    return CheckResult(
+        "parity", tuple(problems), f"rotated {', '.join(shapes)} with a full inertia"
+    )
 
 
 def frames_expected(scenario: Scenario, times: np.ndarray) -> dict[str, np.ndarray]:
@@ -398,14 +450,26 @@ def check_frames(subject: Subject) -> CheckResult:
     spin_tolerance = FRAME_ANGULAR_VELOCITY_TOLERANCE[subject.capabilities.precision]
     measured = {
         "time": (np.abs(times - np.arange(len(states)) * DT).max(), 1e-9, "s"),
-        "pos": (np.abs(np.stack([s.pos[0] for s in states]) - want["pos"]).max(),
-                FRAME_POSITION_TOLERANCE, "m"),
-        "quat": (rotation_angle(np.stack([s.quat[0] for s in states]), want["quat"]).max(),
-                 FRAME_ANGLE_TOLERANCE, "rad"),
-        "vel": (np.abs(np.stack([s.vel[0] for s in states]) - want["vel"]).max(),
-                velocity_tolerance, "m/s"),
-        "ang_vel": (np.abs(np.stack([s.ang_vel[0] for s in states]) - want["ang_vel"]).max(),
-                    spin_tolerance, "rad/s"),
+        "pos": (
+            np.abs(np.stack([s.pos[0] for s in states]) - want["pos"]).max(),
+            FRAME_POSITION_TOLERANCE,
+            "m",
+        ),
+        "quat": (
+            rotation_angle(np.stack([s.quat[0] for s in states]), want["quat"]).max(),
+            FRAME_ANGLE_TOLERANCE,
+            "rad",
+        ),
+        "vel": (
+            np.abs(np.stack([s.vel[0] for s in states]) - want["vel"]).max(),
+            velocity_tolerance,
+            "m/s",
+        ),
+        "ang_vel": (
+            np.abs(np.stack([s.ang_vel[0] for s in states]) - want["ang_vel"]).max(),
+            spin_tolerance,
+            "rad/s",
+        ),
     }
     problems = [
         f"{quantity}: largest error {error:.3g} {unit} > {tolerance:g} {unit} against the "
@@ -431,8 +495,9 @@ def check_advance(subject: Subject) -> CheckResult:
 
     stepped = _final_state(subject.spec, scene, one_at_a_time)
     whole = _final_state(subject.spec, scene, lambda a: a.advance(RUN_STEPS))
-    problems = _same(f"advance({RUN_STEPS}) vs {RUN_STEPS} x advance(1)", whole, stepped,
-                     _tolerance(subject))
+    problems = _same(
+        f"advance({RUN_STEPS}) vs {RUN_STEPS} x advance(1)", whole, stepped, _tolerance(subject)
+    )
     return CheckResult("advance", tuple(problems), scenario.name or "")
 
 
@@ -456,8 +521,13 @@ def check_observe(subject: Subject) -> CheckResult:
             after = adapter.observe()
         finally:
             adapter.close()
-        last = Snapshot(float(trajectory.t[-1]), trajectory.pos[-1], trajectory.quat[-1],
-                        trajectory.vel[-1], trajectory.ang_vel[-1])
+        last = Snapshot(
+            float(trajectory.t[-1]),
+            trajectory.pos[-1],
+            trajectory.quat[-1],
+            trajectory.vel[-1],
+            trajectory.ang_vel[-1],
+        )
         readback = READBACK_TOLERANCE[subject.capabilities.precision]
         problems += _same("advance_observed's last state vs observe()", last, after, readback)
         problems += _same("advance_observed vs advance", after, quiet, _tolerance(subject))
@@ -512,7 +582,8 @@ def check_close(subject: Subject) -> CheckResult:
             f"(> {CLOSE_GROWTH_BYTES // 1024} KiB): close() does not free the engine"
         )
     return CheckResult(
-        "close", tuple(dict.fromkeys(problems)),
+        "close",
+        tuple(dict.fromkeys(problems)),
         f"{CLOSE_CYCLES} cycles, {growth / 1024:.0f} KiB per cycle",
     )
 
@@ -553,11 +624,11 @@ def check_provenance(subject: Subject) -> CheckResult:
             if not keys:
                 problems.append(f"{text}: provenance settings have no {option.name!r}")
             elif _written(settings[keys[0]]) != _written(spec.as_dict()[option.name]):
-                problems.append(
-                    f"{text}: provenance says {keys[0]} = {settings[keys[0]]!r}"
-                )
+                problems.append(f"{text}: provenance says {keys[0]} = {settings[keys[0]]!r}")
     problems += _provenance_repeats(subject, scene)
-    detail = f"{tried} option values" + (f"; not valid alone: {'; '.join(skipped)}" if skipped else "")
+    detail = f"{tried} option values" + (
+        f"; not valid alone: {'; '.join(skipped)}" if skipped else ""
+    )
     return CheckResult("provenance", tuple(problems), detail)
 
 
@@ -650,7 +721,9 @@ def conformance_main(text: str, only: list[str] | None = None) -> int:
     """Print one line per check; 0 all pass, 1 one fails, 2 bad input."""
     unknown = [name for name in only or [] if name not in CHECKS]
     if unknown:
-        print(f"--only {', '.join(unknown)}: expected checks of {', '.join(CHECKS)}", file=sys.stderr)
+        print(
+            f"--only {', '.join(unknown)}: expected checks of {', '.join(CHECKS)}", file=sys.stderr
+        )
         return EXIT_BAD_INPUT
     try:
         subject = subject_of(text)

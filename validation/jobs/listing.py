@@ -27,7 +27,6 @@ NAME_WIDTH = 30
 """The name column of the scenes and definitions tables; longer names push their text over."""
 
 
-
 def _row(name: str, text: str) -> list[str]:
     """``name`` then ``text`` wrapped under itself, every line within ``LIST_WIDTH``."""
     head = f"  {name:<{NAME_WIDTH}} "
@@ -40,7 +39,12 @@ def _row(name: str, text: str) -> list[str]:
     ) or [head.rstrip()]
 
 
-ACCEPTED_TEXT = {Count: "a whole number >= 1", bool: "true|false", int: "an integer", float: "a number"}
+ACCEPTED_TEXT = {
+    Count: "a whole number >= 1",
+    bool: "true|false",
+    int: "an integer",
+    float: "a number",
+}
 """How a number option's accepted values read (a word option lists its words)."""
 
 

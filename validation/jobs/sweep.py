@@ -840,7 +840,9 @@ def accuracy_point(
     """``sweep_point`` at the scene's dt with ``spec`` at ``accuracy``: rows under the swept
     spec's label, with the ``accuracy`` column; a self reference's floor is its share
     (a_fine / a)^p of the error (``ACCURACY_REFERENCE_ORDER``)."""
-    rows = sweep_point(scenario, with_setting(spec, ACCURACY_OPTION, accuracy), scenario.dt, reference)
+    rows = sweep_point(
+        scenario, with_setting(spec, ACCURACY_OPTION, accuracy), scenario.dt, reference
+    )
     for row in rows:
         row["engine"] = spec.label
         row["accuracy"] = accuracy
@@ -857,8 +859,14 @@ def accuracy_sweep(scenario: Scenario, spec: EngineSpec, dts: list[float]) -> li
     if ACCURACY_OPTION not in {o.name for o in declaration_of(spec.name).options}:
         message = f"{spec.name} is error-controlled but has no {ACCURACY_OPTION!r} option to sweep"
         return [
-            {"scenario": scenario.name, "engine": spec.label, "dt": scenario.dt, "metric": m,
-             "status": "unsupported", "message": message}
+            {
+                "scenario": scenario.name,
+                "engine": spec.label,
+                "dt": scenario.dt,
+                "metric": m,
+                "status": "unsupported",
+                "message": message,
+            }
             for m in SWEEP_METRICS
         ]
     reference = accuracy_reference(scenario, base, dts)

@@ -80,7 +80,10 @@ def invariants(scene: CompiledScene, trajectory: Trajectory, free: bool = False)
         motion = motion + scene.spring_energy(trajectory.pos, trajectory.quat)
         if free:
             analytic = ballistic(scene, trajectory.t)
-            offsets = (farthest(trajectory.pos - analytic[0]), farthest(trajectory.vel - analytic[1]))
+            offsets = (
+                farthest(trajectory.pos - analytic[0]),
+                farthest(trajectory.vel - analytic[1]),
+            )
         else:
             offsets = (no_offset, no_offset)
         return Series(

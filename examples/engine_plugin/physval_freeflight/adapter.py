@@ -33,8 +33,9 @@ def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(n, 4) Hamilton products p ⊗ q, w x y z."""
     pw, pv, qw, qv = p[:, :1], p[:, 1:], q[:, :1], q[:, 1:]
-    return np.hstack([pw * qw - np.sum(pv * qv, 1, keepdims=True),
-                      pw * qv + qw * pv + np.cross(pv, qv)])
+    return np.hstack(
+        [pw * qw - np.sum(pv * qv, 1, keepdims=True), pw * qv + qw * pv + np.cross(pv, qv)]
+    )
 
 
 def exp_map(rotation_vector: np.ndarray) -> np.ndarray:
@@ -66,9 +67,7 @@ class FreeFlightAdapter:
         self.gravity, self.force = np.asarray(scene.gravity), np.asarray(scene.force)
         self.pos0, self.vel0 = start.pos[0].copy(), start.vel[0].copy()
         self.quat = start.quat[0].copy()
-        self.momentum0 = np.einsum(
-            "nij,nj->ni", self._inertia_world(self.quat), start.ang_vel[0]
-        )
+        self.momentum0 = np.einsum("nij,nj->ni", self._inertia_world(self.quat), start.ang_vel[0])
         self.loaded = True
 
     def _inertia_world(self, quat: np.ndarray) -> np.ndarray:

@@ -159,7 +159,9 @@ class Settings:
         profile = profile_of(options)
         if profile == DISCRETE:
             approximation = options.get("contact_approximation")
-            return Settings(DISCRETE, None if approximation is None else str(approximation), None, None)
+            return Settings(
+                DISCRETE, None if approximation is None else str(approximation), None, None
+            )
         return Settings(
             CONTINUOUS,
             None,
@@ -240,7 +242,9 @@ class DrakeAdapter:
         name = f"body{index}_{spec.name}"
         if spec.fixed:
             where = pose(spec.position, spec.orientation)
-            found = plant.RegisterCollisionGeometry(plant.world_body(), where, shape, name, friction)
+            found = plant.RegisterCollisionGeometry(
+                plant.world_body(), where, shape, name, friction
+            )
             self.geometry[index] = (plant.world_body(), where, shape, found)
             return None
         inertia = SpatialInertia.MakeFromCentralInertia(
@@ -263,7 +267,12 @@ class DrakeAdapter:
         found = self.plant.RegisterCollisionGeometry(
             self.plant.world_body(), where, HalfSpace(), GROUND, CoulombFriction(mu, mu)
         )
-        self.geometry[len(self.scenario.bodies)] = (self.plant.world_body(), where, HalfSpace(), found)
+        self.geometry[len(self.scenario.bodies)] = (
+            self.plant.world_body(),
+            where,
+            HalfSpace(),
+            found,
+        )
 
     def _end(self, body: int, anchor: np.ndarray):
         """(Drake body, anchor in its frame) of one spring end: a moving body's own anchor; a
@@ -285,7 +294,9 @@ class DrakeAdapter:
             if body_a.index() == body_b.index():
                 continue  # both ends on the world: it moves nothing
             rest, stiffness, damping = (
-                float(springs.rest_length[k]), float(springs.stiffness[k]), float(springs.damping[k])
+                float(springs.rest_length[k]),
+                float(springs.stiffness[k]),
+                float(springs.damping[k]),
             )
             if rest > 0.0:
                 self.plant.AddForceElement(
@@ -325,7 +336,10 @@ class DrakeAdapter:
             [np.arange(7) + self.bodies[k].floating_positions_start() for k in moving], dtype=int
         ).reshape(-1, 7)
         self.velocity_index = np.array(
-            [np.arange(6) + positions + self.bodies[k].floating_velocities_start_in_v() for k in moving],
+            [
+                np.arange(6) + positions + self.bodies[k].floating_velocities_start_in_v()
+                for k in moving
+            ],
             dtype=int,
         ).reshape(-1, 6)
 
@@ -409,7 +423,9 @@ class DrakeAdapter:
             )
         return found
 
-    def _filter_pairs(self, scene_graph, pairs: list[tuple[object, object, object, object]]) -> None:
+    def _filter_pairs(
+        self, scene_graph, pairs: list[tuple[object, object, object, object]]
+    ) -> None:
         """Collision filters of the pair copies: the pair's originals never meet, each copy
         meets only the other copy."""
         if not pairs:
@@ -502,7 +518,9 @@ class DrakeAdapter:
             rotation = pose_w.rotation().matrix()
             mass.append(spatial.get_mass())
             com.append(pose_w.multiply(spatial.get_com()))
-            inertia.append(rotation @ central.CalcRotationalInertia().CopyToFullMatrix3() @ rotation.T)
+            inertia.append(
+                rotation @ central.CalcRotationalInertia().CopyToFullMatrix3() @ rotation.T
+            )
         mass_array = np.array(mass, dtype=float)
         com_array = np.array(com, dtype=float).reshape(-1, 3)
         state = self.observe()
