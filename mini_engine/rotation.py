@@ -75,10 +75,8 @@ def _matrices_from_products(quat: np.ndarray) -> np.ndarray:
     (``a - b`` is ``a + (-b)`` in IEEE arithmetic, signed zeros included), so bit for bit the
     entries written out above."""
     products = (quat[:, :, None] * quat[:, None, :]).reshape(-1, 16)
-    entries = products.take(PRODUCT_FIRST, axis=1)
-    entries *= SIGN_FIRST
-    second = products.take(PRODUCT_SECOND, axis=1)
-    second *= SIGN_SECOND
+    entries = products.take(PRODUCT_FIRST, axis=1) * SIGN_FIRST  # float whatever the input
+    second = products.take(PRODUCT_SECOND, axis=1) * SIGN_SECOND
     entries += second
     entries *= 2.0
     np.add(entries, 1.0, out=entries, where=DIAGONAL_ENTRIES)
@@ -219,6 +217,5 @@ def _cross_from_products(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``cross`` from the table of products ``a_i b_j`` (n, 9): the same products, the same
     subtractions, so bit for bit the components written out in ``cross``."""
     products = (a[:, :, None] * b[:, None, :]).reshape(-1, 9)
-    product = products.take(CROSS_TABLE_FIRST, axis=1)
-    product -= products.take(CROSS_TABLE_SECOND, axis=1)
-    return product
+    first = products.take(CROSS_TABLE_FIRST, axis=1)
+    return np.subtract(first, products.take(CROSS_TABLE_SECOND, axis=1), dtype=float)

@@ -303,3 +303,15 @@ def test_grid_pairs_by_table_or_search_are_the_pairs_of_neighbouring_cells(sprea
     monkeypatch.setattr("mini_engine.broadphase.CELL_TABLE_CELLS_PER_BODY", other_path)
     again = _grid_pairs(centre, radius, body, world, {})
     assert [a.tobytes() for a in again] == [a.tobytes() for a in found]
+
+
+def test_integer_quaternions_take_the_product_table_as_the_formulas_do(monkeypatch):
+    """An integer array (a quaternion written [1, 0, 0, 0]) gives the written-out formulas'
+    float matrices and cross products on the table's path too, not a casting error."""
+    quat = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, -1]])
+    table = (quat_to_matrix(quat), rotation.cross(quat[:, 1:], quat[:, :3]))
+    monkeypatch.setattr(rotation, "QUAT_PRODUCT_ROWS", -1)
+    monkeypatch.setattr(rotation, "CROSS_TABLE_ROWS", -1)
+    formulas = (quat_to_matrix(quat), rotation.cross(quat[:, 1:], quat[:, :3]))
+    for fast, slow in zip(table, formulas, strict=True):
+        assert fast.dtype == slow.dtype == np.float64 and np.array_equal(fast, slow), (fast, slow)

@@ -367,3 +367,14 @@ def test_small_arrays_from_the_product_table_are_the_formulas_bit_for_bit(shape,
         assert table[name].shape == slow.shape, (name, table[name].shape, slow.shape)
         differing = int(np.count_nonzero(table[name].view(np.uint64) != slow.view(np.uint64)))
         assert differing == 0, f"{shape}: {differing} {name} entries differ in their bits"
+
+
+def test_integer_quaternions_take_the_product_table_as_the_formulas_do(monkeypatch):
+    """An integer array gives the written-out formulas' results (dtype included) on the
+    table's path too."""
+    quat = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, -1]])
+    table = (rotation.quat_to_matrix(quat), rotation.quat_multiply(quat, quat[::-1].copy()))
+    monkeypatch.setattr(rotation, "TABLE_ROWS", -1)
+    formulas = (rotation.quat_to_matrix(quat), rotation.quat_multiply(quat, quat[::-1].copy()))
+    for fast, slow in zip(table, formulas, strict=True):
+        assert fast.dtype == slow.dtype and np.array_equal(fast, slow), (fast, slow)

@@ -59,10 +59,8 @@ def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     w x y z: the entries ``1 - 2(y² + z²)``, ``2(xy - wz)``, ... of the rotation by ``q``."""
     if _rows(quat) <= TABLE_ROWS:
         products = _products(quat, quat)
-        entries = products.take(MATRIX_FIRST, axis=-1)
-        entries *= MATRIX_SIGN_FIRST
-        second = products.take(MATRIX_SECOND, axis=-1)
-        second *= MATRIX_SIGN_SECOND
+        entries = products.take(MATRIX_FIRST, axis=-1) * MATRIX_SIGN_FIRST  # float, as below
+        second = products.take(MATRIX_SECOND, axis=-1) * MATRIX_SIGN_SECOND
         entries += second  # a - b is a + (-b), signed zeros included
         entries *= 2.0
         np.add(entries, 1.0, out=entries, where=MATRIX_DIAGONAL)
