@@ -13,8 +13,9 @@ import pickle
 
 import numpy as np
 import pytest
+from random_scenes import random_spring_scene
 
-from mini_engine import Body, Plane, Settings, Sphere, Spring, build_model, forces, rotation, step
+from mini_engine import Body, Plane, Settings, Sphere, build_model, forces, rotation, step
 from mini_engine.broadphase import _grid_pairs, broadphase_plan, candidate_pairs
 from mini_engine.collision import detect_contacts
 from mini_engine.integrate import GYROSCOPIC_RULES, BodyInertia, body_inertia
@@ -143,48 +144,18 @@ def test_small_batches_from_the_product_table_are_the_formulas_bit_for_bit(rows,
         assert differing == 0, f"{rows} rows: {differing} {name} entries differ in their bits"
 
 
-def _spring_scene(seed: int, bodies: int, springs: int, rng_fixed: float):
-    """A random model of ``bodies`` boxes and ``springs`` springs (ends on any body, the world
-    or the same body twice), with its state."""
-    rng = np.random.default_rng(seed)
-    boxes = [
-        Body(
-            Box(rng.uniform(0.05, 0.3, size=3)),
-            mass=float(rng.uniform(0.5, 3.0)),
-            position=rng.normal(size=3),
-            orientation=rotation_quat(rng.normal(size=(1, 3)))[0],
-            velocity=rng.normal(size=3),
-            angular_velocity=3.0 * rng.normal(size=3),
-            fixed=bool(rng.random() < rng_fixed),
-        )
-        for _ in range(bodies)
-    ]
-    ends = [(int(rng.integers(0, bodies)), int(rng.integers(-1, bodies))) for _ in range(springs)]
-    spring_list = [
-        Spring(
-            body_a=a,
-            body_b=None if b in (-1, a) else b,
-            anchor_a=0.3 * rng.normal(size=3),
-            anchor_b=0.3 * rng.normal(size=3),
-            stiffness=float(rng.uniform(0.0, 1e4)),
-            damping=float(rng.uniform(0.0, 10.0)),
-            rest_length=float(rng.uniform(0.0, 2.0)),
-        )
-        for a, b in ends
-    ]
-    return build_model(boxes, spring_list)
+SPRING_SEEDS = (20, 22, 67, 5, 3)
+"""``random_spring_scene`` seeds that take each shortcut and each long way: every end distinct
+and no world end or fixed body (20); ends shared at A and B (22); shared at B only, a fixed
+body (67); shared at A and B with a world end and a fixed body (5); distinct with both (3)."""
 
 
-@pytest.mark.parametrize(
-    ("seed", "bodies", "springs"), [(1, 1, 1), (2, 3, 2), (3, 4, 9), (4, 6, 3)]
-)
-def test_spring_forces_of_distinct_ends_are_the_accumulated_forces_bit_for_bit(
-    seed, bodies, springs, monkeypatch
-):
+@pytest.mark.parametrize("seed", SPRING_SEEDS)
+def test_spring_forces_of_distinct_ends_are_the_accumulated_forces_bit_for_bit(seed, monkeypatch):
     """Why forces.SpringEnds may skip ``np.add.at`` for springs whose ends share no body, the
     world masks without world ends and the zeroing without fixed bodies: the same forces and
     torques, bit for bit, as the long way (add.at, masks and zeroing always)."""
-    model, state = _spring_scene(seed, bodies, springs, rng_fixed=0.3)
+    model, state, _ = random_spring_scene(seed)
     rot = quat_to_matrix(state.quat)
     short = forces.spring_forces(model, state, rot)
     long_way = forces.spring_ends(model)._replace(

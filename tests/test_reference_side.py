@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from random_scenes import random_spring_scene, random_unit_quaternions
 from scipy.integrate import quad
 from scipy.spatial.transform import Rotation
 
-from mini_engine import Body, Box, Capsule, Sphere, Spring, build_model
+from mini_engine import Box, Capsule, Sphere
 from mini_engine.forces import applied_loads as mini_applied_loads
 from mini_engine.forces import spring_energies as mini_spring_energies
 from mini_engine.rotation import quat_multiply as mini_quat_multiply
@@ -71,61 +72,6 @@ def test_solid_inertias_agree_with_mini_engine(body_mass, radius, half_length, h
             f"{shape}: reference {np.diag(reference).tolist()}, mini {np.diag(mini).tolist()}, "
             f"relative difference {error:.3g}"
         )
-
-
-def random_unit_quaternions(rng: np.random.Generator, count: int) -> np.ndarray:
-    """(count, 4) unit quaternions w x y z, uniform on the sphere."""
-    quat = rng.normal(size=(count, 4))
-    return quat / np.linalg.norm(quat, axis=1, keepdims=True)
-
-
-def random_spring_scene(seed: int):
-    """A mini model and state of 1-4 spheres (some fixed, each with a constant force and
-    torque) joined by 1-6 springs (some to world points), and the same springs as the
-    reference's ``Springs``."""
-    rng = np.random.default_rng(seed)
-    bodies_count, springs_count = int(rng.integers(1, 5)), int(rng.integers(1, 7))
-    quat = random_unit_quaternions(rng, bodies_count)
-    bodies = [
-        Body(
-            Sphere(0.1),
-            mass=float(rng.uniform(0.1, 10.0)),
-            position=rng.normal(size=3),
-            orientation=quat[i],
-            velocity=rng.normal(size=3),
-            angular_velocity=3.0 * rng.normal(size=3),
-            force=rng.normal(size=3),
-            torque=rng.normal(size=3),
-            fixed=bool(rng.random() < 0.2),
-        )
-        for i in range(bodies_count)
-    ]
-    springs = []
-    for _ in range(springs_count):
-        a = int(rng.integers(0, bodies_count))
-        b = int(rng.integers(-1, bodies_count))
-        springs.append(
-            Spring(
-                body_a=a,
-                body_b=None if b in (-1, a) else b,
-                anchor_a=0.3 * rng.normal(size=3),
-                anchor_b=0.3 * rng.normal(size=3),
-                stiffness=float(rng.uniform(0.0, 1e4)),
-                damping=float(rng.uniform(0.0, 10.0)),
-                rest_length=float(rng.uniform(0.0, 2.0)),
-            )
-        )
-    model, state = build_model(bodies, springs)
-    reference = loads.Springs(
-        body_a=np.array([s.body_a for s in springs]),
-        body_b=np.array([loads.WORLD if s.body_b is None else s.body_b for s in springs]),
-        anchor_a=np.array([s.anchor_a for s in springs]),
-        anchor_b=np.array([s.anchor_b for s in springs]),
-        stiffness=np.array([s.stiffness for s in springs]),
-        damping=np.array([s.damping for s in springs]),
-        rest_length=np.array([s.rest_length for s in springs]),
-    )
-    return model, state, reference
 
 
 @HYPOTHESIS
