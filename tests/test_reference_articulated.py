@@ -83,14 +83,17 @@ MASS = 1.3
 RADIUS = 0.05
 
 
-def double_pendulum(types=("hinge", "hinge")):
-    """Pivot at the origin; ball 1 at (0, 0, -l), hinged to the world; ball 2 at (0, 0, -2l),
-    hinged at ball 1's centre."""
+X_AXIS = np.array([1.0, 0.0, 0.0])
+
+
+def double_pendulum(types=("hinge", "hinge"), elbow_axis=Y_AXIS):
+    """Pivot at the origin; ball 1 at (0, 0, -l), hinged to the world about y; ball 2 at
+    (0, 0, -2l), hinged at ball 1's centre about ``elbow_axis``."""
     inertia = np.array([sphere_inertia(MASS, RADIUS)] * 2)
     pos = np.array([[0.0, 0.0, -LENGTH], [0.0, 0.0, -2 * LENGTH]])
     joints = [
         StatedJoint("shoulder", types[0], WORLD, 0, np.zeros(3), Y_AXIS),
-        StatedJoint("elbow", types[1], 0, 1, pos[0], Y_AXIS),
+        StatedJoint("elbow", types[1], 0, 1, pos[0], elbow_axis),
     ]
     return build_tree(joints, np.full(2, MASS), inertia, pos, identity_quats(2), np.zeros(2, bool))
 
@@ -142,9 +145,22 @@ def christoffel_bias(tree, q: np.ndarray, nu: np.ndarray) -> np.ndarray:
     return m_dot @ nu - gradient
 
 
+ELBOWS = {
+    "parallel": ("hinge", Y_AXIS),
+    "crossed": ("hinge", X_AXIS),
+    "bead": ("slider", np.array([0.0, 0.0, 1.0])),
+}
+"""The elbow joint of ``double_pendulum`` in the bias test: parallel axes; crossed axes (about
+x, a hinge inside a hinge like Drake's babyboot), which turn the elbow's axis with the shoulder
+(the ω_P × u θ̇ terms parallel axes never show); a bead sliding along the swinging arm (the
+Coriolis term 2 ω_P × u ṡ)."""
+
+
+@pytest.mark.parametrize("elbow", sorted(ELBOWS))
 @pytest.mark.parametrize("q, nu", [((0.4, -1.1), (2.0, -3.0)), ((1.9, 0.7), (-0.5, 4.0))])
-def test_the_velocity_product_bias_is_lagranges(q, nu):
-    tree = double_pendulum()
+def test_the_velocity_product_bias_is_lagranges(q, nu, elbow):
+    kind, axis = ELBOWS[elbow]
+    tree = double_pendulum(("hinge", kind), axis)
     q, nu = np.array(q), np.array(nu)
     weightless = no_loads(2, gravity=np.zeros(3))
     got = bias_forces(tree, q, nu, weightless)
