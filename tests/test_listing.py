@@ -4,12 +4,14 @@ name is listed with its definition, within 100 columns."""
 from __future__ import annotations
 
 import importlib.metadata
+from dataclasses import replace
 
 import pytest
 
 from validation.cli import main
-from validation.engine_api import declarations
-from validation.jobs.listing import LIST_WIDTH, version_of
+from validation.engine_api import FEATURES, Capabilities, declarations
+from validation.engines.mini.declaration import DECLARATION as MINI
+from validation.jobs.listing import LIST_WIDTH, _capability_text, version_of
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
 from validation.scenario import BUNDLED_SCENARIOS
 from validation.scenario.engine_spec import ENGINE_OPTIONS
@@ -36,7 +38,7 @@ def test_list_names_every_scene_engine_option_metric_and_expectation(capsys):
         )
         for option in declaration.options:
             assert f"{option.meaning}" in words, (engine, option.name)
-    assert "supports every shape and scene feature" in words
+        assert " ".join(_capability_text(declaration).split()) in words, engine
     for name in (*METRIC_DEFINITIONS, *EXPECTATION_DEFINITIONS):
         assert name in names, name
     assert f"mujoco {importlib.metadata.version('mujoco')}" in out
@@ -57,3 +59,12 @@ def test_version_names_physval_and_the_engines(capsys):
     assert done.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith(f"physval {importlib.metadata.version('physval')} (mujoco "), out
+
+
+def test_an_engine_with_every_capability_says_so_and_one_without_names_what_it_lacks():
+    everything = Capabilities(features=frozenset(FEATURES))
+    assert _capability_text(replace(MINI, capabilities=everything)).startswith(
+        "supports every shape and scene feature"
+    )
+    text = _capability_text(replace(MINI, capabilities=Capabilities()))
+    assert "lacks joints, joint_limits" in text, text

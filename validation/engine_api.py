@@ -90,7 +90,7 @@ class EngineOption:
 SHAPES = ("sphere", "box", "capsule")
 """Every body shape of the scenario format."""
 
-FEATURES: dict[str, str] = {
+BASE_FEATURES: dict[str, str] = {
     "ground": "a static ground plane",
     "tilted_ground": "a ground plane whose normal is not +z",
     "contacts": "contacts: a ground, or two or more bodies that may touch",
@@ -100,6 +100,17 @@ FEATURES: dict[str, str] = {
     "restitution": "a coefficient of restitution e > 0 on a contact",
     "friction": "Coulomb friction μ > 0 on a contact",
 }
+"""The features of the first adapter contract: an engine that declares no ``features`` has
+these (``Capabilities.features``' default)."""
+
+JOINT_FEATURES: dict[str, str] = {
+    "joints": "joints (hinge, slider, ball, fixed) between bodies or a body and the world",
+    "joint_limits": "lower and upper limits on a hinge or slider",
+}
+"""Features added with joints: an engine has them only where its declaration names them, so
+an adapter written before them (a plugin) is never asked to build a joint it cannot."""
+
+FEATURES: dict[str, str] = {**BASE_FEATURES, **JOINT_FEATURES}
 """Every scene feature an engine may lack, with its meaning (``validation.scenario.needs``
 says which a scene uses). Shapes are capabilities too, named as in ``SHAPES``."""
 
@@ -121,7 +132,8 @@ class Capabilities:
 
     Attributes:
         shapes: the body shapes it builds (of ``SHAPES``).
-        features: the scene features it represents (keys of ``FEATURES``).
+        features: the scene features it represents (keys of ``FEATURES``; default
+            ``BASE_FEATURES``, joints only where named).
         integrators: the time integration schemes it offers, as its options name them
             (shown by ``physval list``; a scene never requires one).
         precision: one of ``PRECISIONS``.
@@ -135,7 +147,7 @@ class Capabilities:
     """
 
     shapes: tuple[str, ...] = SHAPES
-    features: frozenset[str] = frozenset(FEATURES)
+    features: frozenset[str] = frozenset(BASE_FEATURES)
     integrators: tuple[str, ...] = ()
     precision: str = "float64"
     stepping: str = "fixed"

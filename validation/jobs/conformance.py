@@ -233,9 +233,34 @@ CAPABILITY_SCENES: dict[str, Callable[[], Scenario]] = {
         100 * DT,
         ground={"friction": 0.3},
     ),
+    "joints": lambda: _scene(
+        "conformance_joints",
+        [_body("bob", "sphere", position=[0.3, 0, 0.0])],
+        100 * DT,
+        joints=[_hinge()],
+    ),
+    "joint_limits": lambda: _scene(
+        "conformance_joint_limits",
+        [_body("bob", "sphere", position=[0.3, 0, 0.0])],
+        100 * DT,
+        joints=[{**_hinge(), "limits": [-0.2, 0.2]}],
+    ),
 }
 """Capability -> a small scene that needs it (and perhaps others: ``restitution`` needs a
 ground and contacts)."""
+
+
+def _hinge() -> dict:
+    """A pendulum's hinge about y at the origin (the bob 0.3 m out along x swings down)."""
+    return {
+        "name": "pivot",
+        "type": "hinge",
+        "parent": "world",
+        "child": "bob",
+        "anchor": [0.0, 0.0, 0.0],
+        "axis": [0.0, 1.0, 0.0],
+    }
+
 
 assert set(CAPABILITY_SCENES) == set(SHAPES) | set(FEATURES), "a capability without its scene"
 

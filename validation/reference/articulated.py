@@ -50,7 +50,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from validation.reference.loads import Springs, applied_loads
 from validation.reference.motion import Motion
@@ -646,6 +645,9 @@ def reference_motion(
     """The tree's motion from ``(q0, ν0)`` sampled at ``times (s,)``: DOP853 on
     ``(q̇, ν̇) = (position_rate, acceleration)``; returns the bodies' ``Motion`` and the
     joint-space samples ``q (s, nq)``, ``ν (s, nv)``."""
+    from scipy.integrate import solve_ivp  # only here: the scene's checks build trees too,
+    # and ``physval check`` imports no SciPy (tests/test_architecture.py)
+
     nq = tree.nq
 
     def rhs(_t: float, state: np.ndarray) -> np.ndarray:

@@ -23,6 +23,7 @@ from validation.reference.rotation import rotation_angle
 from validation.scenario.compiled import compile_scene
 from validation.scenario.definability import UNDEFINED_WHEN, Traits, scene_traits, why_undefined
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
+from validation.scenario.joints import JOINT_RULES
 from validation.scenario.physics import body_inertia, pair_rule, symmetry_frame
 from validation.scenario.problems import Problem, path_text
 from validation.scenario.schema import (
@@ -252,6 +253,7 @@ RULES: tuple[Rule, ...] = (
     unique_body_names,
     finite_mass_properties,
     spring_ends,
+    *JOINT_RULES,
     pair_bodies,
     expectations,
     precession_needs_a_symmetry_axis,

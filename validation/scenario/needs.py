@@ -64,6 +64,18 @@ def _loads(scenario: Scenario) -> str | None:
     return None if body is None else f"body {body.name!r} has an applied force or torque"
 
 
+def _joints(scenario: Scenario) -> str | None:
+    if not scenario.joints:
+        return None
+    first = scenario.joints[0]
+    return f"{len(scenario.joints)} joint(s), the first {first.name!r} ({first.type})"
+
+
+def _joint_limits(scenario: Scenario) -> str | None:
+    joint = next((j for j in scenario.joints if j.limits is not None), None)
+    return None if joint is None else f"joint {joint.name!r} has limits {list(joint.limits)}"
+
+
 FEATURE_NEEDS: dict[str, Callable[[Scenario], str | None]] = {
     "ground": lambda s: None if s.ground is None else "the scene has a ground",
     "tilted_ground": _tilted,
@@ -73,6 +85,8 @@ FEATURE_NEEDS: dict[str, Callable[[Scenario], str | None]] = {
     "loads": _loads,
     "restitution": lambda s: _coefficient(s, "restitution"),
     "friction": lambda s: _coefficient(s, "friction"),
+    "joints": _joints,
+    "joint_limits": _joint_limits,
 }
 """Feature -> why a scene needs it (None when it does not); one entry per ``FEATURES``."""
 

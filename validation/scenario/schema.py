@@ -221,6 +221,59 @@ class SpringSpec(_Strict):
     )
 
 
+JOINT_TYPES = ("hinge", "slider", "ball", "fixed")
+"""Every joint type of the format (``JointSpec.type``)."""
+
+AXIS_JOINT_TYPES = ("hinge", "slider")
+"""Joint types with an axis (and optional limits)."""
+
+UNIT_AXIS_TOLERANCE = UNIT_QUATERNION_TOLERANCE
+"""A joint axis within this of unit length is normalised; further away it is an error (a typo,
+not round-off), as for quaternions."""
+
+
+class JointSpec(_Strict):
+    """A joint between a parent (a body or the world) and a child body, stated at t = 0."""
+
+    name: Name = Field(description="unique among joints")
+    type: Literal["hinge", "slider", "ball", "fixed"]
+    parent: Name = Field(description="a body name, or 'world'")
+    child: Name = Field(description="a body name; each body is the child of at most one joint")
+    anchor: Vec3 = Field(description="m, world frame, at t = 0 (a point of both bodies)")
+    axis: Vec3 | None = Field(
+        default=None, description="hinge and slider: unit axis, world frame at t = 0"
+    )
+    damping: NonNegative = Field(
+        default=0.0, description="N·m·s/rad (hinge, ball) or N·s/m (slider)"
+    )
+    limits: tuple[Finite, Finite] | None = Field(
+        default=None,
+        description="hinge and slider: [lower, upper] rad or m from the initial configuration",
+    )
+
+    @field_validator("axis")
+    @classmethod
+    def _unit_axis(cls, value: tuple[float, ...] | None) -> tuple[float, ...] | None:
+        if value is None:
+            return None
+        norm = math.sqrt(sum(v * v for v in value))
+        if abs(norm - 1.0) > UNIT_AXIS_TOLERANCE:
+            raise ValueError(
+                f"expected a unit axis [x, y, z]; got {list(value)} (length {norm:.6g})"
+            )
+        return tuple(v / norm for v in value)
+
+    @field_validator("limits")
+    @classmethod
+    def _limits_bracket_zero(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
+        if value is not None and not (value[0] <= 0.0 <= value[1] and value[0] < value[1]):
+            raise ValueError(
+                f"expected [lower, upper] with lower <= 0 <= upper and lower < upper (the joint "
+                f"starts at 0, inside them); got {list(value)}"
+            )
+        return value
+
+
 class PairSpec(_Strict):
     """Contact values for one pair that replace the mixing rules."""
 
@@ -433,6 +486,9 @@ class Scenario(_Strict):
     )
     bodies: list[BodySpec] = Field(min_length=1)
     springs: list[SpringSpec] = []
+    joints: list[JointSpec] = Field(
+        default=[], description="joints between bodies, or a body and the world (a tree)"
+    )
     pairs: list[PairSpec] = Field(default=[], description="per-pair restitution/friction overrides")
     expect: list[Expectation] = Field(default=[], description="analytic expectations")
     checks: dict[str, Tolerance] = Field(
