@@ -160,13 +160,16 @@ def test_junit_on_a_file_physval_did_not_write_is_refused(tmp_path, capsys, scen
     assert scene.read_text() == FALL
 
 
-def test_a_planted_lock_symlink_is_refused_and_its_target_kept(tmp_path, capsys, scene, no_work):
+@pytest.mark.parametrize("link", ["symlink", "hard link"])
+def test_a_planted_lock_link_is_refused_and_its_target_kept(tmp_path, capsys, scene, no_work, link):
     """Before: the lock was opened through the link, and its target truncated to a pid."""
     victim = tmp_path / "victim.txt"
     victim.write_text(MINE)
-    (tmp_path / ".out.lock").symlink_to(victim)
+    lock = tmp_path / ".out.lock"
+    lock.symlink_to(victim) if link == "symlink" else lock.hardlink_to(victim)
     line = refused(run_argv(scene, tmp_path / "out"), capsys)
-    assert "its lock" in line and "a symlink, never followed" in line, line
+    says = "a symlink, never followed" if link == "symlink" else "not a regular file of its own"
+    assert line.startswith(f"--out {tmp_path / 'out'}: its lock") and says in line, line
     assert victim.read_text() == MINE
 
 
@@ -249,6 +252,9 @@ def test_stability_out_on_a_scene_is_refused(capsys, scene):
     line = refused(["stability", str(scene), "--jobs", "1", "--out", str(scene)], capsys)
     assert line == f"--out {scene}: {scene} is an input of this command; it is left as it was"
     assert scene.read_text() == FALL
+    out = scene.parent / "limits" / "stability.csv"
+    for _ in range(2):  # the missing folder created, then its own CSV replaced
+        assert main(["stability", str(scene), "--jobs", "1", "--out", str(out)]) == EXIT_OK
 
 
 def test_sweep_out_with_a_foreign_csv_is_refused(tmp_path, capsys, scene):
@@ -260,6 +266,10 @@ def test_sweep_out_with_a_foreign_csv_is_refused(tmp_path, capsys, scene):
     line = refused([*argv, "--out", str(out)], capsys)
     assert "sweep.csv is a file physval did not write (not a physval sweep.csv)" in line, line
     assert (out / "sweep.csv").read_text() == MINE
+    (out / "sweep.csv").rename(out / "notes.csv")
+    for _ in range(2):  # its own files replaced, the folder's other files kept
+        assert main([*argv, "--out", str(out)]) == EXIT_OK
+    assert (out / "notes.csv").read_text() == MINE
 
 
 def test_baseline_to_a_file_of_the_run_is_refused(capsys, recorded):
@@ -269,6 +279,11 @@ def test_baseline_to_a_file_of_the_run_is_refused(capsys, recorded):
     line = refused(["baseline", "save", str(a), "--to", str(a / "results.csv")], capsys)
     assert line == f"--to: {a / 'results.csv'} is an input of this command; it is left as it was"
     assert (a / "results.csv").read_text() == before
+    line = refused(["baseline", "save", str(a), "--to", str(a / "baseline.csv")], capsys)
+    assert (
+        line
+        == f"--to: {a / 'baseline.csv'} is inside the run folder {a}, which a run replaces whole"
+    )
 
 
 def test_baseline_to_replaces_a_baseline_only(tmp_path, capsys, recorded):

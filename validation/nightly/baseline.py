@@ -231,10 +231,13 @@ def exit_failed(rows: list[dict]) -> bool:
 def save_baseline(run_dir: Path, to: Path) -> int:
     """``physval baseline save RUN_DIR --to FILE``: the run's baseline record, written
     atomically (missing folders of ``FILE`` created); the number of rows. ValueError naming
-    the file when the run cannot be read, or when ``FILE`` is a file of the run or a file that
-    is not a baseline physval wrote (``BASELINE_WRITTEN``: never overwritten)."""
+    the file when the run cannot be read, or when ``FILE`` is in the run folder (a run
+    replaces that whole) or a file that is not a baseline physval wrote (``BASELINE_WRITTEN``:
+    never overwritten)."""
     inputs = (run_dir / RESULTS_FILE, run_dir / PROVENANCE_FILE)
     problem = file_target_problem(to, BASELINE_WRITTEN, inputs)
+    if problem is None and run_dir.resolve() in to.resolve().parents:
+        problem = f"{to} is inside the run folder {run_dir}, which a run replaces whole"
     if problem:
         raise ValueError(f"--to: {problem}")
     try:
