@@ -236,9 +236,6 @@ def check_file_destination(
             f"is a symlink to {os.readlink(destination)}; the file is replaced by rename, "
             "which would replace the link: give the file it points to",
         )
-    if destination.is_dir():
-        raise _refuse(destination, "is a folder; give the CSV file to write")
-    _check_ancestors(destination)
     problem = file_target_problem(destination, written, inputs)
     if problem:
         raise _refuse(destination, problem)
@@ -249,9 +246,6 @@ def check_folder_destination(destination: Path, files: dict[str, Written]) -> No
     kept) when it is an existing file or below a file, or when one of ``files`` is there and
     physval did not write it (``files.folder_target_problem``); a symlink to a folder is
     written through."""
-    if destination.exists() and not destination.is_dir():
-        raise _refuse(destination, "is an existing file, not a folder; it is left as it was")
-    _check_ancestors(destination)
     problem = folder_target_problem(destination, files)
     if problem:
         raise _refuse(destination, problem)
