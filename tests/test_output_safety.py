@@ -297,3 +297,21 @@ def test_baseline_to_replaces_a_baseline_only(tmp_path, capsys, recorded):
     line = refused(["baseline", "save", str(a), "--to", str(foreign)], capsys)
     assert "not a physval baseline" in line, line
     assert foreign.read_text() == "a,b\n1,2\n"
+
+
+@pytest.mark.parametrize("out", [".", "/"])
+def test_sweep_out_the_working_folder_writes_into_it_and_root_is_one_line(
+    tmp_path, capsys, monkeypatch, scene, out
+):
+    """``sweep --out .`` writes its two files into the working folder (its lock beside it);
+    ``--out /`` is one line. Both were a ValueError traceback (the lock's name) before."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    argv = ["sweep", str(scene), "--engines", "mini", "--dt", "4e-3,2e-3", "--jobs", "1"]
+    if out == "/":
+        line = refused([*argv, "--out", out], capsys)
+        assert line == "--out /: is the root folder; give a folder below it", line
+        return
+    assert main([*argv, "--out", out]) == EXIT_OK
+    assert sorted(p.name for p in work.iterdir()) == ["sweep.csv", "sweep.html"]

@@ -297,7 +297,12 @@ LOCK_FLAGS = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
 
 
 def lock_path(destination: Path) -> Path:
-    return destination.with_name(f".{destination.name}.lock")
+    """``.<name>.lock`` beside ``destination`` (``sweep --out .``: beside the working folder);
+    ``BadInputError`` for the root folder, which has no name and nothing beside it."""
+    absolute = Path(os.path.abspath(destination))
+    if not absolute.name:
+        raise _refuse(destination, "is the root folder; give a folder below it")
+    return absolute.with_name(f".{absolute.name}.lock")
 
 
 @contextmanager
