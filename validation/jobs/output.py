@@ -160,13 +160,15 @@ def run_folder_problem(folder: Path) -> str | None:
 
 def _place_problem(destination: Path) -> str | None:
     """What makes ``destination`` a place no run folder can be published to by rename: the
-    working folder or one of its parents (``.``, ``..``, ``/``), a mount point."""
-    resolved = destination.resolve()
-    if destination.name in ("", ".", "..") or resolved in (Path.cwd(), *Path.cwd().parents):
+    working folder or one of its parents (``.``, ``..``, ``/``), a path ending in ``..``, a
+    mount point."""
+    if destination.resolve() in (Path.cwd(), *Path.cwd().parents):
         return (
             "is the working folder or one of its parents, which a run cannot replace; give a "
             "folder below it, or add --new-folder to publish into a new subfolder of it"
         )
+    if destination.name == "..":
+        return "ends in ..; give the folder by its own name"
     if os.path.ismount(destination):
         return (
             "is a mount point, which cannot be replaced by rename; give a folder inside it, or "
