@@ -73,6 +73,7 @@ def test_ctrl_c_in_serial_mode_raises_interrupted():
 
 
 PREVIOUS_REPORT = "scenario,engine,metric\nprevious,run,kept\n"
+PREVIOUS_PROVENANCE = '{"command": "physval run", "git_commit": "c0ffee", "created": "2025"}'
 """A previous run's record at ``--out``: an interrupted run must leave it as it was."""
 
 INTERRUPT_AFTER_S = 8.0
@@ -86,6 +87,7 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "results.csv").write_text(PREVIOUS_REPORT)
+    (out / "provenance.json").write_text(PREVIOUS_PROVENANCE)  # a run folder: replaceable
     command = [sys.executable, "-m", "validation.cli", "run", str(BUNDLED_SCENARIOS)]
     process = subprocess.Popen(
         [*command, "--jobs", "2", "--out", str(out)],
@@ -107,7 +109,7 @@ def test_ctrl_c_stops_the_run_with_one_line_and_exit_130(tmp_path):
     assert "Traceback" not in stderr, stderr[-2000:]
     assert len(lines) == 1 and "interrupted" in lines[0], lines
     assert (out / "results.csv").read_text() == PREVIOUS_REPORT
-    assert sorted(p.name for p in out.iterdir()) == ["results.csv"]
+    assert sorted(p.name for p in out.iterdir()) == ["provenance.json", "results.csv"]
     leftovers = sorted(p.name for p in tmp_path.iterdir() if p.name != "out")
     # the lock file, and the run's staging folder with its journal for ``--resume``
     assert leftovers[1] == ".out.lock" and len(leftovers) == 2, leftovers

@@ -178,9 +178,11 @@ def test_junit_counts_equal_the_run_and_the_history_records_it(scenes, tmp_path)
 
 
 def test_bad_nightly_flags_exit_2_before_any_work(scenes, tmp_path):
+    (tmp_path / "notes.xml").write_text("<mine/>\n")
     for flags, says in (
         (["--baseline", str(tmp_path / "absent.csv")], "--baseline"),
-        (["--junit", str(tmp_path / "no" / "such" / "x.xml")], "--junit"),
+        (["--junit", str(tmp_path / "notes.xml")], "--junit"),  # not physval's: never replaced
+        (["--junit", str(tmp_path / "notes.xml" / "x.xml")], "--junit"),
     ):
         done = run(scenes, tmp_path / "out", *flags)
         assert done.returncode == 2, done.stderr

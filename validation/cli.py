@@ -40,9 +40,11 @@ def command_run(args: argparse.Namespace) -> int:
 
     clock = PhaseClock(shown=args.timings)
     with clock.phase("imports"):  # the harness, NumPy, pandas, ...: not paid by a light command
-        from validation.jobs.run import RESUME_ALONE, run_main
+        from validation.jobs.output import fresh_subfolder
+        from validation.jobs.run import DEFAULT_OUT, RESUME_ALONE, run_main
 
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
+    selection += (args.new_folder,)
     if args.resume is not None and any(selection):
         print(
             f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs, --scheduler and the "
@@ -53,7 +55,7 @@ def command_run(args: argparse.Namespace) -> int:
     return run_main(
         args.paths or default_scenario_paths(),
         args.engines,
-        args.out,
+        fresh_subfolder(args.out or DEFAULT_OUT) if args.new_folder else args.out,
         args.dt,
         args.only,
         args.argv,
@@ -237,7 +239,17 @@ def _scene_selection(command: argparse.ArgumentParser) -> None:
 def _run_arguments(command: argparse.ArgumentParser) -> None:
     _scene_selection(command)
     command.add_argument(
-        "--out", type=Path, metavar="DIR", help="run folder (default reports/latest)"
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="run folder (default reports/latest): a new path, an empty folder or an earlier "
+        "run folder, which the run replaces whole; anything else is refused",
+    )
+    command.add_argument(
+        "--new-folder",
+        action="store_true",
+        help="publish into a new subfolder of --out (DIR/run-<stamp>-<id>) instead of "
+        "replacing DIR: for a folder that holds other things",
     )
     command.add_argument(
         "--resume",

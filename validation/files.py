@@ -6,6 +6,8 @@ from __future__ import annotations
 import os
 import secrets
 import stat
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
@@ -33,6 +35,7 @@ def write_atomically(path: Path, data: str | bytes) -> None:
     """
     temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
     payload = data.encode("utf-8") if isinstance(data, str) else data
+    path.parent.mkdir(parents=True, exist_ok=True)  # the callers checked the path before any work
     try:
         # O_EXCL: never reuse a stranger's file; 0o666 & ~umask like any new file.
         descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
@@ -54,6 +57,79 @@ def write_table(rows: list[dict], path: Path) -> None:
     write_atomically(path, csv_text(pd.DataFrame(rows)))
 
 
+HEAD_BYTES = 4096
+"""How much of an existing file is read to tell whether physval wrote it: a CSV's header line
+and a page's ``<title>`` are within its first few hundred bytes."""
+
+
+@dataclass(frozen=True)
+class Written:
+    """How a file that physval writes begins: a command may replace a file it wrote before
+    (recognised by these bytes) and refuses any other (``file_target_problem``)."""
+
+    kind: str
+    """What the file is, for the line that refuses another: ``a physval baseline``."""
+    start: bytes
+    """Its first bytes (a CSV's header, an XML declaration and root element, a doctype)."""
+    holds: bytes = b""
+    """Bytes its first ``HEAD_BYTES`` hold besides (a page's ``<title>``)."""
+
+    def wrote(self, path: Path) -> bool:
+        """Whether the regular file ``path`` (never through a symlink) is one of these."""
+        try:
+            with open_regular(path) as handle:
+                head = handle.read(HEAD_BYTES)
+        except OSError:
+            return False
+        return head.startswith(self.start) and self.holds in head
+
+
+def csv_written(kind: str, columns: Iterable[str]) -> Written:
+    """A CSV of physval's whose header begins with ``columns``."""
+    return Written(kind, ",".join(columns).encode())
+
+
+def page_written(kind: str, title: str) -> Written:
+    """An HTML page of physval's titled ``title`` (``report/templates/base.html.j2``)."""
+    return Written(kind, b"<!DOCTYPE html>", f"<title>{title}</title>".encode())
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _what_is_there(path: Path) -> str:
+    if path.is_symlink():
+        return f"a symlink to {os.readlink(path)}"
+    if not path.is_file():
+        return "not a regular file"
+    return "a file physval did not write"
+
+
+def file_target_problem(
+    path: Path, written: Written | None = None, inputs: Iterable[Path] = ()
+) -> str | None:
+    """Why a command cannot write the file ``path`` (a folder is there, or a file where one of
+    its folders must be; one of the command's ``inputs``; or, given ``written``, anything that
+    is not a file physval wrote as that); None when it can. Checked before any work, so nothing
+    of the user's is overwritten and no run is lost at its end; missing folders are created
+    when it is written (``write_atomically``)."""
+    if path.is_dir():
+        return f"{path} is a folder; expected a file"
+    for source in inputs:
+        if _same_file(path, source):
+            return f"{path} is an input of this command; it is left as it was"
+    if written is not None and os.path.lexists(path) and not written.wrote(path):
+        return (
+            f"{path} is {_what_is_there(path)} (not {written.kind}); it is left as it was: "
+            "give a new file, or remove it first"
+        )
+    return _blocked_folder(path.parent)
+
+
 def _blocked_folder(folder: Path) -> str | None:
     """Why ``folder`` cannot be created or written into: a file where it (or the nearest of
     its parents that exists) must be a folder; None when it can."""
@@ -63,24 +139,17 @@ def _blocked_folder(folder: Path) -> str | None:
     return None
 
 
-def file_target_problem(path: Path) -> str | None:
-    """Why a command cannot write the file ``path`` (a folder is there, or a file where one of
-    its folders must be); None when it can. Checked before any work, so nothing of the
-    user's is overwritten and no run is lost at its end."""
-    if path.is_dir():
-        return f"{path} is a folder; expected a file"
-    return _blocked_folder(path.parent)
-
-
-def folder_target_problem(path: Path, files: tuple[str, ...] = ()) -> str | None:
-    """Why a command cannot write ``files`` into the folder ``path`` (a file is there or
-    where one of its parents must be, or a folder where one of ``files`` must be); None when
-    it can."""
+def folder_target_problem(path: Path, files: Mapping[str, Written | None]) -> str | None:
+    """Why a command cannot write ``files`` (name -> how physval writes it) into the folder
+    ``path``: a file is there or where one of its parents must be, or one of ``files`` is
+    there and cannot be replaced (``file_target_problem``); None when it can. The folder's
+    other entries are kept."""
     if path.exists() and not path.is_dir():
         return f"{path} is a file; expected a folder"
-    for name in files:
-        if (path / name).is_dir():
-            return f"{path / name} is a folder; expected a file"
+    for name, written in files.items():
+        problem = file_target_problem(path / name, written)
+        if problem:
+            return problem
     return _blocked_folder(path.parent)
 
 

@@ -14,7 +14,8 @@ import pandas as pd
 
 from validation.contract import BASELINE_FILE, SWEEP_CROSS_CHECK, SWEEP_ERROR, SWEEP_ORDER
 from validation.csv_safe import csv_text
-from validation.files import write_atomically
+from validation.files import file_target_problem, write_atomically
+from validation.jobs.output import check_inside
 from validation.jobs.plan import BadInputError, Plan
 from validation.jobs.sweep import SWEEP_METRICS
 from validation.nightly.baseline import (
@@ -23,8 +24,8 @@ from validation.nightly.baseline import (
     read_baseline,
     scene_hash,
 )
-from validation.nightly.history import HistoryInputError, check_database, record_run
-from validation.nightly.junit import write_junit
+from validation.nightly.history import HistoryInputError, check_database, record_run, sqlite_file
+from validation.nightly.junit import JUNIT_WRITTEN, write_junit
 from validation.nightly.known import outcome_of
 from validation.redact import shown_url
 from validation.scenario import BUNDLED_SCENARIOS
@@ -69,8 +70,10 @@ def nightly_options(
         except ValueError as error:
             raise BadInputError(f"--baseline: {error}") from None
     junit_path = None if junit is None else Path(junit)
-    if junit_path is not None and (junit_path.is_dir() or not junit_path.parent.is_dir()):
-        raise BadInputError(f"--junit: expected a file in an existing folder; got {junit_path}")
+    problem = junit_path and file_target_problem(junit_path, JUNIT_WRITTEN)
+    if problem:
+        raise BadInputError(f"--junit: {problem}")
+    check_inside(destination, "--junit", junit_path)
     if history is None:
         url = f"sqlite:///{(destination.parent / HISTORY_FILE).resolve()}"
     else:
@@ -88,6 +91,7 @@ def _check_history(url: str | None, given: bool, destination: Path) -> None:
         return
     made = tuple(destination.resolve().parents)
     try:
+        check_inside(destination, "--history", sqlite_file(url, "--history"))
         check_database(url, "--history" if given else "the history database", made)
     except HistoryInputError as error:
         raise BadInputError(str(error)) from None

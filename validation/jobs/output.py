@@ -1,11 +1,20 @@
 """The output folder of ``physval run``: checked, locked, staged and published without loss.
 
-- **Checked before any work** (``check_destination``): ``--out`` must be a folder or not exist
-  yet; an existing file, a symlink (publishing replaces the folder by rename, which would
-  replace the link) or a path below a file is refused with one line (exit 2). The parent must
-  take a new folder and a file (probed by writing one) and have ``MIN_FREE_BYTES`` free.
-- **Locked** (``claim``): ``flock`` on ``.<name>.lock`` next to ``--out`` for the whole run. A
-  second run on the same ``--out`` does not wait: it exits 2 at once naming the lock's holder.
+- **Checked before any work** (``check_destination``): publishing replaces ``--out`` whole,
+  so it must be a new path, an empty folder, or a physval run folder (``run_folder_problem``:
+  a ``provenance.json`` of physval's and nothing but a run's files, ``RUN_FOLDER_FILES``).
+  Anything else is refused with one line (exit 2) naming what it holds, and left as it was:
+  a folder of the user's, a file, a symlink (publishing replaces the folder by rename, which
+  would replace the link), a path below a file, a mount point (it cannot be renamed), the
+  working folder or one of its parents (``.``, ``..``, ``/``). ``--new-folder`` publishes
+  into a new subfolder of ``--out`` instead (``fresh_subfolder``). The parent must take a new
+  folder and a file (probed by writing one; missing folders are created) and have
+  ``MIN_FREE_BYTES`` free. Publishing checks ``--out`` once more, and refuses (the run kept for
+  ``--resume``) if something else appeared there meanwhile.
+- **Locked** (``claim``): ``flock`` on ``.<name>.lock`` next to ``--out`` for the whole run,
+  opened without following a symlink (``O_NOFOLLOW``: a planted link is refused, its target
+  never truncated) and only as a regular file of one link. A second run on the same ``--out``
+  does not wait: it exits 2 at once naming the lock's holder.
 - **Staged**: the run's files are assembled in ``.<name>-staging-<id>/run/`` beside the journal
   (``.<name>-staging-<id>/journal/``, ``validation.jobs.journal``).
 - **Published** (``Output.publish``) by one atomic exchange of the staged folder with
@@ -35,8 +44,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from validation.files import sync_folder
+from validation.contract import (
+    BASELINE_FILE,
+    IMPACTS_FILE,
+    PROVENANCE_FILE,
+    REPORT_FILE,
+    RESULTS_FILE,
+    SERIES_FILE,
+    SWEEP_FILE,
+    TRACE_FILE,
+)
+from validation.files import Written, file_target_problem, folder_target_problem, sync_folder
 from validation.jobs.plan import BadInputError
+from validation.report.read import ReportInputError, read_provenance
 
 MIN_FREE_BYTES = 256 * 1024 * 1024
 """Free space the output's file system must have before a run starts: the library's run
@@ -55,6 +75,31 @@ HISTORY_FOLDER = "runs"
 ID_BYTES = 3
 """Random bytes in a folder id (6 hex digits): unique among runs started in the same
 microsecond, short enough to read."""
+
+RUN_FOLDER_FILES = frozenset(
+    {
+        RESULTS_FILE,
+        SERIES_FILE,
+        IMPACTS_FILE,
+        PROVENANCE_FILE,
+        REPORT_FILE,
+        BASELINE_FILE,
+        SWEEP_FILE,
+        TRACE_FILE,
+    }
+)
+"""Every file a run folder holds (``run.write_run``, ``render_report``, the baseline and
+sweep rows): a folder holding anything else is not replaced by a run."""
+
+RUN_MARK_FIELDS = ("command", "git_commit", "created")
+"""The provenance.json fields every physval run writes (``run._provenance``): with the file
+valid as physval's (``report.read.Provenance``), they mark a physval run folder."""
+
+SHOWN_ENTRIES = 3
+"""Entries named in the line that refuses a folder (then ``and N more``)."""
+
+NEW_FOLDER_PREFIX = "run-"
+"""``--new-folder``: the run is published to ``<--out>/run-<stamp>-<id>`` (``history_name``)."""
 
 _RENAME_EXCHANGE = 2  # linux/fs.h
 _AT_FDCWD = -100  # fcntl.h: paths relative to the working directory
@@ -75,8 +120,74 @@ def _refuse(destination: Path, why: str) -> BadInputError:
     return BadInputError(f"--out {destination}: {why}")
 
 
+def _named(entries: list[str]) -> str:
+    shown = ", ".join(sorted(entries)[:SHOWN_ENTRIES])
+    more = len(entries) - SHOWN_ENTRIES
+    return shown + (f" and {more} more" if more > 0 else "")
+
+
+REPLACED_WHOLE = (
+    "a run replaces its --out whole, so it is left as it was: give a new or empty folder, "
+    "or add --new-folder to publish into a new subfolder of it"
+)
+
+
+def run_folder_problem(folder: Path) -> str | None:
+    """What makes the existing folder ``folder`` something a run must not replace: None when
+    it is empty or a physval run folder (its provenance.json physval's, ``RUN_MARK_FIELDS``
+    present, and no file but ``RUN_FOLDER_FILES``)."""
+    try:
+        entries = os.listdir(folder)
+    except OSError as error:
+        return f"cannot be listed ({error.strerror})"
+    if not entries:
+        return None
+    try:
+        provenance = read_provenance(folder / PROVENANCE_FILE, [])
+    except ReportInputError:
+        provenance = None
+    if provenance is None or not all(name in provenance for name in RUN_MARK_FIELDS):
+        return (
+            f"holds {len(entries)} {'entry' if len(entries) == 1 else 'entries'} "
+            f"({_named(entries)}) and is not a physval run folder "
+            f"(no {PROVENANCE_FILE} of physval's); {REPLACED_WHOLE}"
+        )
+    foreign = [name for name in entries if name not in RUN_FOLDER_FILES]
+    if foreign:
+        return f"is a physval run folder that also holds {_named(foreign)}; {REPLACED_WHOLE}"
+    return None
+
+
+def _place_problem(destination: Path) -> str | None:
+    """What makes ``destination`` a place no run folder can be published to by rename: the
+    working folder or one of its parents (``.``, ``..``, ``/``), a path ending in ``..``, a
+    mount point."""
+    if destination.resolve() in (Path.cwd(), *Path.cwd().parents):
+        return (
+            "is the working folder or one of its parents, which a run cannot replace; give a "
+            "folder below it, or add --new-folder to publish into a new subfolder of it"
+        )
+    if destination.name == "..":
+        return "ends in ..; give the folder by its own name"
+    if os.path.ismount(destination):
+        return (
+            "is a mount point, which cannot be replaced by rename; give a folder inside it, or "
+            "add --new-folder"
+        )
+    return None
+
+
+def fresh_subfolder(out: Path) -> Path:
+    """``--new-folder``: a new subfolder of ``out`` to publish the run to (``NEW_FOLDER_PREFIX``
+    and a stamp, ``history_name``)."""
+    return out / f"{NEW_FOLDER_PREFIX}{history_name()}"
+
+
 def check_destination(destination: Path) -> None:
-    """Refuse an ``--out`` that is a file, a symlink or below a file (``BadInputError``)."""
+    """Refuse an ``--out`` a run must not replace (module docstring; ``BadInputError``)."""
+    problem = _place_problem(destination)
+    if problem:
+        raise _refuse(destination, problem)
     try:
         found = os.lstat(destination)
     except FileNotFoundError:
@@ -94,31 +205,52 @@ def check_destination(destination: Path) -> None:
             )
         if not stat.S_ISDIR(found.st_mode):
             raise _refuse(destination, "is an existing file, not a folder; it is left as it was")
+        problem = run_folder_problem(destination)
+        if problem:
+            raise _refuse(destination, problem)
         return
     _check_ancestors(destination)
 
 
-def check_file_destination(destination: Path) -> None:
+def check_inside(destination: Path, flag: str, path: Path | None) -> None:
+    """Refuse a file the run writes besides its run folder (``--junit``, an SQLite
+    ``--history``) inside ``--out``: publishing replaces ``--out`` whole, and the file with it."""
+    if path is None:
+        return
+    inside = path.resolve()
+    if destination.resolve() in (inside, *inside.parents):
+        raise BadInputError(
+            f"{flag} {path}: is inside --out {destination}, which the run replaces whole "
+            "(and the file with it); give a path outside it"
+        )
+
+
+def check_file_destination(
+    destination: Path, written: Written, inputs: tuple[Path, ...] = ()
+) -> None:
     """Refuse an ``--out FILE`` (a CSV written atomically: by rename) that is a folder, a
-    symlink (the rename would replace the link, not its target) or below a file."""
+    symlink (the rename would replace the link, not its target), below a file, one of the
+    command's ``inputs``, or a file that physval did not write as ``written``
+    (``files.file_target_problem``)."""
     if destination.is_symlink():
         raise _refuse(
             destination,
             f"is a symlink to {os.readlink(destination)}; the file is replaced by rename, "
             "which would replace the link: give the file it points to",
         )
-    if destination.is_dir():
-        raise _refuse(destination, "is a folder; give the CSV file to write")
-    _check_ancestors(destination)
+    problem = file_target_problem(destination, written, inputs)
+    if problem:
+        raise _refuse(destination, problem)
 
 
-def check_folder_destination(destination: Path) -> None:
-    """Refuse an ``--out DIR`` that files are written into (each atomically, the folder
-    kept) when it is an existing file or below a file; a symlink to a folder is written
-    through."""
-    if destination.exists() and not destination.is_dir():
-        raise _refuse(destination, "is an existing file, not a folder; it is left as it was")
-    _check_ancestors(destination)
+def check_folder_destination(destination: Path, files: dict[str, Written]) -> None:
+    """Refuse an ``--out DIR`` that ``files`` are written into (each atomically, the folder
+    kept) when it is an existing file or below a file, or when one of ``files`` is there and
+    physval did not write it (``files.folder_target_problem``); a symlink to a folder is
+    written through."""
+    problem = folder_target_problem(destination, files)
+    if problem:
+        raise _refuse(destination, problem)
 
 
 def _check_ancestors(destination: Path) -> None:
@@ -162,16 +294,36 @@ def check_room(destination: Path) -> None:
         )
 
 
+LOCK_FLAGS = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
+"""How a lock file is opened: created if missing, a symlink refused (ELOOP), never waiting."""
+
+
 def lock_path(destination: Path) -> Path:
-    return destination.with_name(f".{destination.name}.lock")
+    """``.<name>.lock`` beside ``destination`` (``sweep --out .``: beside the working folder);
+    ``BadInputError`` for the root folder, which has no name and nothing beside it."""
+    absolute = Path(os.path.abspath(destination))
+    if not absolute.name:
+        raise _refuse(destination, "is the root folder; give a folder below it")
+    return absolute.with_name(f".{absolute.name}.lock")
 
 
 @contextmanager
 def locked(destination: Path) -> Iterator[None]:
     """Hold the lock of ``destination`` (``BadInputError`` at once if another run holds it)."""
     path = lock_path(destination)
-    descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:  # never through a planted symlink, never blocking on a FIFO
+        descriptor = os.open(path, LOCK_FLAGS, 0o666)
+    except OSError as error:
+        why = "a symlink, never followed" if error.errno == errno.ELOOP else error.strerror
+        raise _refuse(destination, f"its lock {path} cannot be opened ({why}); remove it") from None
     try:
+        found = os.fstat(descriptor)
+        if not stat.S_ISREG(found.st_mode) or found.st_nlink != 1:
+            raise _refuse(
+                destination,
+                f"its lock {path} is not a regular file of its own (a link to another file, "
+                "a FIFO or a device); it is left as it was: remove it",
+            )
         try:
             fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -251,6 +403,7 @@ class Output:
         """Put the staged run folder at ``destination``, replacing an older run, then remove
         the staging folder. Recoverable at every instant (module docstring)."""
         staged, destination = self.run_folder, self.destination
+        check_destination(destination)  # what appeared there meanwhile is kept (--resume)
         if not os.path.lexists(destination):
             os.replace(staged, destination)
         elif not _exchange(staged, destination):

@@ -6,14 +6,14 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
-from validation.files import write_table
+from validation.files import csv_written, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.output import check_file_destination, check_room, locked
-from validation.jobs.plan import BadInputError, expected_cost, plan_run
+from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
 from validation.measure.runner import run_engine
 from validation.scenario import MAX_STEPS, Scenario
 from validation.scenario.compiled import compile_scene
@@ -147,6 +147,17 @@ def _lost_limit(job: tuple[Scenario, EngineSpec], message: str) -> StabilityLimi
     return StabilityLimit(scenario.name or "", spec.label, None, None, f"error: {message}", "error")
 
 
+STABILITY_CSV = csv_written(
+    "a physval stability.csv", [*(f.name for f in fields(StabilityLimit)), "sentence"]
+)
+"""How stability.csv begins: a file at ``--out`` that physval did not write is refused."""
+
+
+def _scene_files(plan: Plan) -> tuple[Path, ...]:
+    """The scene files a plan read (``--out`` never overwrites one)."""
+    return tuple(Path(scene.scenario.source) for scene, _ in plan.scenes)
+
+
 def stability_main(
     paths: list[Path],
     engines: str | None,
@@ -159,7 +170,7 @@ def stability_main(
     out = out or Path("reports") / "stability.csv"
     try:
         plan = plan_run(paths, engines, None, only)
-        check_file_destination(out)
+        check_file_destination(out, STABILITY_CSV, _scene_files(plan))
         check_room(out)
     except BadInputError as error:
         print(error, file=sys.stderr)

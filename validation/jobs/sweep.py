@@ -71,7 +71,7 @@ import numpy as np
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.engine_api import declaration_of
 from validation.engines.registry import create_adapter
-from validation.files import write_table
+from validation.files import csv_written, page_written, write_table
 from validation.jobs.executor import BackendError, run_jobs
 from validation.jobs.output import check_folder_destination, check_room, locked
 from validation.jobs.plan import (
@@ -948,6 +948,14 @@ def with_cross_checks(
     return [*jobs, *checks]
 
 
+SWEEP_OUTPUTS = {
+    "sweep.csv": csv_written("a physval sweep.csv", ("scenario", "engine")),
+    "sweep.html": page_written("a physval sweep page", "physval sweep"),
+}
+"""What ``physval sweep`` writes into its ``--out``, as it begins (``files.Written``): a file
+there that physval did not write is refused, never overwritten."""
+
+
 def sweep_main(
     paths: list[Path],
     engines: str | None,
@@ -966,7 +974,7 @@ def sweep_main(
         if problems:
             raise BadInputError("\n".join(problems))
         out = out or Path("reports") / "sweep"
-        check_folder_destination(out)
+        check_folder_destination(out, SWEEP_OUTPUTS)
         check_room(out)
     except (BadInputError, GridError) as error:
         print(error, file=sys.stderr)

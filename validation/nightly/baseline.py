@@ -41,7 +41,7 @@ from validation.contract import (
     VECTOR_ERROR_COLUMNS,
 )
 from validation.csv_safe import csv_text, restored
-from validation.files import write_atomically
+from validation.files import csv_written, file_target_problem, write_atomically
 from validation.measure.noise import (
     FAILS_A_RUN,
     Reading,
@@ -71,6 +71,10 @@ error's (``SIGNED_COLUMNS``) may be absent from a baseline saved before they exi
 
 REQUIRED_COLUMNS = tuple(c for c in BASELINE_COLUMNS if c not in SIGNED_COLUMNS)
 """What a file must have to be a baseline."""
+
+BASELINE_WRITTEN = csv_written("a physval baseline", REQUIRED_COLUMNS)
+"""How a baseline file begins (its header, the signed columns last): ``--to`` replaces only a
+file that does."""
 
 CLASSES = BASELINE_CLASSES
 """Every class a row can get against a baseline, the news first (``validation.contract``)."""
@@ -226,7 +230,16 @@ def exit_failed(rows: list[dict]) -> bool:
 
 def save_baseline(run_dir: Path, to: Path) -> int:
     """``physval baseline save RUN_DIR --to FILE``: the run's baseline record, written
-    atomically; the number of rows. ValueError naming the file when the run cannot be read."""
+    atomically (missing folders of ``FILE`` created); the number of rows. ValueError naming
+    the file when the run cannot be read, or when ``FILE`` is in the run folder (a run
+    replaces that whole) or a file that is not a baseline physval wrote (``BASELINE_WRITTEN``:
+    never overwritten)."""
+    inputs = (run_dir / RESULTS_FILE, run_dir / PROVENANCE_FILE)
+    problem = file_target_problem(to, BASELINE_WRITTEN, inputs)
+    if problem is None and run_dir.resolve() in to.resolve().parents:
+        problem = f"{to} is inside the run folder {run_dir}, which a run replaces whole"
+    if problem:
+        raise ValueError(f"--to: {problem}")
     try:
         results = read_results(run_dir / RESULTS_FILE)
         provenance = read_provenance(run_dir / PROVENANCE_FILE, [])
@@ -239,8 +252,6 @@ def save_baseline(run_dir: Path, to: Path) -> int:
     scenes = provenance.get("scenes", {})
     hashes = {name: str(entry.get("sha256", "")) for name, entry in scenes.items()}
     table = baseline_table(results, hashes)
-    if not to.parent.is_dir() or to.is_dir():
-        raise ValueError(f"--to: expected a file in an existing folder; got {to}")
     write_atomically(to, csv_text(table))
     return len(table)
 

@@ -39,7 +39,7 @@ import pandas as pd
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.csv_safe import csv_text
-from validation.files import folder_target_problem, write_atomically
+from validation.files import csv_written, folder_target_problem, page_written, write_atomically
 from validation.measure.noise import (
     NOISE_RULE,
     REFERENCE_MOVED,
@@ -395,12 +395,24 @@ def build_context(
     }
 
 
-def _check_flags(url: str | None, folder: Path) -> None:
+COMPARE_OUTPUTS = {
+    COMPARE_CSV: csv_written("a physval compare.csv", COMPARE_COLUMNS),
+    COMPARE_HTML: page_written("a physval compare page", "physval compare"),
+}
+"""What ``compare`` writes into its ``--out``, as it begins (``files.Written``): a file there
+that physval did not write is refused, never overwritten."""
+
+
+def _check_flags(url: str | None, folder: Path, runs: tuple[str, str]) -> None:
     """``--db`` (when given) a usable URL even if both runs are folders, and ``--out`` a
-    folder compare.csv and compare.html can be written into: HistoryInputError otherwise."""
+    folder compare.csv and compare.html can be written into, neither of the run folders it
+    reads nor a file there that physval did not write: HistoryInputError otherwise."""
     if url is not None:
         check_url(url, "--db")
-    problem = folder_target_problem(folder, (COMPARE_CSV, COMPARE_HTML))
+    for run in runs:
+        if Path(run).is_dir() and folder.resolve() == Path(run).resolve():
+            raise HistoryInputError(f"--out: {folder} is the run folder {run} this command reads")
+    problem = folder_target_problem(folder, COMPARE_OUTPUTS)
     if problem:
         raise HistoryInputError(f"--out: {problem}")
 
@@ -413,7 +425,7 @@ def compare_main(
         url = database_url(db)
         rule = compare_rule(selection)  # the flags checked before any run is read
         folder = out or DEFAULT_OUT
-        _check_flags(url if db is not None else None, folder)
+        _check_flags(url if db is not None else None, folder, (run_a, run_b))
         shared = shared_rows(resolve_run(run_a, url), resolve_run(run_b, url), rule)
     except HistoryInputError as error:
         print(error, file=sys.stderr)

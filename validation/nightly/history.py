@@ -29,7 +29,9 @@ to an existing database by its next writer (``ALTER TABLE runs ADD COLUMN``, NUL
 recorded before); a reader never writes, and reads a missing column as NULL. A run without a
 (readable) selection has the key ``unrecorded``.
 
-Everything read back is checked, as any input is: numbers that are not numbers read as NaN,
+A database that cannot be read (a damaged page, text that is not UTF-8, a table without a
+column physval reads) is one ``HistoryInputError`` line (``readable``). Everything read back
+is checked, as any input is: numbers that are not numbers read as NaN,
 JSON that is not the expected object reads as empty, a time that is not a time as none.
 """
 
@@ -338,6 +340,19 @@ def usable(url: str, flag: str) -> Iterator[None]:
         ) from None
 
 
+@contextlib.contextmanager
+def readable(url: str, flag: str = "--db") -> Iterator[None]:
+    """Whatever makes reading the history at ``url`` fail, as one ``HistoryInputError`` line
+    naming ``flag``: a damaged file (``database disk image is malformed``), text that is not
+    UTF-8, a table without a column physval reads, a foreign database."""
+    try:
+        yield
+    except sa.exc.SQLAlchemyError as error:
+        raise HistoryInputError(
+            f"{flag} {shown_url(url)}: not a readable physval history ({_first_line(error)})"
+        ) from None
+
+
 def create_engine(url: str) -> sa.Engine:
     """An engine on ``url``, connecting within ``CONNECT_SECONDS`` where its driver allows."""
     parsed = sa.engine.make_url(url)
@@ -409,8 +424,10 @@ def _missing_sqlite_file(path: Path, url: str, flag: str, made: tuple[Path, ...]
 
 def check_database(url: str, flag: str = "--history", made: tuple[Path, ...] = ()) -> None:
     """Before any work: the history at ``url`` can be recorded into. Connect, create the
-    tables and the missing columns, and roll it back (no run is inserted: a PostgreSQL
-    sequence is not rolled back, and the run ids would have gaps); a missing SQLite file is not
+    tables and the missing columns, write a row into each table (``_probe_write``: a
+    read-only or trigger-guarded database fails here, not after the run) and roll it all back
+    (the rows have explicit ids: a PostgreSQL sequence is not rolled back, and the run ids
+    would have gaps); a missing SQLite file is not
     created (its folder is checked, ``_missing_sqlite_file``: it must exist, or be one of the
     folders ``made`` by the run, resolved). One ``HistoryInputError`` line otherwise
     (``usable``)."""
@@ -432,10 +449,44 @@ def check_database(url: str, flag: str = "--history", made: tuple[Path, ...] = (
                     for name in ADDED_RUN_COLUMNS:
                         if name not in run_columns(connection):
                             connection.execute(sa.text(_column_ddl(connection, name)))
+                    _probe_write(connection)
                 finally:
                     transaction.rollback()
         finally:
             engine.dispose()
+
+
+PROBE = "physval-write-probe"
+"""The names of the rows ``check_database`` writes and rolls back."""
+
+
+def _next_id(connection: sa.Connection, table: sa.Table) -> int:
+    return int(connection.execute(sa.select(sa.func.max(table.c.id))).scalar() or 0) + 1
+
+
+def _probe_write(connection: sa.Connection) -> None:
+    """Write one row into each table, as ``record_run`` does (the caller rolls them back): a
+    read-only file, folder or file system, or a trigger that refuses inserts, fails here and
+    not after the run. Explicit ids past the last: no sequence is consumed (a PostgreSQL
+    sequence is not rolled back)."""
+    run_id, series_id = _next_id(connection, RUNS), _next_id(connection, SERIES)
+    connection.execute(
+        RUNS.insert().values(
+            id=run_id, engine_versions={}, machine={}, command=PROBE, folder=PROBE, complete=False
+        )
+    )
+    connection.execute(
+        SERIES.insert().values(id=series_id, scenario=PROBE, engine=PROBE, metric=PROBE)
+    )
+    connection.execute(
+        RESULTS.insert().values(
+            id=_next_id(connection, RESULTS),
+            run_id=run_id,
+            series_id=series_id,
+            status=PROBE[:WORD_LENGTH],
+            engine_version="",
+        )
+    )
 
 
 def run_columns(connection: sa.Connection | sa.Engine) -> set[str]:
@@ -743,7 +794,7 @@ def load_history(
     the latest complete run, ``all`` every run, or a selection key."""
     engine = open_database(url, create=False)
     try:
-        with engine.connect() as connection:
+        with readable(url), engine.connect() as connection:
             recorded = _runs_frame(connection, sa.true())
             chosen = chosen_selection(recorded, selection)
             runs = recorded if chosen == "all" else recorded[recorded["selection_key"] == chosen]
@@ -761,7 +812,7 @@ def load_run(url: str, run_id: int) -> History:
     ``HistoryInputError`` when there is no such run."""
     engine = open_database(url, create=False)
     try:
-        with engine.connect() as connection:
+        with readable(url), engine.connect() as connection:
             runs = _runs_frame(connection, RUNS.c.id == run_id)
             if runs.empty:
                 raise HistoryInputError(f"run {run_id}: no such run in {shown_url(url)}")

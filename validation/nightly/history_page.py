@@ -33,7 +33,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator, ScalarFormatter
 
 from validation.contract import BASELINE_CLASSES, EXIT_BAD_INPUT, EXIT_OK
-from validation.files import file_target_problem, write_atomically
+from validation.files import file_target_problem, page_written, write_atomically
 from validation.measure.noise import FAILS_A_RUN, NOISE_RULE, floor_for
 from validation.nightly.history import (
     KEY_COLUMNS,
@@ -636,6 +636,10 @@ def build_context(history: History, source: str) -> dict[str, Any]:
 # --- phase 5: the command -------------------------------------------------------------
 
 
+HISTORY_WRITTEN = page_written("a physval history page", "physval history")
+"""How history.html begins: a file at ``--out`` that physval did not write is refused."""
+
+
 def default_page(url: str) -> Path:
     """history.html next to an SQLite database, else ``reports/history.html``."""
     path = sqlite_file(url)
@@ -687,7 +691,9 @@ def history_main(
     try:
         url = database_url(db)
         page = out or default_page(url)
-        problem = file_target_problem(page)  # before the history is read
+        database = sqlite_file(url)  # never overwritten by the page
+        inputs = () if database is None else (database,)
+        problem = file_target_problem(page, HISTORY_WRITTEN, inputs)  # before it is read
         if problem:
             raise HistoryInputError(f"--out: {problem}")
         path, history = render_history(url, page, last, only, selection)

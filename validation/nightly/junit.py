@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from validation.files import write_atomically
+from validation.files import Written, write_atomically
 from validation.nightly.cases import (
     ERROR,
     FAILURE,
@@ -44,6 +44,11 @@ NOTES = {
 not decide the case."""
 
 XML_DECLARATION = '<?xml version="1.0" encoding="utf-8"?>\n'
+
+JUNIT_WRITTEN = Written(
+    "a physval JUnit file", f'{XML_DECLARATION}<testsuites name="{SUITE_NAME}"'.encode()
+)
+"""How the JUnit XML begins: ``--junit`` replaces only a file that does."""
 
 
 def _summary(rows: list[dict]) -> str:
