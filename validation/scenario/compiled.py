@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -28,8 +29,10 @@ from mini_engine.collision import detect_contacts
 from mini_engine.model import Model, State, replicate
 from mini_engine.rotation import quat_to_matrix
 from validation.reference import rotation
+from validation.reference.articulated import JointTree
 from validation.reference.loads import Springs, spring_energy
 from validation.reference.motion import Motion
+from validation.scenario.joints import joint_tree
 from validation.scenario.physics import (
     SHAPE_BUILDERS,
     body_inertia,
@@ -181,6 +184,13 @@ class CompiledScene:
         default_factory=dict, repr=False
     )
     _last_inertia: dict = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def joint_tree(self) -> JointTree | None:
+        """The scene's joints as one tree (``validation.scenario.joints.joint_tree``), or None
+        without joints: built once, the structure every engine adapter and the reference side
+        read (each joint placed in its parent's frame)."""
+        return joint_tree(self.scenario)
 
     def __getstate__(self) -> dict:
         """Pickled for worker processes without the replica and inertia caches (rebuilt on

@@ -141,12 +141,15 @@ class MujocoAdapter:
         self.scene = scene
         self.scenario = scenario = scene.scenario
         self.messages: list[str] = []  # MuJoCo's warning messages so far, as it words them
-        self.xml, self.plan, self.solver = build_mjcf(scenario, self.settings)
+        self.tree = scene.joint_tree
+        self.xml, self.plan, self.solver = build_mjcf(scenario, self.settings, self.tree)
         with collected_warnings(self.messages):
             self.model = mujoco.MjModel.from_xml_string(self.xml)
             self.data = mujoco.MjData(self.model)
         self._index_bodies(scenario)
         self._set_initial_state(scenario)
+        if self.tree is not None:
+            self._set_joint_velocities(scenario)
 
     def _index_bodies(self, scenario: Scenario) -> None:
         m = self.model
@@ -155,7 +158,11 @@ class MujocoAdapter:
             [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name) for b in scenario.bodies],
             dtype=np.int64,
         )
-        joints = m.body_jntadr[self.body_ids[self.moving]]
+        self.free = self.moving[m.body_jntnum[self.body_ids[self.moving]] > 0]
+        self.free = self.free[
+            m.jnt_type[m.body_jntadr[self.body_ids[self.free]]] == mujoco.mjtJoint.mjJNT_FREE
+        ]  # the free roots: their state is their joint's (the others' comes from kinematics)
+        joints = m.body_jntadr[self.body_ids[self.free]]
         self.qpos_adr = m.jnt_qposadr[joints]
         self.dof_adr = m.jnt_dofadr[joints]
         offset = np.abs(m.body_ipos[self.body_ids[self.moving]]).max(initial=0.0)
@@ -173,13 +180,30 @@ class MujocoAdapter:
         d = self.data
         loads = np.concatenate([self.scene.force, self.scene.torque], axis=1)
         d.xfrc_applied[self.body_ids] = loads
-        for row, adr, dof in zip(self.moving, self.qpos_adr, self.dof_adr, strict=True):
+        for row, adr, dof in zip(self.free, self.qpos_adr, self.dof_adr, strict=True):
             body = scenario.bodies[row]
             rot = quat_to_matrix(np.array([body.orientation]))[0]
             d.qpos[adr : adr + 3] = body.position
             d.qpos[adr + 3 : adr + 7] = body.orientation
             d.qvel[dof : dof + 3] = body.velocity
             d.qvel[dof + 3 : dof + 6] = rot.T @ np.asarray(body.angular_velocity)
+
+    def _set_joint_velocities(self, scenario: Scenario) -> None:
+        """qvel of a scene with joints from the bodies' stated velocities, through MuJoCo's
+        own Jacobians at the initial configuration (``mj_jacBody`` of each moving body's
+        centre, world frame): the least-squares qvel of ``J qvel = (v, ω)``, exact for the
+        velocities the scene's checks let through (the joints allow them)."""
+        m, d = self.model, self.data
+        mujoco.mj_forward(m, d)
+        rows, targets = [], []
+        for row in self.moving:
+            jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+            mujoco.mj_jacBody(m, d, jacp, jacr, int(self.body_ids[row]))
+            body = scenario.bodies[row]
+            rows += [jacp, jacr]
+            targets += [np.asarray(body.velocity), np.asarray(body.angular_velocity)]
+        jacobian, stated = np.concatenate(rows), np.concatenate(targets)
+        d.qvel[:] = np.linalg.lstsq(jacobian, stated, rcond=None)[0]
 
     def model_report(self) -> ModelReport:
         """Read back from MuJoCo after ``mj_forward`` on a scratch copy of the current state
@@ -242,6 +266,8 @@ class MujocoAdapter:
         for ``s`` raw states ``qpos (s, nq)``, ``qvel (s, nv)`` (kinematic arrays such as
         ``xpos`` lag one step after ``mj_step``). Fixed bodies: their constant pose, at rest."""
         samples, n = times.size, len(self.body_ids)
+        if self.tree is not None:
+            return self._states_by_kinematics(times, qpos, qvel)
         pos = np.repeat(self.fixed_pose[0][None], samples, axis=0)
         quat = np.repeat(self.fixed_pose[1][None], samples, axis=0)
         vel = np.zeros((samples, n, 3))
@@ -255,6 +281,30 @@ class MujocoAdapter:
             quat[:, self.moving] = moving_quat
             vel[:, self.moving] = body_v[..., :3]
             ang_vel[:, self.moving] = np.einsum("snij,snj->sni", rot, body_v[..., 3:])
+        return Trajectory(times.astype(float), pos, quat, vel, ang_vel)
+
+    def _states_by_kinematics(
+        self, times: np.ndarray, qpos: np.ndarray, qvel: np.ndarray
+    ) -> Trajectory:
+        """Every body's state through MuJoCo's own kinematics (a scene with joints, whose
+        bodies' states are no joint's coordinates): on a scratch ``MjData``, ``mj_kinematics``,
+        ``mj_comPos`` and ``mj_comVel`` for each raw state, then ``xipos``, ``xquat`` and
+        ``mj_objectVelocity`` (world frame, at the body's origin, its centre of mass)."""
+        m = self.model
+        d = mujoco.MjData(m)
+        samples, n = times.size, len(self.body_ids)
+        pos, quat = np.zeros((samples, n, 3)), np.zeros((samples, n, 4))
+        vel, ang_vel = np.zeros((samples, n, 3)), np.zeros((samples, n, 3))
+        velocity = np.zeros(6)
+        for s in range(samples):
+            d.qpos[:], d.qvel[:] = qpos[s], qvel[s]
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
+            pos[s], quat[s] = d.xipos[self.body_ids], d.xquat[self.body_ids]
+            for k, body in enumerate(self.body_ids):
+                mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, int(body), velocity, 0)
+                ang_vel[s, k], vel[s, k] = velocity[:3], velocity[3:]
         return Trajectory(times.astype(float), pos, quat, vel, ang_vel)
 
     def provenance(self) -> Provenance:

@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    BASE_FEATURES,
+    JOINT_FEATURES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 
 INTEGRATOR_WORDS = ("Euler", "RK4", "implicit", "implicitfast")
 """MuJoCo's integrators as spec words (``mjcf.INTEGRATORS`` maps them to MJCF)."""
@@ -44,5 +52,7 @@ DECLARATION = EngineDeclaration(
         ),
         EngineOption("iterations", Count, "maximum solver iterations per step", (), 100, 50),
     ),
-    capabilities=Capabilities(integrators=INTEGRATOR_WORDS),
+    capabilities=Capabilities(
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}), integrators=INTEGRATOR_WORDS
+    ),
 )

@@ -36,6 +36,7 @@ from itertools import combinations
 import numpy as np
 
 from validation.engines.mujoco.declaration import DECLARATION
+from validation.reference.articulated import matrix_to_quat
 from validation.scenario import BodySpec, Scenario
 from validation.scenario.physics import body_inertia, ground_pose, pair_rule, rest_length
 
@@ -618,12 +619,27 @@ def choose_cone(setting: str, settings: dict[str, object], frictional: bool) -> 
     return "elliptic" if frictional and settings["restitution"] == "damper" else "pyramidal"
 
 
-def _add_body(parent: ET.Element, body: BodySpec, geom: dict[str, str]) -> ET.Element:
-    element = ET.SubElement(
-        parent, "body", name=body.name, pos=_fmt(body.position), quat=_fmt(body.orientation)
-    )
-    if not body.fixed:
+MUJOCO_JOINT_TYPES = {"hinge": "hinge", "slider": "slide", "ball": "ball"}
+"""The scene's joint types as MJCF's ``<joint type>``; a fixed joint is a body nested in its
+parent with no joint (welded)."""
+
+
+def _add_body(
+    parent: ET.Element,
+    body: BodySpec,
+    geom: dict[str, str],
+    pose: tuple[np.ndarray, np.ndarray] | None = None,
+    joint: dict[str, str] | None = None,
+) -> ET.Element:
+    """``body`` as a ``<body>`` of ``parent``: at its world pose with a free joint (unless
+    fixed), or at ``pose`` (position, quaternion relative to the parent body) with ``joint``
+    (the attributes of its ``<joint>``, None for a weld)."""
+    pos, quat = (body.position, body.orientation) if pose is None else pose
+    element = ET.SubElement(parent, "body", name=body.name, pos=_fmt(pos), quat=_fmt(quat))
+    if pose is None and not body.fixed:
         ET.SubElement(element, "freejoint", name=f"{body.name}/free")
+    if joint is not None:
+        ET.SubElement(element, "joint", joint)
     ET.SubElement(element, "inertial", _inertial_attributes(body))
     ET.SubElement(
         element,
@@ -634,6 +650,47 @@ def _add_body(parent: ET.Element, body: BodySpec, geom: dict[str, str]) -> ET.El
         **geom,
     )
     return element
+
+
+def _add_bodies(world: ET.Element, scenario: Scenario, tree, plan) -> dict[str, ET.Element]:
+    """Every scene body: the roots (no joint's child) in the world body at their world poses,
+    then each jointed child nested in its parent, parents first (the joint tree's order:
+    ``CompiledScene.joint_tree``), at its pose relative to the parent and with its joint."""
+    children = set() if tree is None else {j.child for j in tree.joints if j.type != "free"}
+    elements: dict[str, ET.Element] = {}
+    for k, body in enumerate(scenario.bodies):
+        if k not in children:
+            elements[body.name] = _add_body(world, body, plan.geoms.get(_geom_name(body.name), {}))
+    for joint in () if tree is None else tree.joints:
+        if joint.type == "free":
+            continue
+        body = scenario.bodies[joint.child]
+        parent = world if joint.parent < 0 else elements[scenario.bodies[joint.parent].name]
+        pose = (joint.anchor + joint.offset, matrix_to_quat(joint.rotation))
+        geom = plan.geoms.get(_geom_name(body.name), {})
+        elements[body.name] = _add_body(
+            parent, body, geom, pose, _joint_attributes(scenario, joint)
+        )
+    return elements
+
+
+def _joint_attributes(scenario: Scenario, joint) -> dict[str, str] | None:
+    """The ``<joint>`` of a tree joint, in the child's frame (MJCF's convention): the anchor
+    ``-R0ᵀ r0`` from the child's centre, the axis ``R0ᵀ u``; damping, limits as ``range``."""
+    if joint.type == "fixed":
+        return None
+    stated = next(j for j in scenario.joints if j.name == joint.name)
+    attributes = {
+        "name": joint.name,
+        "type": MUJOCO_JOINT_TYPES[joint.type],
+        "pos": _fmt(-joint.rotation.T @ joint.offset),
+        "damping": repr(float(joint.damping)),
+    }
+    if joint.type != "ball":
+        attributes["axis"] = _fmt(joint.rotation.T @ joint.axis)
+    if stated.limits is not None:
+        attributes.update(limited="true", range=_fmt(stated.limits))
+    return attributes
 
 
 def _add_springs(root: ET.Element, world: ET.Element, bodies: dict, scenario: Scenario) -> None:
@@ -659,8 +716,11 @@ def _add_springs(root: ET.Element, world: ET.Element, bodies: dict, scenario: Sc
         ET.SubElement(tendon, "site", site=site_b)
 
 
-def build_mjcf(scenario: Scenario, settings: dict[str, object]) -> tuple[str, ContactPlan, str]:
-    """(MJCF text, contact plan, solver name) of ``scenario`` under the full ``settings``."""
+def build_mjcf(
+    scenario: Scenario, settings: dict[str, object], tree=None
+) -> tuple[str, ContactPlan, str]:
+    """(MJCF text, contact plan, solver name) of ``scenario`` under the full ``settings``,
+    its bodies nested by the joint ``tree`` (``CompiledScene.joint_tree``; None: no joints)."""
     profile = str(settings["profile"])
     plan = PROFILES[profile](scenario, str(settings["restitution"]))
     solver = choose_solver(str(settings["solver"]), profile, plan.touching_bodies)
@@ -694,9 +754,7 @@ def build_mjcf(scenario: Scenario, settings: dict[str, object]) -> tuple[str, Co
             quat=_fmt(quat),
             **plan.geoms.get(GROUND, {}),
         )
-    bodies = {
-        b.name: _add_body(world, b, plan.geoms.get(_geom_name(b.name), {})) for b in scenario.bodies
-    }
+    bodies = _add_bodies(world, scenario, tree, plan)
     _add_springs(root, world, bodies, scenario)
     if plan.pairs or plan.excludes:
         contact = ET.SubElement(root, "contact")
