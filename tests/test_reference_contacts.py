@@ -240,8 +240,7 @@ def test_the_finder_orders_pairs_drops_fixed_pairs_and_applies_the_margin():
         size=np.array([[0.5, 0.5, 0.5], [0.5, 0, 0], [0.5, 0, 0], [0, 0, 0]]),
         fixed=np.array([True, False, False, True]),
     )
-    a, b = shapes.pairs()
-    assert list(zip(a, b, strict=True)) == [(1, 0), (1, 2), (2, 0), (3, 1), (3, 2)]
+    assert shapes.can_touch
     pos = np.array(
         [
             [[0, 0, -10.0], [0, 0, 0.5 - 2e-7], [5, 0, 0.5 + 5e-7], [0, 0, 0]],
@@ -325,3 +324,25 @@ def test_the_finder_agrees_with_an_independent_narrow_phase_on_random_poses(pair
     np.testing.assert_allclose(mine.depth[which], theirs.depth[deepest], atol=1e-12)
     np.testing.assert_allclose(mine.normal[which], theirs.normal[deepest], atol=1e-11)
     np.testing.assert_allclose(mine.point[which], theirs.point[deepest], atol=1e-12)
+
+
+def test_a_large_scene_finds_in_grid_cells_what_every_pair_finds(monkeypatch):
+    """Spheres of two sizes scattered so that many touch, across cell borders and far out
+    (clipped cells), in a few states: the grid's candidates give the same contacts."""
+    rng = np.random.default_rng(8)
+    count, states = 300, 3
+    kind = np.array([contacts.SPHERE] * count + [contacts.BOX, contacts.PLANE])
+    size = np.zeros((count + 2, 3))
+    size[:count, 0] = rng.choice([0.05, 0.2], count)
+    size[count] = (0.3, 0.1, 0.2)
+    shapes = contacts.Shapes(kind, size, np.array([False] * count + [True, True]))
+    pos = rng.uniform(-1.5, 1.5, (states, count + 2, 3))
+    pos[:, :5] *= 1e15  # far away: their cells are clipped together
+    pos[:, -1] = 0.0
+    rot = np.broadcast_to(EYE, (states, count + 2, 3, 3))
+    grid = contacts.find_contacts(shapes, pos, rot, 1e-6)
+    monkeypatch.setattr(contacts, "ALL_PAIRS", 10**9)
+    every = contacts.find_contacts(shapes, pos, rot, 1e-6)
+    assert grid.depth.size > 300
+    for name in contacts.Found.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(grid, name), getattr(every, name))

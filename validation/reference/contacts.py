@@ -458,16 +458,10 @@ class Shapes:
         )
         return radius
 
-    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every pair that can touch, ``a, b (p,)``: not both fixed, A the lower shape code
-        (the lower index between equal shapes); sorted by (a, b)."""
-        i, j = np.triu_indices(self.kind.size, k=1)
-        keep = ~(self.fixed[i] & self.fixed[j])
-        i, j = i[keep], j[keep]
-        swap = self.kind[j] < self.kind[i]
-        a, b = np.where(swap, j, i), np.where(swap, i, j)
-        order = np.lexsort((b, a))
-        return a[order], b[order]
+    @property
+    def can_touch(self) -> bool:
+        """Whether two shapes, not both fixed, exist (then some pair can touch)."""
+        return self.kind.size >= 2 and not bool(self.fixed.all())
 
 
 @dataclass(frozen=True)
@@ -488,28 +482,40 @@ PAIR_STATES_PER_CALL = 1 << 20
 """(state, pair) candidates judged in one call at most: bounds the broad phase's temporaries
 (a few hundred bytes each) while a small scene's whole batch of states is one call."""
 
+ALL_PAIRS = 4096
+"""Pairs of finite shapes up to which every pair is a broad-phase candidate (90 bodies);
+larger scenes (piles of 1,000 to 10,000 spheres) look only in neighbouring grid cells."""
+
+NEIGHBOUR_CELLS = np.array(
+    [(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) > (0, 0, 0)]
+)
+"""The 13 grid cells after a cell (half of its 26 neighbours): each pair of neighbouring
+cells is visited once; pairs within one cell separately."""
+
+CELL_INDEX_BITS = 62
+"""A (state, cell) key is one int64: the state and three clipped cell coordinates packed in
+62 bits (clipping keeps neighbours neighbours, so no pair is lost; far cells merge, which
+only adds candidates that the exact check drops)."""
+
 
 def find_contacts(shapes: Shapes, pos: np.ndarray, rot: np.ndarray, margin: float) -> Found:
     """Every pair touching (``depth >= -margin``) in each of ``s`` states ``pos (s, N, 3)``,
-    ``rot (s, N, 3, 3)``: candidates whose bounding spheres come within ``margin`` (planes
-    against every shape), then each pair's closed form (``PAIRS``)."""
-    a, b = shapes.pairs()
-    per_call = max(1, PAIR_STATES_PER_CALL // max(a.size, 1))
+    ``rot (s, N, 3, 3)``: the broad phase's candidates (planes against every shape; finite
+    shapes whose bounding spheres come within ``margin``), then each pair's closed form
+    (``PAIRS``)."""
+    finite = np.flatnonzero(shapes.kind != PLANE)
+    load = finite.size * (finite.size - 1) // 2
+    load = load if load <= ALL_PAIRS else finite.size * (NEIGHBOUR_CELLS.shape[0] + 1)
+    per_call = max(1, PAIR_STATES_PER_CALL // max(load + shapes.kind.size, 1))
     parts = [
-        _touching(
-            shapes,
-            pos[first : first + per_call],
-            rot[first : first + per_call],
-            a,
-            b,
-            margin,
-            first,
-        )
+        _touching(shapes, pos[first : first + per_call], rot[first : first + per_call], margin)
         for first in range(0, pos.shape[0], per_call)
     ]
-    if not parts:
-        return Found(*_empty())
-    return Found(*(np.concatenate(p) for p in zip(*parts, strict=True)))
+    parts = [
+        (part[0] + first, *part[1:])
+        for part, first in zip(parts, range(0, pos.shape[0], per_call), strict=True)
+    ]
+    return Found(*(np.concatenate(p) for p in zip(_empty(), *parts, strict=True)))
 
 
 def _empty() -> tuple[np.ndarray, ...]:
@@ -517,24 +523,21 @@ def _empty() -> tuple[np.ndarray, ...]:
     return none, none, none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
 
 
-def _touching(shapes, pos, rot, a, b, margin, first) -> tuple[np.ndarray, ...]:
-    """``Found``'s arrays for the states ``pos``, ``rot`` (numbered from ``first``)."""
-    radius = shapes.bound_radius
-    reach = np.where(shapes.kind[a] == PLANE, np.inf, radius[a] + radius[b] + margin)
-    gap = np.linalg.norm(pos[:, b] - pos[:, a], axis=-1)
-    state, pair = np.nonzero(gap <= reach)
+def _touching(shapes: Shapes, pos, rot, margin: float) -> tuple[np.ndarray, ...]:
+    """``Found``'s arrays for the states ``pos``, ``rot`` (numbered from 0)."""
+    state, a, b = _candidates(shapes, pos, margin)
     found = [_empty()]
-    codes = shapes.kind[a[pair]] * len(SHAPES) + shapes.kind[b[pair]]
+    codes = shapes.kind[a] * len(SHAPES) + shapes.kind[b]
     for code in np.unique(codes):
         rows = codes == code
-        s, i, j = state[rows], a[pair[rows]], b[pair[rows]]
+        s, i, j = state[rows], a[rows], b[rows]
         contact = PAIRS[divmod(int(code), len(SHAPES))](
             pos[s, i], rot[s, i], shapes.size[i], pos[s, j], rot[s, j], shapes.size[j]
         )
         near = contact.depth >= -margin
         found.append(
             (
-                s[near] + first,
+                s[near],
                 i[near],
                 j[near],
                 contact.point[near],
@@ -545,3 +548,68 @@ def _touching(shapes, pos, rot, a, b, margin, first) -> tuple[np.ndarray, ...]:
     joined = [np.concatenate(p) for p in zip(*found, strict=True)]
     order = np.lexsort((joined[2], joined[1], joined[0]))
     return tuple(x[order] for x in joined)
+
+
+def _candidates(shapes: Shapes, pos, margin: float) -> tuple[np.ndarray, ...]:
+    """(state, a, b), each (c,) int: the pairs the broad phase keeps, not both fixed, A the
+    lower shape code (the lower index between equal codes)."""
+    plane, finite = np.flatnonzero(shapes.kind == PLANE), np.flatnonzero(shapes.kind != PLANE)
+    states = np.arange(pos.shape[0])
+    s, p, f = (g.ravel() for g in np.meshgrid(states, plane, finite, indexing="ij"))
+    near = _finite_candidates(shapes, pos[:, finite], finite, margin)
+    state, i, j = (np.concatenate(x) for x in zip((s, p, f), near, strict=True))
+    keep = ~(shapes.fixed[i] & shapes.fixed[j])
+    state, i, j = state[keep], i[keep], j[keep]
+    swap = (shapes.kind[j] < shapes.kind[i]) | ((shapes.kind[j] == shapes.kind[i]) & (j < i))
+    return state, np.where(swap, j, i), np.where(swap, i, j)
+
+
+def _finite_candidates(shapes: Shapes, centres, index, margin: float) -> tuple[np.ndarray, ...]:
+    """(state, i, j) of the finite shapes ``index (m,)`` at ``centres (s, m, 3)`` whose
+    bounding spheres come within ``margin``: every pair of a small scene, the pairs of
+    neighbouring grid cells (cells as wide as the largest bounding diameter) of a large one."""
+    radius = shapes.bound_radius[index]
+    if index.size * (index.size - 1) // 2 <= ALL_PAIRS:
+        first, second = np.triu_indices(index.size, k=1)
+        state = np.repeat(np.arange(centres.shape[0]), first.size)
+        first, second = np.tile(first, centres.shape[0]), np.tile(second, centres.shape[0])
+    else:
+        state, first, second = _grid_pairs(centres, 2.0 * float(radius.max()) + margin)
+    gap = np.linalg.norm(centres[state, second] - centres[state, first], axis=-1)
+    near = gap <= radius[first] + radius[second] + margin
+    return state[near], index[first[near]], index[second[near]]
+
+
+def _grid_pairs(centres: np.ndarray, width: float) -> tuple[np.ndarray, ...]:
+    """(state, i, j) of every two points of one state in the same or neighbouring cells of a
+    grid of cube cells ``width`` wide (``centres (s, m, 3)``), each pair once."""
+    states, count = centres.shape[:2]
+    base = int((2.0**CELL_INDEX_BITS / max(states, 1)) ** (1.0 / 3.0))  # digits of a key
+    limit = (base - 3) // 2  # cells -limit..limit, then 1..base - 2 with room for ±1
+    cell = np.clip(np.floor(centres / width), -limit, limit).astype(np.int64) + limit + 1
+    state = np.repeat(np.arange(states), count)
+    body = np.tile(np.arange(count), states)
+
+    def key(cells: np.ndarray) -> np.ndarray:
+        return ((state * base + cells[:, 0]) * base + cells[:, 1]) * base + cells[:, 2]
+
+    own = key(cell.reshape(-1, 3))
+    order = np.argsort(own, kind="stable")
+    sorted_keys = own[order]
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    pairs = []
+    for offset in [None, *NEIGHBOUR_CELLS]:
+        if offset is None:  # the same cell: the members after this one
+            start = rank + 1
+            stop = np.searchsorted(sorted_keys, own, side="right")
+        else:
+            wanted = key(cell.reshape(-1, 3) + offset)
+            start = np.searchsorted(sorted_keys, wanted, side="left")
+            stop = np.searchsorted(sorted_keys, wanted, side="right")
+        width_of = np.maximum(stop - start, 0)
+        owner = np.repeat(np.arange(own.size), width_of)
+        step = np.arange(owner.size) - np.repeat(np.cumsum(width_of) - width_of, width_of)
+        other = order[np.repeat(start, width_of) + step]
+        pairs.append((state[owner], body[owner], body[other]))
+    return tuple(np.concatenate(p) for p in zip(*pairs, strict=True))

@@ -364,7 +364,7 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
         force=force,
         torque=torque,
         acceleration=np.where(moving[:, None], gravity + force / safe_mass[:, None], 0.0),
-        can_touch=bool(shapes.pairs()[0].size),  # a pair not both fixed
+        can_touch=shapes.can_touch,
         external_loads=scenario.ground is not None or not moving.all() or world_springs,
         springs=scene_springs(scenario),
         start=scene_start(scenario),
