@@ -46,8 +46,9 @@ from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
+from validation.reference.contacts import Found
 from validation.reference.rotation import cross
-from validation.scenario.compiled import CompiledScene, ObservedContacts
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.definability import scene_traits, why_undefined
 from validation.scenario.physics import GROUND
 
@@ -121,7 +122,7 @@ class _Touching:
     depth: np.ndarray
 
 
-def _touching(contacts: ObservedContacts, bodies: int) -> _Touching:
+def _touching(contacts: Found, bodies: int) -> _Touching:
     """A batch's contacts by pair code: the finder gives the deepest contact of each touching
     (state, pair), already in (state, pair) order."""
     return _Touching(

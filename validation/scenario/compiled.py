@@ -108,26 +108,6 @@ def world_inertia(inertia: np.ndarray, rot: np.ndarray) -> np.ndarray:
 # --- the compiled scene ------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class ObservedContacts:
-    """The deepest contact of each touching (state, pair) of ``s`` observed states
-    (``validation.reference.contacts.find_contacts``), sorted by (state, a, b).
-
-    Attributes:
-        observation: (c,) int, which state. body_a, body_b: (c,) int, shape indices (scene
-            bodies 0..n-1, the ground n): A the lower shape code (plane, sphere, capsule, box).
-            point: (c, 3) m, world, midway between the surfaces. normal: (c, 3) unit, from A
-            to B. depth: (c,) m, positive when overlapping.
-    """
-
-    observation: np.ndarray
-    body_a: np.ndarray
-    body_b: np.ndarray
-    point: np.ndarray
-    normal: np.ndarray
-    depth: np.ndarray
-
-
 @dataclass(eq=False)
 class CompiledScene:
     """A scenario and everything derived from it once.
@@ -266,10 +246,11 @@ class CompiledScene:
         """N: the scene's bodies and the ground."""
         return int(self.shapes.kind.size)
 
-    def contacts(self, pos: np.ndarray, quat: np.ndarray, margin: float) -> ObservedContacts:
+    def contacts(self, pos: np.ndarray, quat: np.ndarray, margin: float) -> contacts.Found:
         """The deepest contact (depth >= -margin) of every touching pair of the ``s`` observed
         states ``pos (s, n, 3)``, ``quat (s, n, 4)``, the ground at its own pose: the
-        reference side's finder (``contacts.find_contacts``), all states in one call."""
+        reference side's finder (``contacts.find_contacts``), all states in one call; shape
+        indices are the scene's bodies 0..n-1, then the ground n."""
         samples = pos.shape[0]
         ground = self.shape_count - self.count
         full_pos = np.concatenate(
@@ -282,10 +263,7 @@ class CompiledScene:
             ],
             axis=1,
         )
-        found = contacts.find_contacts(self.shapes, full_pos, full_rot, margin)
-        return ObservedContacts(
-            found.observation, found.body_a, found.body_b, found.point, found.normal, found.depth
-        )
+        return contacts.find_contacts(self.shapes, full_pos, full_rot, margin)
 
 
 def _spin_up(scene: CompiledScene) -> np.ndarray:
