@@ -13,6 +13,7 @@ one ground plane under all copies.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from mini_engine.joints import Joint, JointModel, build_joints
 from mini_engine.shapes import Plane, Shape, solid_inertia
 
 SHARED_WORLD = -1
@@ -152,6 +154,7 @@ class Model:
         pair_body_a, pair_body_b: (p,) int. pair_restitution, pair_friction: (p,), NaN = use the rule.
 
     gravity: (3,) m/s², world frame.
+    joints: the ``JointModel`` of the scene's joints (``mini_engine.joints``), or None.
     """
 
     body_name: tuple[str, ...]
@@ -182,6 +185,7 @@ class Model:
     pair_restitution: np.ndarray
     pair_friction: np.ndarray
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
+    joints: JointModel | None = None
 
     def __post_init__(self) -> None:
         for value in self.__dict__.values():
@@ -352,6 +356,7 @@ def build_model(
     springs: Sequence[Spring] = (),
     gravity: Sequence[float] = (0.0, 0.0, -9.81),
     pairs: Sequence[PairProperties] = (),
+    joints: Sequence[Joint] = (),
 ) -> tuple[Model, State]:
     """The ``Model`` and initial ``State`` of a scene made of ``bodies`` and ``springs``.
 
@@ -436,6 +441,9 @@ def build_model(
     )
     state.vel[fixed] = 0.0
     state.ang_vel[fixed] = 0.0
+    if joints:
+        joint_model = build_joints(list(joints), state.pos, state.quat, fixed)
+        model = dataclasses.replace(model, joints=joint_model)
     return model, state
 
 
@@ -447,6 +455,8 @@ def replicate(model: Model, state: State, copies: int) -> tuple[Model, State]:
     """
     if copies < 1:
         raise ValueError(f"copies: expected an integer >= 1; got {copies!r}")
+    if model.joints is not None:
+        raise ValueError("replicate: a model with joints is not replicated (not built yet)")
     local = np.flatnonzero(model.body_world != SHARED_WORLD)
     shared = np.flatnonzero(model.body_world == SHARED_WORLD)
     n_local = local.size

@@ -19,6 +19,7 @@ from mini_engine.integrate import (
     integrate_linear_velocity,
     integrate_pose,
 )
+from mini_engine.joints import solve_joints
 from mini_engine.model import Model, State
 from mini_engine.rotation import (
     quat_multiply,
@@ -67,7 +68,7 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
     else:
         lin_acc, torque, any_torque = work.constant_lin_acc, work.constant_torque, work.any_torque
     # 3. world inverse inertia R I⁻¹ Rᵀ, only where a torque or an impulse will use it
-    needs_inertia = contacts.count > 0 or any_torque
+    needs_inertia = contacts.count > 0 or any_torque or model.joints is not None
     inv_inertia_world = _world_inverse_inertia(work, model, rot) if needs_inertia else None
     # 4. integrate velocities: v += a dt; ω per the gyroscopic rule, then ω += I⁻¹τ dt
     vel = integrate_linear_velocity(state.vel, lin_acc, dt)
@@ -82,6 +83,13 @@ def step(model: Model, state: State, settings: Settings = DEFAULT_SETTINGS) -> S
         dt,
         any_torque,
     )
+    # 4b. joint impulses (the documented impulse with e = 0 along each constrained direction,
+    #     mini_engine.joints: a named extension), before the contacts
+    if model.joints is not None:
+        vel, ang_vel = solve_joints(
+            model.joints, state.pos, rot, state.quat, model.body_inv_mass, inv_inertia_world,
+            vel, ang_vel, dt,
+        )  # fmt: skip
     # 5. contact impulses (sequential impulses with restitution; friction if any μ > 0)
     solution = solve_contacts(
         model, contacts, state.pos, inv_inertia_world, vel, ang_vel, settings, state.contact_memory

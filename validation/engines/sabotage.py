@@ -318,6 +318,42 @@ def _no_torque(original):
     return constant_loads
 
 
+def _torque_in_body_frame(original):
+    """The world-frame torque read as body-frame components: ``R τ`` instead of ``τ``."""
+    import numpy as np
+
+    def integrate_angular_velocity(ang_vel, torque, inv_inertia_world, rot, *rest, **named):
+        return original(
+            ang_vel, np.einsum("nij,nj->ni", rot, torque), inv_inertia_world, rot, *rest, **named
+        )
+
+    return integrate_angular_velocity
+
+
+def _mixed_by(table: str, rule: str):
+    """An entry of the pair-mixing table ``mini_engine.solver.<table>`` replaced by its
+    ``rule`` entry (a wrong default rule)."""
+
+    def make(original):
+        from mini_engine import solver
+
+        return getattr(solver, table)[rule]
+
+    return make
+
+
+def _damper_without_spin(original):
+    """A spring's damper that takes each end's velocity as its centre of mass's (``v``, not
+    ``v + ω × r``): the stretch speed of an off-centre anchor on a spinning body is lost. The
+    elastic force reads no velocity, so the springs see the state with every ω zero."""
+    import numpy as np
+
+    def spring_forces(model, state, rot):
+        return original(model, replace(state, ang_vel=np.zeros_like(state.ang_vel)), rot)
+
+    return spring_forces
+
+
 def _sphere_box():
     from mini_engine.shapes import ShapeType
 
@@ -446,6 +482,44 @@ SABOTAGES: dict[str, Sabotage] = {
             "the clock one step ahead: (k + 1) dt after k steps",
             "step.step",
             (Patch("mini_engine.step", "step", _clock_ahead),),
+        ),
+        Sabotage(
+            "torque_in_body_frame",
+            "a constant world torque applied as body-frame components (R τ)",
+            "integrate.integrate_angular_velocity",
+            (Patch("mini_engine.step", "integrate_angular_velocity", _torque_in_body_frame),),
+        ),
+        Sabotage(
+            "restitution_mix_min",
+            "a pair's restitution from the two bodies' by min, not max",
+            "solver.RESTITUTION_MIX[max]",
+            (
+                Patch(
+                    "mini_engine.solver",
+                    "RESTITUTION_MIX",
+                    _mixed_by("RESTITUTION_MIX", "min"),
+                    key="max",
+                ),
+            ),
+        ),
+        Sabotage(
+            "friction_mix_min",
+            "a pair's friction from the two bodies' by min, not the geometric mean",
+            "solver.FRICTION_MIX[geometric_mean]",
+            (
+                Patch(
+                    "mini_engine.solver",
+                    "FRICTION_MIX",
+                    _mixed_by("FRICTION_MIX", "min"),
+                    key="geometric_mean",
+                ),
+            ),
+        ),
+        Sabotage(
+            "damper_without_spin",
+            "a spring's damper reads its anchors' velocities without ω × r",
+            "forces.spring_forces",
+            (Patch("mini_engine.forces", "spring_forces", _damper_without_spin),),
         ),
         Sabotage(
             "torque_ignored",
