@@ -4,8 +4,8 @@ Impacts are found from the observed states alone, never from an engine's own con
 reports, so that restitution is measured identically in every engine: the scene's shapes are
 placed at the observed poses and the reference side's contact finder
 (``validation.reference.contacts``, sharing no code with any engine) says which pairs touch
-and how deep. A pair that starts touching opens an event; its relative
-normal velocity *before* is taken from the last observed state before the touch, its
+and how deep. A pair that starts touching opens an event; its relative normal velocity
+*before* is taken from the last observed state before the touch, its
 velocity *after* from the first observed state after the shapes separate again. Pairs still
 touching at the end (resting contacts) give no event.
 
@@ -23,9 +23,10 @@ contacts lasting several steps it is the natural average. Arms and normal are fr
 first contact, so every observation is measured along the impulse's own direction.
 
 Measuring once, batched: observed states are collected in batches; the contacts of a whole
-batch come from one call of the finder (``CompiledScene.contacts``) and serve impact detection, the overlap check and
-``penetration_max`` alike. The stability checks judge each batch as it completes, and the
-run stops at its first failing state, as if it had been checked state by state.
+batch come from one call of the finder (``CompiledScene.contacts``) and serve impact
+detection, the overlap check and ``penetration_max`` alike. The stability checks judge each
+batch as it completes, and the run stops at its first failing state, as if it had been
+checked state by state.
 
 The detector keeps only the impacts still open; each closed one goes to the run's
 ``ImpactLog`` (``validation.measure.impact_log``), which counts every impact and keeps a
