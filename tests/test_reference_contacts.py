@@ -27,11 +27,10 @@ def turn(axis, angle: float) -> np.ndarray:
     return quat_to_matrix(np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis]))
 
 
-def one(kind_a, kind_b, pos_a, rot_a, size_a, pos_b, rot_b, size_b):
-    """The finder's contact of a single pair, as plain arrays."""
-    found = contacts.PAIRS[(kind_a, kind_b)](
-        *(np.asarray(x, dtype=float)[None] for x in (pos_a, rot_a, size_a, pos_b, rot_b, size_b))
-    )
+def one(kind_a, kind_b, a, b):
+    """The finder's contact of a single pair, as plain arrays: ``a``, ``b`` each a shape's
+    (position, rotation, size)."""
+    found = contacts.PAIRS[(kind_a, kind_b)](*(np.asarray(x, dtype=float)[None] for x in (*a, *b)))
     return found.depth[0], found.normal[0], found.point[0]
 
 
@@ -46,7 +45,7 @@ GROUND = ((0, 0, 0), EYE, (0, 0, 0))
 
 
 def test_a_sphere_on_the_ground_overlaps_by_radius_minus_height():
-    found = one(contacts.PLANE, contacts.SPHERE, *GROUND, (1, 2, 0.45), EYE, (0.5, 0, 0))
+    found = one(contacts.PLANE, contacts.SPHERE, GROUND, ((1, 2, 0.45), EYE, (0.5, 0, 0)))
     check(found, 0.05, (0, 0, 1), (1, 2, -0.025))
 
 
@@ -55,26 +54,26 @@ def test_a_tilted_ground_measures_along_its_own_normal():
     normal = tilt[:, 2]
     centre = np.array([0.0, 0.0, 1.0]) + 0.2 * normal  # 0.2 above the plane through (0, 0, 1)
     found = one(
-        contacts.PLANE, contacts.SPHERE, (0, 0, 1), tilt, (0, 0, 0), centre, EYE, (0.25, 0, 0)
+        contacts.PLANE, contacts.SPHERE, ((0, 0, 1), tilt, (0, 0, 0)), (centre, EYE, (0.25, 0, 0))
     )
     check(found, 0.05, normal, centre - normal * 0.225)
 
 
 def test_a_flat_box_on_the_ground_touches_at_its_face_centre():
     """Four corners tie: the point is their centroid, under the centre, not a corner."""
-    found = one(contacts.PLANE, contacts.BOX, *GROUND, (3, 0, 0.19), EYE, (0.5, 0.3, 0.2))
+    found = one(contacts.PLANE, contacts.BOX, GROUND, ((3, 0, 0.19), EYE, (0.5, 0.3, 0.2)))
     check(found, 0.01, (0, 0, 1), (3, 0, -0.005))
 
 
 def test_a_box_on_its_edge_touches_at_the_edge_middle_and_a_tipped_one_at_its_corner():
     edge = turn((1, 0, 0), np.pi / 4)  # resting on its edge along x: corners (±0.5, -0.3, -0.2)
     centre = (0.3 + 0.2) / np.sqrt(2) - 0.001
-    found = one(contacts.PLANE, contacts.BOX, *GROUND, (0, 0, centre), edge, (0.5, 0.3, 0.2))
+    found = one(contacts.PLANE, contacts.BOX, GROUND, ((0, 0, centre), edge, (0.5, 0.3, 0.2)))
     check(found, 0.001, (0, 0, 1), (0, (-0.3 + 0.2) / np.sqrt(2), -0.0005))
     corner = turn((1, 1, 0), 0.4)
     lowest = (corner @ (contacts._CUBE * [0.5, 0.3, 0.2]).T)[2].min()
     found = one(
-        contacts.PLANE, contacts.BOX, *GROUND, (0, 0, -lowest - 0.002), corner, (0.5, 0.3, 0.2)
+        contacts.PLANE, contacts.BOX, GROUND, ((0, 0, -lowest - 0.002), corner, (0.5, 0.3, 0.2))
     )
     assert found[0] == pytest.approx(0.002, abs=ROUND_OFF)
     assert found[2][2] == pytest.approx(-0.001, abs=ROUND_OFF)
@@ -83,13 +82,13 @@ def test_a_box_on_its_edge_touches_at_the_edge_middle_and_a_tipped_one_at_its_co
 def test_a_capsule_lying_on_the_ground_touches_at_its_middle_and_standing_at_its_end():
     lying = turn((0, 1, 0), np.pi / 2)
     check(
-        one(contacts.PLANE, contacts.CAPSULE, *GROUND, (1, 0, 0.09), lying, (0.1, 0.4, 0)),
+        one(contacts.PLANE, contacts.CAPSULE, GROUND, ((1, 0, 0.09), lying, (0.1, 0.4, 0))),
         0.01,
         (0, 0, 1),
         (1, 0, -0.005),
     )
     check(
-        one(contacts.PLANE, contacts.CAPSULE, *GROUND, (0, 0, 0.49), EYE, (0.1, 0.4, 0)),
+        one(contacts.PLANE, contacts.CAPSULE, GROUND, ((0, 0, 0.49), EYE, (0.1, 0.4, 0))),
         0.01,
         (0, 0, 1),
         (0, 0, -0.005),
@@ -101,19 +100,18 @@ def test_two_spheres_touch_along_their_line_of_centres():
     found = one(
         contacts.SPHERE,
         contacts.SPHERE,
-        (0, 0, 0),
-        EYE,
-        (0.5, 0, 0),
-        0.7 * direction,
-        EYE,
-        (0.3, 0, 0),
+        ((0, 0, 0), EYE, (0.5, 0, 0)),
+        (0.7 * direction, EYE, (0.3, 0, 0)),
     )
     check(found, 0.1, direction, direction * 0.45)
 
 
 def test_coincident_spheres_fall_back_to_up():
     found = one(
-        contacts.SPHERE, contacts.SPHERE, (1, 1, 1), EYE, (0.5, 0, 0), (1, 1, 1), EYE, (0.3, 0, 0)
+        contacts.SPHERE,
+        contacts.SPHERE,
+        ((1, 1, 1), EYE, (0.5, 0, 0)),
+        ((1, 1, 1), EYE, (0.3, 0, 0)),
     )
     check(found, 0.8, (0, 0, 1), (1, 1, 1.1))
 
@@ -122,23 +120,15 @@ def test_a_sphere_meets_a_capsule_side_and_cap():
     side = one(
         contacts.SPHERE,
         contacts.CAPSULE,
-        (0.35, 0, 0.1),
-        EYE,
-        (0.2, 0, 0),
-        (0, 0, 0),
-        EYE,
-        (0.2, 0.5, 0),
+        ((0.35, 0, 0.1), EYE, (0.2, 0, 0)),
+        ((0, 0, 0), EYE, (0.2, 0.5, 0)),
     )
     check(side, 0.05, (-1, 0, 0), (0.175, 0, 0.1))
     cap = one(
         contacts.SPHERE,
         contacts.CAPSULE,
-        (0, 0, 0.85),
-        EYE,
-        (0.2, 0, 0),
-        (0, 0, 0),
-        EYE,
-        (0.2, 0.5, 0),
+        ((0, 0, 0.85), EYE, (0.2, 0, 0)),
+        ((0, 0, 0), EYE, (0.2, 0.5, 0)),
     )
     check(cap, 0.05, (0, 0, -1), (0, 0, 0.675))
 
@@ -148,39 +138,35 @@ def test_crossed_capsules_meet_at_their_axes_closest_points_and_parallel_ones_at
     crossed = one(
         contacts.CAPSULE,
         contacts.CAPSULE,
-        (0, 0, 0),
-        along_x,
-        (0.1, 1, 0),
-        (0, 0, 0.19),
-        along_y,
-        (0.1, 1, 0),
+        ((0, 0, 0), along_x, (0.1, 1, 0)),
+        ((0, 0, 0.19), along_y, (0.1, 1, 0)),
     )
     check(crossed, 0.01, (0, 0, 1), (0, 0, 0.095))
     parallel = one(
         contacts.CAPSULE,
         contacts.CAPSULE,
-        (0, 0, 0),
-        along_x,
-        (0.1, 1, 0),
-        (1.5, 0, 0.19),
-        along_x,
-        (0.1, 1, 0),
+        ((0, 0, 0), along_x, (0.1, 1, 0)),
+        ((1.5, 0, 0.19), along_x, (0.1, 1, 0)),
     )
     check(parallel, 0.01, (0, 0, 1), (0.75, 0, 0.095))  # the overlap is x in [0.5, 1]
 
 
 def test_a_sphere_meets_a_box_face_edge_corner_and_from_inside():
     half = (0.5, 0.3, 0.2)
-    face = one(contacts.SPHERE, contacts.BOX, (0, 0, 0.35), EYE, (0.2, 0, 0), (0, 0, 0), EYE, half)
+    face = one(
+        contacts.SPHERE, contacts.BOX, ((0, 0, 0.35), EYE, (0.2, 0, 0)), ((0, 0, 0), EYE, half)
+    )
     check(face, 0.05, (0, 0, -1), (0, 0, 0.175))
     edge_centre = np.array([0.6, 0.0, 0.3])  # 0.1 beyond the x face and the z face
-    edge = one(contacts.SPHERE, contacts.BOX, edge_centre, EYE, (0.2, 0, 0), (0, 0, 0), EYE, half)
+    edge = one(
+        contacts.SPHERE, contacts.BOX, (edge_centre, EYE, (0.2, 0, 0)), ((0, 0, 0), EYE, half)
+    )
     out = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)
     gap = 0.1 * np.sqrt(2)
     midway = 0.5 * ((edge_centre - 0.2 * out) + np.array([0.5, 0.0, 0.2]))
     check(edge, 0.2 - gap, -out, midway)
     inside = one(
-        contacts.SPHERE, contacts.BOX, (0.45, 0, 0), EYE, (0.1, 0, 0), (0, 0, 0), EYE, half
+        contacts.SPHERE, contacts.BOX, ((0.45, 0, 0), EYE, (0.1, 0, 0)), ((0, 0, 0), EYE, half)
     )
     check(inside, 0.15, (-1, 0, 0), (0.425, 0, 0))  # leaves through +x: surfaces at 0.35, 0.5
 
@@ -190,12 +176,8 @@ def test_a_capsule_lying_on_a_box_touches_at_the_middle_of_what_lies_on_it():
     found = one(
         contacts.CAPSULE,
         contacts.BOX,
-        (0.6, 0, 0.29),
-        lying,
-        (0.1, 0.4, 0),
-        (0, 0, 0),
-        EYE,
-        (0.5, 0.3, 0.2),
+        ((0.6, 0, 0.29), lying, (0.1, 0.4, 0)),
+        ((0, 0, 0), EYE, (0.5, 0.3, 0.2)),
     )
     check(found, 0.01, (0, 0, -1), (0.35, 0, 0.195))  # the part over the box: x in [0.2, 0.5]
 
@@ -204,12 +186,8 @@ def test_a_capsule_through_a_box_leaves_through_the_face_of_least_overlap():
     found = one(
         contacts.CAPSULE,
         contacts.BOX,
-        (0, 0, 0.15),
-        EYE,
-        (0.05, 0.05, 0),
-        (0, 0, 0),
-        EYE,
-        (0.5, 0.3, 0.2),
+        ((0, 0, 0.15), EYE, (0.05, 0.05, 0)),
+        ((0, 0, 0), EYE, (0.5, 0.3, 0.2)),
     )
     # segment z in [0.1, 0.2]: out through +z by 0.2 + 0.05 - 0.1
     assert found[0] == pytest.approx(0.15, abs=ROUND_OFF)
@@ -218,7 +196,7 @@ def test_a_capsule_through_a_box_leaves_through_the_face_of_least_overlap():
 
 def test_stacked_boxes_touch_at_the_centre_of_their_overlap_patch():
     lower, upper = (0.5, 0.5, 0.2), (0.2, 0.2, 0.1)
-    found = one(contacts.BOX, contacts.BOX, (0, 0, 0), EYE, lower, (0.4, 0, 0.299), EYE, upper)
+    found = one(contacts.BOX, contacts.BOX, ((0, 0, 0), EYE, lower), ((0.4, 0, 0.299), EYE, upper))
     # the upper box's bottom face spans x in [0.2, 0.6]; the lower's top face ends at 0.5
     check(found, 0.001, (0, 0, 1), (0.35, 0, 0.1995))
 
@@ -229,7 +207,10 @@ def test_crossed_box_edges_touch_at_their_closest_points():
     half = (0.5, 0.5, 0.5)
     top = 0.5 * np.sqrt(2)
     found = one(
-        contacts.BOX, contacts.BOX, (0, 0, 0), ridge, half, (0, 0, 2 * top - 0.01), crossed, half
+        contacts.BOX,
+        contacts.BOX,
+        ((0, 0, 0), ridge, half),
+        ((0, 0, 2 * top - 0.01), crossed, half),
     )
     check(found, 0.01, (0, 0, 1), (0, 0, top - 0.005))
 
