@@ -308,6 +308,44 @@ def test_the_reference_side_imports_nothing_from_mini_engine():
     assert found == [], "the reference side reaches mini_engine:\n" + "\n".join(found)
 
 
+MEASUREMENT = "validation.measure"
+"""What the engines' observed states are measured with (contacts, impacts, penetration, the
+metrics): like the reference side, it must not depend on the engine under test, or a mistake
+in mini_engine's narrow phase would move every engine's rows."""
+
+RUN_THROUGH = "validation.engines"
+"""The one way the measurement reaches an engine: the runner runs the adapters (the engine
+under test among them) through their wing; every other way in is a dependency."""
+
+
+def test_the_measurement_imports_nothing_from_mini_engine():
+    """Neither directly nor through anything it imports, the scene side's compiled scene and
+    shapes included, except by running the engines (``RUN_THROUGH``)."""
+    sources = [m for m in MODULES if wing(m) == MEASUREMENT]
+    assert f"{MEASUREMENT}.recording" in sources, sources
+    measured = [
+        e for e in EDGES if not (e.target.startswith(RUN_THROUGH) and wing(e.source) == MEASUREMENT)
+    ]
+    chains = import_chains(sources, measured)
+    found = [
+        " ; ".join(str(e) for e in chain)
+        for module, chain in sorted(chains.items())
+        if wing(module) == "mini_engine" and wing(chain[-1].source) != "mini_engine"
+    ]
+    assert found == [], "the measurement reaches mini_engine:\n" + "\n".join(found)
+    assert any(e.target.startswith(RUN_THROUGH) for e in EDGES if wing(e.source) == MEASUREMENT)
+
+
+def test_mini_engine_accepts_every_orientation_and_inertia_the_format_accepts():
+    """The format's tolerances are its own (``scenario.schema``, which imports no engine); the
+    engine's model builder must be no stricter, or a valid scene would fail to load in it."""
+    import mini_engine.model as engine
+    import validation.scenario.schema as schema
+
+    assert engine.UNIT_QUATERNION_TOLERANCE >= schema.UNIT_QUATERNION_TOLERANCE
+    assert engine.SYMMETRY_TOLERANCE >= schema.SYMMETRY_TOLERANCE
+
+
 def test_importing_the_reference_side_loads_no_mini_engine_module():
     """The same at run time, in a fresh interpreter: every module of the reference side
     imported, then no ``mini_engine`` module is loaded (dynamic imports included)."""

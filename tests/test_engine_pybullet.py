@@ -423,7 +423,7 @@ SLIDE_DURATION = 0.45
 
 SLIDING_BOX_TOLERANCE = 1e-9
 """m/s, the largest velocity error of any point of the box. With 4 contact points a step and a
-solver that runs all its iterations (adapter ``GROUND_BOX_HALF_EXTENTS``,
+solver that runs all its iterations (adapter ``GROUND_BOX_HALF_THICKNESS``,
 ``MATCHED_SOLVER_RESIDUAL_THRESHOLD``) PyBullet's slide is semi-implicit Euler's
 v_n = v0 − μg·n·dt: measured 7e-15 m/s (both body modes) from the second step on. On the
 GEOM_PLANE ground (main before this test) it measured 0.084 m/s (maximal) and 0.105 m/s
@@ -446,7 +446,7 @@ def sliding_box_velocity_error(text: str) -> float:
     ``SLIDE_DURATION``: the largest |v − (v0 − μg·t, 0, 0)| + |ω|·r over the steps from the
     second on (r the box's half-diagonal: every point's velocity error is at most this). The
     first step is left out: box–box contacts only report overlap, so a box that starts exactly
-    touching falls g·dt² before its first contact (adapter ``GROUND_BOX_HALF_EXTENTS``)."""
+    touching falls g·dt² before its first contact (adapter ``GROUND_BOX_HALF_THICKNESS``)."""
     half = np.array([0.2, 0.2, 0.05])
     scenario = scene(
         duration=SLIDE_DURATION,

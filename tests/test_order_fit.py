@@ -22,7 +22,7 @@ ONE_SECOND = 1.0
 """s: the duration of the issue's scene (its step counts: 100 to 10,000)."""
 
 METRE = 1.0
-"""m: the issue's state size (a metre-size state, ``ROUND_OFF_ERROR``'s)."""
+"""m: the issue's state size (a metre-size state)."""
 
 FOURTH_ORDER_TOLERANCE = 0.01
 """On three points equally spaced in log dt the least-squares slope is the end points',

@@ -354,6 +354,6 @@ def test_round_off_asymmetric_inertia_is_accepted_and_symmetrised(tmp_path):
     scenario = load_scenario(write(tmp_path, text))
     inertia = scenario.bodies[0].inertia_matrix
     assert (inertia == inertia.T).all()
-    from validation.scenario.physics import build_mini_model
+    from validation.engines.mini.model import build_mini_model
 
     build_mini_model(scenario)  # the engine accepts what the loader accepted

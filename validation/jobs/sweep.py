@@ -52,7 +52,9 @@ three phases:
    with the range (``fit_dt_min``, ``fit_dt_max``, ``fit_points`` and the message,
    ``FITTED_OVER``). With fewer than ``MIN_FIT_POINTS`` (3) points there is no order: the
    value is NaN, the status ``unsupported`` and the message starts ``NOT_ASYMPTOTIC``. A
-   curve zero at every dt, or at round-off at every dt, gets its note instead
+   curve zero at every dt, or at round-off at every dt (every error within its own point's
+   round-off, ``round_off``: the measured size of the quantity x epsilon x steps, the
+   ``round_off`` column of sweep.csv and of the page's points), gets its note instead
    (``IDENTICALLY_ZERO``, ``AT_ROUND_OFF``; its points are ``unmeasured``, ``floor``).
 """
 
@@ -124,20 +126,19 @@ SCENE_METRIC_PREFIX = "scene:"
 IDENTICALLY_ZERO = "identically zero at every dt: the reference cannot see this motion"
 """The note of a curve that measures nothing."""
 
-ROUND_OFF_ERROR = 1e-9
-"""m or rad. A curve whose every point is below this is at round-off: the scheme is exact on
-the scene (RK4 on a constant load), and a slope fitted through round-off means nothing. A
-double-precision state of metre size accumulates about 1e5 steps x 2.2e-16 = 2e-11 over a
-sweep's longest run; the smallest truncation error a library sweep resolves (first order,
-dt = 1e-4) is about 1e-5."""
+AT_ROUND_OFF = "at round-off at every dt: exact on this scene, no order"
+"""How the note of a curve at round-off begins: every error within its own point's round-off
+(``round_off``), so the scheme is exact on the scene (RK4 on a constant load) and a slope
+fitted through round-off means nothing (drawn: exactness is a result; no order fitted). The
+note goes on with the largest round-off, ``ROUND_OFF_NOTE``."""
 
-AT_ROUND_OFF = f"at round-off (<= {ROUND_OFF_ERROR:g}) at every dt: exact on this scene, no order"
-"""The note of a curve at round-off (drawn: exactness is a result; no order fitted)."""
+ROUND_OFF_NOTE = " (each error within its round-off, size x {eps:.2g} x steps: at most {floor:.3g})"
+"""The rest of the ``AT_ROUND_OFF`` note: the measured floor the errors were compared with."""
 
 ROUND_OFF_PER_STEP = float(np.finfo(float).eps)
 """Relative rounding one step leaves on a coordinate: a double's machine epsilon, 2.2e-16. A
 point of n steps on a state of size L carries up to n x 2.2e-16 x L of round-off (the
-one-signed sum; ``ROUND_OFF_ERROR``'s 1e5 steps of a metre-size state give 2e-11). Measured:
+one-signed sum; 1e5 steps of a metre-size state give 2e-11). Measured:
 MuJoCo RK4 on the projectile, exact but for rounding, sits at 0.14 to 0.26 of it (5 points,
 1e-2 to 1e-4 s, L = 5.09 m)."""
 
@@ -610,14 +611,19 @@ def sweep_point(
     ]
 
 
+def round_off(row: dict) -> float:
+    """The round-off one point's error carries: its ``steps`` x ``ROUND_OFF_PER_STEP`` x the
+    measured size of its quantity, ``state_size`` (``METRE_SIZE_STATE`` when the row does not
+    say)."""
+    return float(
+        row.get("steps", 0.0) * ROUND_OFF_PER_STEP * row.get("state_size", METRE_SIZE_STATE)
+    )
+
+
 def error_floor(row: dict) -> float:
-    """The error below which one point cannot resolve the scheme's (module docstring): the
-    round-off its ``steps`` accumulate on a state of ``state_size`` (1 m or 1 rad when the row
-    does not say, ``ROUND_OFF_ERROR``'s metre-size state), or its ``reference_floor``, the
-    larger."""
-    size = row.get("state_size", METRE_SIZE_STATE)
-    round_off = row.get("steps", 0.0) * ROUND_OFF_PER_STEP * size
-    return float(np.nanmax([round_off, row.get("reference_floor", 0.0), 0.0]))
+    """The error below which one point cannot resolve the scheme's (module docstring): its
+    ``round_off``, or its ``reference_floor``, the larger."""
+    return float(np.nanmax([round_off(row), row.get("reference_floor", 0.0), 0.0]))
 
 
 def saturation_error(row: dict) -> float:
@@ -696,14 +702,14 @@ def _left_out(roles: list[str]) -> str:
 
 
 def _whole_curve_note(rows: list[dict]) -> str:
-    """``IDENTICALLY_ZERO`` or ``AT_ROUND_OFF`` when every measured point says so, else ""."""
-    measured = [
-        r["error"] for r in rows if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan))
-    ]
-    if measured and all(error == 0.0 for error in measured):
+    """``IDENTICALLY_ZERO`` or the ``AT_ROUND_OFF`` note when every measured point says so
+    (an error within its own ``round_off``), else ""."""
+    measured = [r for r in rows if r.get("status") == "ok" and np.isfinite(r.get("error", np.nan))]
+    if measured and all(r["error"] == 0.0 for r in measured):
         return IDENTICALLY_ZERO
-    if measured and all(error <= ROUND_OFF_ERROR for error in measured):
-        return AT_ROUND_OFF
+    if measured and all(r["error"] <= round_off(r) for r in measured):
+        largest = max(round_off(r) for r in measured)
+        return AT_ROUND_OFF + ROUND_OFF_NOTE.format(eps=ROUND_OFF_PER_STEP, floor=largest)
     return ""
 
 
@@ -765,6 +771,20 @@ def fit_row(fit: OrderFit) -> dict:
     }
 
 
+def mark_points(curve: list[dict], grid: str = "dt") -> OrderFit:
+    """Fit one curve's order (``fit_order``) and mark its points in place: each one's role in
+    the fit (``fit_role``) and its ``round_off`` (the page shows both); a curve zero at every
+    dt gets the note on its points."""
+    fit = fit_order(curve, grid)
+    for row, role in zip(curve, fit.roles, strict=True):
+        row["fit_role"] = role
+        if "steps" in row:
+            row["round_off"] = round_off(row)
+        if fit.note == IDENTICALLY_ZERO:
+            row["message"] = IDENTICALLY_ZERO
+    return fit
+
+
 def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
     """Every dt of one (scene, engine) pair, each point marked with its role in the fit
     (``fit_role``), plus each sweep metric's fitted convergence order (or the note saying why
@@ -776,12 +796,7 @@ def sweep_scene(job: tuple[Scenario, EngineSpec, list[float]]) -> list[dict]:
     reference = choose_reference(scenario, spec, min(steps)) if steps else Reference(NO_REFERENCE)
     rows = [row for dt in dts for row in sweep_point(scenario, spec, dt, reference)]
     for metric in SWEEP_METRICS:
-        mine = [r for r in rows if r["metric"] == metric]
-        fit = fit_order(mine)
-        for row, role in zip(mine, fit.roles, strict=True):
-            row["fit_role"] = role
-            if fit.note == IDENTICALLY_ZERO:
-                row["message"] = IDENTICALLY_ZERO
+        fit = mark_points([r for r in rows if r["metric"] == metric])
         rows.append({**order_row(scenario, spec, reference, metric), **fit_row(fit)})
     return rows
 
@@ -872,12 +887,7 @@ def accuracy_sweep(scenario: Scenario, spec: EngineSpec, dts: list[float]) -> li
     reference = accuracy_reference(scenario, base, dts)
     rows = [row for a in ACCURACY_GRID for row in accuracy_point(scenario, base, a, reference)]
     for metric in SWEEP_METRICS:
-        mine = [r for r in rows if r["metric"] == metric]
-        fit = fit_order(mine, ACCURACY_OPTION)
-        for row, role in zip(mine, fit.roles, strict=True):
-            row["fit_role"] = role
-            if fit.note == IDENTICALLY_ZERO:
-                row["message"] = IDENTICALLY_ZERO
+        fit = mark_points([r for r in rows if r["metric"] == metric], ACCURACY_OPTION)
         order = {**order_row(scenario, base, reference, metric), **fit_row(fit)}
         rows.append({**order, "fit_accuracy_min": fit.dt_min, "fit_accuracy_max": fit.dt_max})
     return rows

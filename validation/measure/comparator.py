@@ -21,7 +21,7 @@ from validation.contract import (
 )
 from validation.engine_api import Capabilities, declaration_of
 from validation.measure.metrics import Context, Measurement, divergence, measure
-from validation.measure.resolution import resolution_note
+from validation.measure.resolution import precision_band, resolution_note
 from validation.measure.runner import EngineRun
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import parse_engine_spec
@@ -63,9 +63,25 @@ def _capabilities(label: str) -> Capabilities:
     return declaration_of(spec.name).capabilities_of(spec.as_dict())
 
 
+def _precision_band(scene: CompiledScene, run: EngineRun, result: Measurement) -> float:
+    """The row's precision band (``resolution.precision_band``): what the engine's declared
+    precision cannot resolve; 0 for a float64 engine or a row without a value and expectation."""
+    if result.value is None or result.expected is None:
+        return 0.0
+    capabilities = _capabilities(run.engine)
+    return precision_band(
+        capabilities.precision,
+        result.metric,
+        float(result.value),
+        float(result.expected),
+        scene.scenario.steps,
+        capabilities.substeps,
+    )
+
+
 def _with_resolution_note(scene: CompiledScene, run: EngineRun, result: Measurement) -> str:
-    """A failing row's message, led by the float32 resolution note when the engine is float32
-    and the error is within what it resolves (``validation.measure.resolution``)."""
+    """The message of a row beyond its tolerance, led by the float32 resolution note when the
+    engine is float32 and the error is within what it resolves (``validation.measure.resolution``)."""
     capabilities = _capabilities(run.engine)
     if capabilities.precision != "float32" or result.value is None or result.expected is None:
         return result.message
@@ -82,15 +98,18 @@ def _with_resolution_note(scene: CompiledScene, run: EngineRun, result: Measurem
 
 def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str) -> dict:
     tolerance = scene.scenario.tolerance(result.metric, run.engine)
+    band = result.band + _precision_band(scene, run, result)
     passed = (
         None
         if tolerance is None
-        else bool(math.isfinite(result.error) and result.error <= tolerance + result.band)
+        else bool(math.isfinite(result.error) and result.error <= tolerance + band)
     )
     message = result.message
+    beyond = tolerance is not None and not (result.error <= tolerance + result.band)
+    if status == "ok" and beyond:  # failed, or passed by its precision band alone
+        message = _with_resolution_note(scene, run, result)
     if status == "ok" and passed is False:
         status = "failed"
-        message = _with_resolution_note(scene, run, result)
     return {
         **_common(scene, run),
         "metric": result.metric,
@@ -99,7 +118,7 @@ def _row(scene: CompiledScene, run: EngineRun, result: Measurement, status: str)
         "expected_kind": result.expected_kind,
         "error": result.error,
         "tolerance": tolerance,
-        "band": result.band,
+        "band": band,
         "passed": passed,
         "status": status,
         "message": message,

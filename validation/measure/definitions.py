@@ -7,6 +7,13 @@ contract, kept apart so that a report can be rendered without importing any engi
 from __future__ import annotations
 
 from validation.measure.impact_log import MAX_SAMPLED_IMPACTS, MAX_WORST_IMPACTS
+from validation.measure.resolution import (
+    CARRIED_VALUE_KINDS,
+    DRIFT_SUFFIX,
+    FLOAT32_DRIFT_FLOOR,
+    FLOAT32_UNIT_ROUNDOFF,
+    RESOLUTION_MARK,
+)
 
 METRIC_DEFINITIONS: dict[str, str] = {
     "energy_drift": "max over t of |E(t) - E(0)| / E_scale, E = kinetic (translational + "
@@ -83,6 +90,17 @@ SIGNED_ERROR_DEFINITION = (
     "one size (explicit and semi-implicit Euler on a projectile) differ here"
 )
 """The legend's line for the signed-error columns."""
+
+BAND_DEFINITION = (
+    "band: the allowance a row has beyond its tolerance, derived, never guessed (a row passes "
+    "when |error| <= tolerance + band): restitution_error's (1 + e)·|a·n|·dt/|v_before|, plus, "
+    "for an engine that declares float32 precision, what it cannot resolve: steps × substeps × "
+    f"{FLOAT32_UNIT_ROUNDOFF:.3g} (half a float32 ulp) × max(|value|, |expected|) for a value it "
+    f"carries step to step ({', '.join(CARRIED_VALUE_KINDS)}), {FLOAT32_DRIFT_FLOOR:.2g} for a "
+    f"relative drift (*{DRIFT_SUFFIX}); a row that passes by that alone says so "
+    f"({RESOLUTION_MARK!r} in its message)"
+)
+"""The legend's line for the ``band`` column (``validation.measure.resolution``)."""
 
 MAX_SAMPLES = 5000
 """Samples kept per run (the series the metrics and plots read): every step of the library's

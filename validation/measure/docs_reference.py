@@ -13,6 +13,7 @@ import sys
 
 from validation.contract import STATUS_DESCRIPTIONS
 from validation.measure.definitions import (
+    BAND_DEFINITION,
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
     INTERPOLATION_BOUND,
@@ -49,6 +50,7 @@ def render() -> str:
         "",
         f"- Between observed steps: {INTERPOLATION_BOUND.removeprefix('between observed steps: ')}.",
         f"- {SIGNED_ERROR_DEFINITION}.",
+        f"- {BAND_DEFINITION}.",
         f"- `expected_kind`: what a row was compared against, one of {', '.join(EXPECTED_KINDS)}"
         " (a closed form, a conserved quantity whose value is its drift, another engine).",
         "",

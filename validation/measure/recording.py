@@ -1,10 +1,11 @@
 """Recording a run: a sampled ``Trajectory`` and the impact events, the same way for every engine.
 
 Impacts are found from the observed states alone, never from an engine's own contact
-reports, so that restitution is measured identically in mini_engine, MuJoCo and
-PyBullet: the scene's shapes are placed at the observed poses and mini_engine's collision
-detection says which pairs touch. A pair that starts touching opens an event; its relative
-normal velocity *before* is taken from the last observed state before the touch, its
+reports, so that restitution is measured identically in every engine: the scene's shapes are
+placed at the observed poses and the reference side's contact finder
+(``validation.reference.contacts``, sharing no code with any engine) says which pairs touch
+and how deep. A pair that starts touching opens an event; its relative normal velocity
+*before* is taken from the last observed state before the touch, its
 velocity *after* from the first observed state after the shapes separate again. Pairs still
 touching at the end (resting contacts) give no event.
 
@@ -22,10 +23,10 @@ contacts lasting several steps it is the natural average. Arms and normal are fr
 first contact, so every observation is measured along the impulse's own direction.
 
 Measuring once, batched: observed states are collected in batches; the contacts of a whole
-batch come from one collision call (the states are independent worlds of one model,
-``CompiledScene.contacts``) and serve impact detection, the overlap check and
-``penetration_max`` alike. The stability checks judge each batch as it completes, and the
-run stops at its first failing state, as if it had been checked state by state.
+batch come from one call of the finder (``CompiledScene.contacts``) and serve impact
+detection, the overlap check and ``penetration_max`` alike. The stability checks judge each
+batch as it completes, and the run stops at its first failing state, as if it had been
+checked state by state.
 
 The detector keeps only the impacts still open; each closed one goes to the run's
 ``ImpactLog`` (``validation.measure.impact_log``), which counts every impact and keeps a
@@ -46,13 +47,14 @@ from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
 from validation.measure.stability import StabilityChecks
 from validation.measure.states import Series, Trajectory, invariants
+from validation.reference.contacts import Found
 from validation.reference.rotation import cross
-from validation.scenario.compiled import CompiledScene, ObservedContacts
+from validation.scenario.compiled import CompiledScene
 from validation.scenario.definability import scene_traits, why_undefined
 from validation.scenario.physics import GROUND
 
 DETECTION_GAP = 1e-6
-"""m. Shapes closer than this count as touching (mini_engine's contact margin), so a body
+"""m. Shapes closer than this count as touching (the contact margin), so a body
 resting on another does not flicker in and out of contact on round-off."""
 
 IMPACT_MIN_SPEED = 1e-3
@@ -121,21 +123,15 @@ class _Touching:
     depth: np.ndarray
 
 
-def _touching(contacts: ObservedContacts, bodies: int) -> _Touching:
-    """Reduce a batch's contacts to the deepest point of each (state, pair); on equal depths
-    the pair's first point (the narrow phase's order within one pair)."""
-    key = contacts.body_a * bodies + contacts.body_b
-    order = np.lexsort((np.arange(key.size), -contacts.depth, key, contacts.observation))
-    obs, key_sorted = contacts.observation[order], key[order]
-    first = np.ones(order.size, dtype=bool)
-    first[1:] = (obs[1:] != obs[:-1]) | (key_sorted[1:] != key_sorted[:-1])
-    pick = order[first]
+def _touching(contacts: Found, bodies: int) -> _Touching:
+    """A batch's contacts by pair code: the finder gives the deepest contact of each touching
+    (state, pair), already in (state, pair) order."""
     return _Touching(
-        contacts.observation[pick],
-        key[pick],
-        contacts.point[pick],
-        contacts.normal[pick],
-        contacts.depth[pick],
+        contacts.observation,
+        contacts.body_a * bodies + contacts.body_b,
+        contacts.point,
+        contacts.normal,
+        contacts.depth,
     )
 
 
@@ -149,8 +145,8 @@ class ImpactDetector:
     keeps what it needs of them: the detector keeps none)."""
 
     def __post_init__(self) -> None:
-        self.bodies = self.scene.model.n_bodies
-        # each model body's free acceleration g + F/m (zero for fixed bodies and the ground)
+        self.bodies = self.scene.shape_count
+        # each shape's free acceleration g + F/m (zero for fixed bodies and the ground)
         self.body_acceleration = np.zeros((self.bodies, 3))
         self.body_acceleration[: self.scene.count] = self.scene.acceleration
         self.open: dict[tuple[int, int], _OpenImpact] = {}
@@ -254,7 +250,7 @@ class ImpactDetector:
         )
 
     def _with_ground(self, states: Trajectory) -> Trajectory:
-        """``states`` with the ground appended as a body (its pose, at rest), so model body
+        """``states`` with the ground appended as a body (its pose, at rest), so shape
         indices index every array."""
         extra = self.bodies - self.scene.count
         samples = len(states)
@@ -263,12 +259,12 @@ class ImpactDetector:
             ground = np.broadcast_to(rest, (samples, *rest.shape))
             return np.concatenate([values, ground], axis=1)
 
-        rest = self.scene.initial
+        count = self.scene.count
         at_rest = np.zeros((extra, 3))
         return Trajectory(
             states.t,
-            padded(states.pos, rest.pos[self.scene.count :]),
-            padded(states.quat, rest.quat[self.scene.count :]),
+            padded(states.pos, self.scene.rest_pos[count:]),
+            padded(states.quat, self.scene.rest_quat[count:]),
             padded(states.vel, at_rest),
             padded(states.ang_vel, at_rest),
         )
@@ -340,7 +336,7 @@ class ImpactDetector:
         too_slow = after < max(IMPACT_MIN_SPEED, abs(accel) * float(np.min(np.diff(times))))
         if separated and too_slow:
             return None  # too slow to leave within one step against gravity: settling, not a bounce
-        names = self.scene.model.body_name
+        names = self.scene.body_name
         a, b = impact.key
         return ImpactEvent(
             body_a=names[a] if a < self.scene.count else GROUND,
@@ -473,7 +469,7 @@ class _Measurer:
             finite &= np.isfinite(states.quat).reshape(len(states), -1).all(axis=1)
             usable = len(states) if finite.all() else int(np.argmin(finite))
             contacts = self.scene.contacts(states.pos[:usable], states.quat[:usable], DETECTION_GAP)
-            touching = _touching(contacts, self.scene.model.n_bodies)
+            touching = _touching(contacts, self.scene.shape_count)
             deepest, radius = _deepest_per_state(self.scene, touching, len(states))
         found = self.checks.first_failure(states, deepest, radius)
         if found is None:  # geometric growth, judged on the windows finished so far
@@ -540,7 +536,7 @@ def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
         first = np.ones(order.size, dtype=bool)
         first[1:] = obs[1:] != obs[:-1]
         pick = order[first]
-        a, b = np.divmod(touching.key[pick], scene.model.n_bodies)
+        a, b = np.divmod(touching.key[pick], scene.shape_count)
         deepest[touching.observation[pick]] = np.maximum(touching.depth[pick], 0.0)
         radius[touching.observation[pick]] = np.minimum(
             scene.bound_radius[a], scene.bound_radius[b]

@@ -1,5 +1,5 @@
 """What a float32 engine can resolve: the floor under which a row's error is the engine's
-precision, not its physics.
+precision, not its physics, and so the row's precision band.
 
 A float32 engine (``Capabilities.precision``) rounds every state update to a 24-bit
 significand. A value it carries over ``steps`` scene steps of ``substeps`` updates each is
@@ -14,9 +14,11 @@ cannot be resolved below ``FLOAT32_DRIFT_FLOOR``. Rows of other kinds (a largest
 the run, a count, a fitted rate, an impact's restitution) get no floor: float32 is never the
 whole story there.
 
-A failing row whose error is within its floor is marked: its message starts with
-``RESOLUTION_MARK``, and the report shows it. The row still fails its tolerance (the
-library's tolerances are set for float64 engines); the mark says why.
+The floor is the row's precision band (``precision_band``): an engine that declares float32
+precision (``Capabilities.precision``) cannot be asked for less, so the row passes when
+``error <= tolerance + band`` like the restitution band, and the band is in results.csv's
+``band`` column (added to any band the metric has of its own). A row that passes only by it is
+marked: its message starts with ``RESOLUTION_MARK``, and the report shows it.
 """
 
 from __future__ import annotations
@@ -60,6 +62,17 @@ def resolution_floor(
     if not math.isfinite(scale):
         return None
     return steps * substeps * FLOAT32_UNIT_ROUNDOFF * scale
+
+
+def precision_band(
+    precision: str, metric: str, value: float, expected: float, steps: int, substeps: int
+) -> float:
+    """The row's precision band: its ``resolution_floor`` for an engine of ``float32``
+    precision, 0 for a float64 engine or a row of another kind."""
+    if precision != "float32":
+        return 0.0
+    floor = resolution_floor(metric, value, expected, steps, substeps)
+    return 0.0 if floor is None else floor
 
 
 def resolution_note(

@@ -21,6 +21,7 @@ from markupsafe import Markup
 
 from validation.contract import NOT_JUDGED_STATUSES, SERIES_FILE, STATUS_DESCRIPTIONS
 from validation.measure.definitions import (
+    BAND_DEFINITION,
     EXPECTATION_DEFINITIONS,
     EXPECTED_KINDS,
     INTERPOLATION_BOUND,
@@ -338,6 +339,7 @@ def build_legend(table: pd.DataFrame) -> dict[str, Any]:
         "kinds_known": EXPECTED_KINDS,
         "noise_rule": NOISE_RULE,
         "signed_error": SIGNED_ERROR_DEFINITION,
+        "band": BAND_DEFINITION,
         "interpolation": INTERPOLATION_BOUND,
         "sampling": SAMPLING_DEFINITION,
         "statuses": list(STATUS_DESCRIPTIONS.items()),

@@ -40,7 +40,9 @@ FITTED, FLOOR, SATURATED, OUTSIDE, UNMEASURED = FIT_ROLES = (
     "unmeasured",
 )
 """A sweep point's ``fit_role`` in sweep.csv (``validation.jobs.sweep.fit_order`` gives it):
-in the order fit; floor-bound (at round-off or at the reference's own accuracy); saturated
+in the order fit; floor-bound (its error within ten times its round-off, sweep.csv's
+``round_off``: the measured size of the quantity x epsilon x steps, or at the reference's own
+accuracy); saturated
 (its error near the largest it can be); usable but outside the asymptotic range (or in one
 too short to fit); no error to fit (status not ok, NaN, infinite or zero)."""
 
@@ -199,13 +201,15 @@ POINT_COLUMNS = (
     "dt",
     "steps",
     "error",
+    "round_off",
     "fit_role",
     "status",
     "wall_time_s",
     "real_time_factor",
     "message",
 )
-"""The columns of a sweep point listed under its charts."""
+"""The columns of a sweep point listed under its charts (``round_off``: the round-off its
+error carries, what a floor-bound point and an ``at round-off`` curve are judged against)."""
 
 
 def _point_rows(curve: pd.DataFrame) -> list[dict[str, str]]:

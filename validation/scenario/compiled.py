@@ -2,12 +2,14 @@
 
 ``compile_scene(scenario)`` is called once per scenario (in planning) and the result is passed
 down: the parity reference, every adapter, the recording, the stability checks and the
-metrics read the mini model, the invariants and the scales from here instead of deriving
-them again. Physics formulas of the invariants are defined once, below, as functions of
+metrics read the shapes, the invariants and the scales from here instead of deriving them
+again. Physics formulas of the invariants are defined once, below, as functions of
 arrays (so an adapter can apply them to what its engine reads back). The invariants take
 their inertias, rotations and spring energy from the reference side (``validation.reference``),
 so a mistake in mini_engine's formulas cannot move what the engines are judged against; the
-mini model is here for mini_engine itself and for finding contacts in observed states.
+contacts of observed states come from the reference side's own finder
+(``validation.reference.contacts``), never from an engine's narrow phase. Nothing here imports
+mini_engine: its adapter builds its own model (``validation.engines.mini.model``).
 
 It lives in ``scenario/`` rather than ``measure/`` because the engine adapters (one layer
 below the measurements) consume it too.
@@ -25,28 +27,20 @@ from functools import cached_property
 
 import numpy as np
 
-from mini_engine.collision import detect_contacts
-from mini_engine.model import Model, State, replicate
-from mini_engine.rotation import quat_to_matrix
-from validation.reference import rotation
+from validation.reference import contacts, rotation
 from validation.reference.articulated import JointTree
 from validation.reference.loads import Springs, spring_energy
 from validation.reference.motion import Motion
 from validation.scenario.joints import joint_tree
 from validation.scenario.physics import (
-    SHAPE_BUILDERS,
+    GROUND,
     body_inertia,
-    build_mini_model,
     pair_value,
+    scene_poses,
+    scene_shapes,
     scene_springs,
 )
 from validation.scenario.schema import Scenario
-
-MEASURED_BODIES_PER_CALL = 20_000
-"""Bodies per batched collision call (observed states x scene bodies): bounds the memory of
-one call (about 2 kB per body in broad and narrow phase temporaries) while keeping the Python
-calls per observed state far below one."""
-
 
 # --- the invariants, one definition each -------------------------------------------------
 
@@ -117,32 +111,16 @@ def world_inertia(inertia: np.ndarray, rot: np.ndarray) -> np.ndarray:
 # --- the compiled scene ------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class ObservedContacts:
-    """Contacts of ``s`` observed states found in one batched call.
-
-    Attributes:
-        observation: (c,) int, which state. body_a, body_b: (c,) int, model body indices
-            (scene bodies 0..n-1, the ground n). point: (c, 3) m, world. normal: (c, 3) unit,
-            from A to B. depth: (c,) m, positive when overlapping.
-    """
-
-    observation: np.ndarray
-    body_a: np.ndarray
-    body_b: np.ndarray
-    point: np.ndarray
-    normal: np.ndarray
-    depth: np.ndarray
-
-
 @dataclass(eq=False)
 class CompiledScene:
     """A scenario and everything derived from it once.
 
     Attributes:
         scenario: the validated scene.
-        model, initial: the mini_engine model and its state at t = 0 (scene bodies first, in
-            scenario order, then the ground plane in the shared world).
+        shapes: the collision shapes (``physics.scene_shapes``: scene bodies first, in
+            scenario order, then the ground plane). shape_count: N, n plus the ground.
+        body_name: (N,) names, the ground's ``GROUND``. rest_pos, rest_quat: (N, 3) m, (N, 4)
+            the shapes at t = 0 (the ground's pose is its pose throughout).
         count: n, the scene's bodies. moving: (n,) bool, not fixed.
         mass: (n,) kg, 0 for fixed bodies. inertia: (n, 3, 3) kg·m², body frame: the
             scene's, or the reference's solid shape (``physics.body_inertia``).
@@ -155,7 +133,7 @@ class CompiledScene:
         springs: the scene's springs as the reference evaluates them (``physics.scene_springs``).
         start: the scene's bodies at t = 0 as the scene states them (one state; fixed bodies
             at rest), what the reference starts from.
-        bound_radius: (n + ground,) m, each body's bounding radius (mini_engine's).
+        bound_radius: (N,) m, each shape's bounding radius (``contacts.Shapes``).
         energy_floor: J, the smallest scale energy changes are judged against (the stability
             checks): total moving mass times (1 + |g|).
         speed_scale: m/s, initial speeds, spin times size, free fall over the run and what
@@ -163,8 +141,10 @@ class CompiledScene:
     """
 
     scenario: Scenario
-    model: Model
-    initial: State
+    shapes: contacts.Shapes
+    body_name: list[str]
+    rest_pos: np.ndarray
+    rest_quat: np.ndarray
     count: int
     moving: np.ndarray
     mass: np.ndarray
@@ -180,9 +160,6 @@ class CompiledScene:
     bound_radius: np.ndarray
     energy_floor: float = 0.0
     speed_scale: float = 0.0
-    _replicas: dict[int, tuple[Model, np.ndarray, np.ndarray]] = field(
-        default_factory=dict, repr=False
-    )
     _last_inertia: dict = field(default_factory=dict, repr=False)
 
     @cached_property
@@ -193,9 +170,8 @@ class CompiledScene:
         return joint_tree(self.scenario)
 
     def __getstate__(self) -> dict:
-        """Pickled for worker processes without the replica and inertia caches (rebuilt on
-        demand)."""
-        return {**self.__dict__, "_replicas": {}, "_last_inertia": {}}
+        """Pickled for worker processes without the inertia cache (rebuilt on demand)."""
+        return {**self.__dict__, "_last_inertia": {}}
 
     @property
     def name(self) -> str:
@@ -275,51 +251,29 @@ class CompiledScene:
 
     # -- contacts of observed states, batched --
 
-    def observations_per_call(self) -> int:
-        """How many observed states one batched collision call takes."""
-        return max(1, MEASURED_BODIES_PER_CALL // max(self.count, 1))
+    @property
+    def shape_count(self) -> int:
+        """N: the scene's bodies and the ground."""
+        return int(self.shapes.kind.size)
 
-    def contacts(self, pos: np.ndarray, quat: np.ndarray, margin: float) -> ObservedContacts:
-        """Every contact (depth >= -margin) of the ``s`` observed states ``pos (s, n, 3)``,
-        ``quat (s, n, 4)``: the states become ``s`` worlds of one model (one call per
-        ``observations_per_call`` states) instead of ``s`` calls."""
-        parts = []
-        step = self.observations_per_call()
-        for first in range(0, pos.shape[0], step):
-            parts.append(
-                self._contacts(pos[first : first + step], quat[first : first + step], margin, first)
-            )
-        return ObservedContacts(*(np.concatenate(p) for p in zip(*parts, strict=True)))
-
-    def _contacts(self, pos, quat, margin: float, first: int) -> tuple[np.ndarray, ...]:
+    def contacts(self, pos: np.ndarray, quat: np.ndarray, margin: float) -> contacts.Found:
+        """The deepest contact (depth >= -margin) of every touching pair of the ``s`` observed
+        states ``pos (s, n, 3)``, ``quat (s, n, 4)``, the ground at its own pose: the
+        reference side's finder (``contacts.find_contacts``), all states in one call; shape
+        indices are the scene's bodies 0..n-1, then the ground n."""
         samples = pos.shape[0]
-        model, full_pos, full_rot = self._replica(samples, pos, quat)
-        found = detect_contacts(model, full_pos, full_rot, margin)
-        local = self.count  # scene bodies are copied per world; the ground is shared, after them
-
-        def split(body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            shared = body >= samples * local
-            observation = np.where(shared, -1, body // local)
-            original = np.where(shared, body - samples * local + local, body % local)
-            return observation, original
-
-        obs_a, a = split(found.body_a)
-        obs_b, b = split(found.body_b)
-        observation = np.maximum(obs_a, obs_b) + first
-        return observation, a, b, found.point, found.normal, found.depth
-
-    def _replica(self, samples: int, pos, quat) -> tuple[Model, np.ndarray, np.ndarray]:
-        """The model replicated into ``samples`` worlds, with the states' poses placed in it:
-        (model, pos (N, 3), rot (N, 3, 3)); the ground keeps its own pose."""
-        if samples not in self._replicas:
-            model, state = replicate(self.model, self.initial, samples)
-            self._replicas[samples] = (model, np.array(state.pos), quat_to_matrix(state.quat))
-        model, rest_pos, rest_rot = self._replicas[samples]
-        full_pos, full_rot = rest_pos.copy(), rest_rot.copy()
-        bodies = samples * self.count
-        full_pos[:bodies] = pos.reshape(-1, 3)
-        full_rot[:bodies] = quat_to_matrix(quat.reshape(-1, 4))
-        return model, full_pos, full_rot
+        ground = self.shape_count - self.count
+        full_pos = np.concatenate(
+            [pos, np.broadcast_to(self.rest_pos[self.count :], (samples, ground, 3))], axis=1
+        )
+        full_rot = np.concatenate(
+            [
+                rotations(quat),
+                rotations(np.broadcast_to(self.rest_quat[self.count :], (samples, ground, 4))),
+            ],
+            axis=1,
+        )
+        return contacts.find_contacts(self.shapes, full_pos, full_rot, margin)
 
 
 def _spin_up(scene: CompiledScene) -> np.ndarray:
@@ -334,7 +288,7 @@ def _speed_scale(scene: CompiledScene, stored_energy: float) -> float:
     the speed the springs' stored energy could give the lightest moving body."""
     scenario, mass = scene.scenario, scene.mass
     bodies = scenario.bodies
-    radius = np.array([SHAPE_BUILDERS[b.shape.type](b.shape).bounding_radius() for b in bodies])
+    radius = scene.bound_radius[: scene.count]
     speed = max(float(np.linalg.norm(b.velocity)) for b in bodies)
     initial_spin = np.array([np.linalg.norm(b.angular_velocity) for b in bodies])
     spin = float(np.max((initial_spin + _spin_up(scene)) * radius))
@@ -374,8 +328,9 @@ def scene_start(scenario: Scenario) -> Motion:
 
 
 def compile_scene(scenario: Scenario) -> CompiledScene:
-    """The scene's mini model, invariants and scales, built once."""
-    model, state = build_mini_model(scenario)
+    """The scene's shapes, invariants and scales, built once."""
+    shapes = scene_shapes(scenario)
+    rest_pos, rest_quat = scene_poses(scenario)
     moving = np.array([not b.fixed for b in scenario.bodies])
     mass = np.where(moving, [b.mass for b in scenario.bodies], 0.0)
     world_springs = any(s.b == "world" for s in scenario.springs)
@@ -385,8 +340,10 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
     safe_mass = np.where(moving, mass, 1.0)
     scene = CompiledScene(
         scenario=scenario,
-        model=model,
-        initial=state,
+        shapes=shapes,
+        body_name=[b.name for b in scenario.bodies] + [GROUND] * (scenario.ground is not None),
+        rest_pos=rest_pos,
+        rest_quat=rest_quat,
         count=len(scenario.bodies),
         moving=moving,
         mass=mass,
@@ -395,11 +352,11 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
         force=force,
         torque=torque,
         acceleration=np.where(moving[:, None], gravity + force / safe_mass[:, None], 0.0),
-        can_touch=model.can_touch,
+        can_touch=shapes.can_touch,
         external_loads=scenario.ground is not None or not moving.all() or world_springs,
         springs=scene_springs(scenario),
         start=scene_start(scenario),
-        bound_radius=np.asarray(model.body_bound_radius),
+        bound_radius=shapes.bound_radius,
     )
     start = scene.start
     scene.speed_scale = _speed_scale(scene, float(scene.spring_energy(start.pos, start.quat)[0]))

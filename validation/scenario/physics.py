@@ -16,23 +16,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mini_engine import Body, PairProperties, Plane, Spring, build_model
-from mini_engine.collision import detect_contacts
-from mini_engine.model import SHARED_WORLD, Model, State
-from mini_engine.rotation import quat_to_matrix
-from mini_engine.shapes import Box, Capsule, Sphere
-from validation.reference import rotation
+from validation.reference import contacts, rotation
 from validation.reference.loads import WORLD, Springs
 from validation.reference.mass_properties import box_inertia, capsule_inertia, sphere_inertia
 from validation.scenario.schema import BodySpec, GroundSpec, Scenario, ShapeSpec, SpringSpec
-
-SHAPE_BUILDERS = {
-    "sphere": lambda s: Sphere(s.radius),
-    "box": lambda s: Box(tuple(s.half_extents)),
-    "capsule": lambda s: Capsule(s.radius, s.half_length),
-}
-"""Scenario shape type -> the mini_engine shape: its collision geometry, and its own solid
-inertia when the scene states none (the engine under test computes that one itself)."""
 
 SOLID_INERTIA: dict[str, Callable[[ShapeSpec, float], np.ndarray]] = {
     "sphere": lambda s, mass: sphere_inertia(mass, s.radius),
@@ -147,31 +134,37 @@ def scene_springs(scenario: Scenario) -> Springs:
     )
 
 
-# --- the scene as a mini_engine model ---
+# --- the scene's collision shapes (the reference side's contact finder) ---
 
 
 GROUND = "ground"
-"""Name of the scene's ground plane in the model (always the last body)."""
+"""Name of the scene's ground plane (always the last shape, after the scene's bodies)."""
 
 OVERLAP_TOLERANCE = 1e-9
 """m. Bodies placed exactly touching overlap by round-off; deeper than this is an overlap."""
 
+SHAPE_SIZES: dict[str, Callable[[ShapeSpec], tuple[float, ...]]] = {
+    "sphere": lambda s: (s.radius, 0.0, 0.0),
+    "capsule": lambda s: (s.radius, s.half_length, 0.0),
+    "box": lambda s: tuple(s.half_extents),
+}
+"""Scenario shape type -> its ``contacts.Shapes.size`` row (m); the type names are the
+reference finder's ``contacts.SHAPES``."""
 
-def _body(spec: BodySpec) -> Body:
-    return Body(
-        shape=SHAPE_BUILDERS[spec.shape.type](spec.shape),
-        mass=spec.mass,
-        inertia=spec.inertia_matrix,
-        position=spec.position,
-        orientation=spec.orientation,
-        velocity=spec.velocity,
-        angular_velocity=spec.angular_velocity,
-        force=spec.force,
-        torque=spec.torque,
-        restitution=spec.restitution,
-        friction=spec.friction,
-        fixed=spec.fixed,
-        name=spec.name,
+
+def scene_shapes(scenario: Scenario) -> contacts.Shapes:
+    """The scene's collision shapes for ``validation.reference.contacts``: its bodies in
+    scenario order, then the ground plane if any (fixed)."""
+    bodies = scenario.bodies
+    kinds = [contacts.SHAPES.index(b.shape.type) for b in bodies]
+    sizes = [SHAPE_SIZES[b.shape.type](b.shape) for b in bodies]
+    fixed = [b.fixed for b in bodies]
+    if scenario.ground is not None:
+        kinds, sizes, fixed = [*kinds, contacts.PLANE], [*sizes, (0.0, 0.0, 0.0)], [*fixed, True]
+    return contacts.Shapes(
+        kind=np.array(kinds, dtype=np.int64),
+        size=np.array(sizes, dtype=float).reshape(-1, 3),
+        fixed=np.array(fixed, dtype=bool),
     )
 
 
@@ -189,58 +182,31 @@ def ground_pose(ground: GroundSpec) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(ground.point, dtype=float), quat / np.linalg.norm(quat)
 
 
-def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
-    """Model and initial state: the scene's bodies in order, then the ground plane if any."""
-    bodies = [_body(spec) for spec in scenario.bodies]
+def scene_poses(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's shapes at t = 0 (``scene_shapes``' order): positions (N, 3) m and unit
+    quaternions (N, 4) w x y z."""
+    pos = [b.position for b in scenario.bodies]
+    quat = [b.orientation for b in scenario.bodies]
     if scenario.ground is not None:
-        point, quat = ground_pose(scenario.ground)
-        bodies.append(
-            Body(
-                Plane(),
-                position=point,
-                orientation=quat,
-                fixed=True,
-                restitution=scenario.ground.restitution,
-                friction=scenario.ground.friction,
-                name=GROUND,
-                world=SHARED_WORLD,  # one plane for every world when the scene is replicated
-            )
-        )
-    index = {b.name: i for i, b in enumerate(bodies)}
-    springs = [
-        Spring(
-            body_a=index[s.a],
-            body_b=None if s.b == "world" else index[s.b],
-            anchor_a=s.anchor_a,
-            anchor_b=s.anchor_b,
-            stiffness=s.stiffness,
-            damping=s.damping,
-            rest_length=rest_length(scenario, s),
-        )
-        for s in scenario.springs
-    ]
-    pairs = [
-        PairProperties(index[p.a], index[p.b], p.restitution, p.friction) for p in scenario.pairs
-    ]
-    return build_model(bodies, springs, gravity=scenario.gravity, pairs=pairs)
+        point, turn = ground_pose(scenario.ground)
+        pos, quat = [*pos, point], [*quat, turn]
+    unit = np.array(quat, dtype=float).reshape(-1, 4)
+    return np.array(pos, dtype=float).reshape(-1, 3), unit / np.linalg.norm(unit, axis=1)[:, None]
 
 
 def initial_overlaps(scenario: Scenario) -> list[tuple[int, str]]:
-    """(body index, message) for every pair overlapping at t = 0 (deeper than round-off)."""
-    model, state = build_mini_model(scenario)
-    contacts = detect_contacts(model, state.pos, quat_to_matrix(state.quat), 0.0)
-    deep = contacts.depth > OVERLAP_TOLERANCE
-    found: dict[tuple[int, int], float] = {}
-    for a, b, depth in zip(
-        contacts.body_a[deep], contacts.body_b[deep], contacts.depth[deep], strict=True
-    ):
-        key = (int(min(a, b)), int(max(a, b)))
-        found[key] = max(found.get(key, 0.0), float(depth))
-    names = model.body_name
+    """(body index, message) for every pair overlapping at t = 0 (deeper than round-off),
+    found by the reference side's contact finder."""
+    pos, quat = scene_poses(scenario)
+    rot = rotation.quat_to_matrix(quat)
+    found = contacts.find_contacts(scene_shapes(scenario), pos[None], rot[None], 0.0)
+    deep = found.depth > OVERLAP_TOLERANCE
+    names = [b.name for b in scenario.bodies] + [GROUND]
+    pairs = zip(found.body_a[deep], found.body_b[deep], found.depth[deep], strict=True)
     return [
         (
             a if a < len(scenario.bodies) else b,
             f"{names[a]!r} and {names[b]!r} overlap by {depth:.3g} m at t = 0 (intended for deep-penetration scenes)",
         )
-        for (a, b), depth in sorted(found.items())
+        for a, b, depth in sorted((int(min(a, b)), int(max(a, b)), float(d)) for a, b, d in pairs)
     ]

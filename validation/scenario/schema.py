@@ -27,7 +27,6 @@ from pydantic import (
     field_validator,
 )
 
-import mini_engine.model as _model
 from validation.scenario.engine_spec import (
     DEFAULT_ENGINES,
     EngineSpec,
@@ -40,10 +39,14 @@ MAX_STEPS = 5_000_000
 """Largest duration / dt a scenario may ask for: 50 s at dt = 1e-5, or about an hour of
 mini_engine time for a one-body scene. Longer runs are a typo (dt: 1e-7) more often than not."""
 
-# One definition each, shared with mini_engine's model builder: an orientation within 1e-6
-# of unit norm is normalised, an inertia within 1e-9 (relative) of symmetric is symmetrised.
-UNIT_QUATERNION_TOLERANCE = _model.UNIT_QUATERNION_TOLERANCE
-SYMMETRY_TOLERANCE = _model.SYMMETRY_TOLERANCE
+UNIT_QUATERNION_TOLERANCE = 1e-6
+"""An orientation within this of unit norm is normalised (further off is refused): the format's
+own rule, not taken from an engine (the scene side never imports mini_engine, whose model builder
+must accept at least as much: ``tests/test_architecture.py``)."""
+
+SYMMETRY_TOLERANCE = 1e-9
+"""Relative. An inertia within this of symmetric is symmetrised (further off is refused); the
+same contract with mini_engine's model builder as ``UNIT_QUATERNION_TOLERANCE``."""
 
 METRIC_NAMES = (
     "energy_drift",

@@ -10,6 +10,7 @@ import numpy as np
 from mini_engine import Settings, step
 from mini_engine.rotation import quat_to_matrix, world_inertia
 from validation.engines.base import ModelReport, Provenance, Snapshot, StoppedEarlyError, Trajectory
+from validation.engines.mini.model import build_mini_model
 from validation.engines.reference import scene_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
@@ -24,7 +25,7 @@ class MiniAdapter:
     def load(self, scene: CompiledScene) -> None:
         self.scene = scene
         self.settings = Settings(dt=scene.scenario.dt, **self.spec.as_dict())
-        self.model, self.state = scene.model, scene.initial
+        self.model, self.state = build_mini_model(scene.scenario)
         self.count = scene.count
 
     def model_report(self) -> ModelReport:

@@ -20,7 +20,8 @@ Profiles (``ENGINE_OPTIONS["pybullet"]``):
 - ``matched`` (default): PyBullet set up to integrate the scene's model: zero damping, no
   velocity clamp, no restitution threshold, the contact recipe of engines.md 2.4
   that keeps the requested restitution (maximal coordinates by default), the ground as a
-  large static box (``GROUND_BOX_HALF_EXTENTS``) and a solver that runs all its iterations
+  static box whose top face is the scene's plane, as wide as the scene's bodies can reach
+  (``ground_box``, ``GROUND_BOX_HALF_THICKNESS``) and a solver that runs all its iterations
   (``MATCHED_SOLVER_RESIDUAL_THRESHOLD``), so that boxes rest and slide on four points.
 - ``defaults``: what a new user gets (a btMultiBody with Bullet's damping, clamps and
   contact settings), with the scene's masses, inertias, gravity, dt and contact values,
@@ -113,9 +114,9 @@ MATCHED_RESTITUTION_THRESHOLD = 0.0
 slower than 0.2 m/s (engines.md 2.4)."""
 
 
-GROUND_BOX_HALF_EXTENTS = (1000.0, 1000.0, 1.0)
-"""m. The matched profile's ground: a static ``GEOM_BOX`` whose top face is the scene's ground
-plane (its centre 1 m below the ground point, along the normal), not a ``GEOM_PLANE``.
+GROUND_BOX_HALF_THICKNESS = 1.0
+"""m, at least (``ground_box``). The matched profile's ground: a static ``GEOM_BOX`` whose top
+face is the scene's ground plane, not a ``GEOM_PLANE``; as wide as the scene's bodies can reach.
 
 Why [SRC bullet3 btConvexPlaneCollisionAlgorithm.cpp, btPersistentManifold.cpp,
 btBoxBoxCollisionAlgorithm.cpp]: a box against a plane gets ONE new point per step (the
@@ -142,15 +143,29 @@ value to 1e-9 relative (single impacts' e moved by <= 1.6e-9, slow_bounce_below_
 sphere rolling on the tilted ground (incline_roll_and_slide) moved its velocity error 3.6e-4 ->
 2.7e-4 m/s (it fails its 1e-6 before and after).
 
-Size: bodies in the bundled scenes travel at most 26 m along the ground from its point
-(simbenchmark_666_pile, measured), 40x inside the half-width; 1 m of thickness is 25x the
-deepest initial overlap (deep_initial_penetration, 4 cm). The breaking threshold takes the
-smaller bounding radius, the body's, so the ground's size does not change it.
+Size (``ground_box``): the plane is infinite, the box is not, so it is sized from the scene:
+its top face reaches, in every direction along the plane, as far as any body can over the run
+(the body's distance from the ground point, plus its bounding radius, plus the scene's
+``speed_scale`` times the duration: no body is faster than the speed scale), and at least
+``GROUND_BOX_MIN_HALF_WIDTH`` (a smaller box changes Bullet's box-box manifold). A fixed 2 km box
+let a kilometre-scale bounce land past its edge, fall through and be declared ``unstable``.
+1 m of thickness is 25x the deepest initial overlap (deep_initial_penetration, 4 cm); it grows
+to what a body at the speed scale moves in one step, so nothing crosses it in a step. The
+breaking threshold takes the smaller bounding radius, the body's, so the ground's size does not
+change it.
 
 Cost, measured: btBoxBoxDetector reports only overlapping points (depth >= 0; no speculative
 band), and a box that starts exactly touching gets no point in its first step (round-off):
 it falls g·dt² = 9.8 µm and is caught by 2·m·g·dt in the second (box_slide_stop's
 penetration_max, 9.81 µm)."""
+
+GROUND_BOX_MIN_HALF_WIDTH = 1000.0
+"""m. The least half width of the matched ground box (``ground_box``), wider when the scene's
+reach is. Bullet's box-box manifold depends on the ground box's size: box_slide_stop's sliding
+box (tests/test_engine_pybullet.py, velocity exact to 7e-15 m/s on this box) lost its support
+for one step at x = 0.215 m (a g·dt = 0.0098 m/s jump) with half widths of 2 to 600 m, and kept
+it at 700 m to 100 km (PyBullet 3.2.7, measured). 1 km, the width the library was measured on,
+stays the least."""
 
 MATCHED_SOLVER_RESIDUAL_THRESHOLD = 0.0
 """(N·s)², PyBullet's ``solverResidualThreshold`` (default 1e-7): the sequential-impulse
@@ -187,6 +202,24 @@ GROUND = "ground"
 """The name scene pairs use for the ground plane."""
 
 
+def ground_box(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray]:
+    """The matched ground box for ``scene`` (``GROUND_BOX_HALF_THICKNESS``): its centre (3,) m,
+    under the ground point along the plane's normal, and its half extents (3,) m in the ground's
+    frame (normal = its +z). Half width: the farthest any body can be from the ground point
+    along the plane over the run (start offset + bounding radius + speed scale x duration),
+    at least ``GROUND_BOX_MIN_HALF_WIDTH``."""
+    point, quat = ground_pose(scene.scenario.ground)
+    rot = quat_to_matrix(quat[None])[0]
+    normal = rot[:, 2]
+    offset = scene.start.pos[0] - point
+    along_plane = np.linalg.norm(offset - np.outer(offset @ normal, normal), axis=1)
+    travel = scene.speed_scale * scene.scenario.duration
+    reach = float(np.max(along_plane + scene.bound_radius[: scene.count], initial=0.0)) + travel
+    width = max(GROUND_BOX_MIN_HALF_WIDTH, reach)
+    thickness = max(GROUND_BOX_HALF_THICKNESS, scene.speed_scale * scene.scenario.dt)
+    return point - thickness * normal, np.array([width, width, thickness])
+
+
 @dataclass(frozen=True)
 class Profile:
     """How one profile sets PyBullet up (see the module docstring)."""
@@ -204,7 +237,7 @@ class Profile:
     multibody_world: dict[str, float | int] = field(default_factory=dict)
     """Extra ``setPhysicsEngineParameter`` keywords when the bodies are btMultiBody."""
     ground: str = "plane"
-    """``plane`` (GEOM_PLANE) or ``box`` (a static GEOM_BOX of ``GROUND_BOX_HALF_EXTENTS``)."""
+    """``plane`` (GEOM_PLANE) or ``box`` (a static GEOM_BOX sized by ``ground_box``)."""
 
 
 PROFILES = {
@@ -371,13 +404,10 @@ class PybulletAdapter:
         +z): a plane, or the profile's box with its top face on that plane."""
         point, quat = ground_pose(self.scenario.ground)
         if self.profile.ground == "box":
+            point, half = ground_box(self.scene)
             shape = pybullet.createCollisionShape(
-                pybullet.GEOM_BOX,
-                halfExtents=list(GROUND_BOX_HALF_EXTENTS),
-                physicsClientId=self.client,
+                pybullet.GEOM_BOX, halfExtents=half.tolist(), physicsClientId=self.client
             )
-            normal = quat_to_matrix(quat[None])[0][:, 2]
-            point = point - GROUND_BOX_HALF_EXTENTS[2] * normal
         else:
             shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=self.client)
         return pybullet.createMultiBody(
@@ -388,6 +418,15 @@ class PybulletAdapter:
             useMaximalCoordinates=self.bodies_mode == "maximal",
             physicsClientId=self.client,
         )
+
+    def _ground_settings(self) -> dict | None:
+        """The ground as set up (provenance): the box's half extents, or the plane; None
+        without a ground."""
+        if self.scenario.ground is None:
+            return None
+        if self.profile.ground == "box":
+            return {"shape": "GEOM_BOX", "halfExtents": ground_box(self.scene)[1].tolist()}
+        return {"shape": "GEOM_PLANE"}
 
     def _objects(self) -> list[int]:
         return [*self.ids, *([self.ground] if self.ground is not None else [])]
@@ -657,11 +696,7 @@ class PybulletAdapter:
             "profile": self.profile_name,
             "bodies": self.bodies_mode,
             "solver_iterations": self.solver_iterations,
-            "ground": (
-                {"shape": "GEOM_BOX", "halfExtents": list(GROUND_BOX_HALF_EXTENTS)}
-                if self.profile.ground == "box"
-                else {"shape": "GEOM_PLANE"}
-            ),
+            "ground": self._ground_settings(),
             "gyroscopic": GYROSCOPIC_TERM[self.bodies_mode],
             "set_world_parameters": dict(self.world_settings),
             "damping": (
