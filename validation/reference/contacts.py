@@ -35,7 +35,7 @@ pushed out through the box face of least overlap.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -442,11 +442,15 @@ class Shapes:
         kind: (N,) int, ``SHAPES`` codes. size: (N, 3) m: sphere (radius, 0, 0), capsule
             (radius, half length, 0), box (half extents), plane zeros.
         fixed: (N,) bool, never moves (two fixed shapes are never a pair).
+        excluded: (e, 2) int, pairs of shapes that never touch each other, lower index first:
+            the parent and child of a joint (as MuJoCo's parent filter and Bullet's adjacent
+            links do), whose shapes meet at the joint by construction.
     """
 
     kind: np.ndarray
     size: np.ndarray
     fixed: np.ndarray
+    excluded: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
 
     @property
     def bound_radius(self) -> np.ndarray:
@@ -460,8 +464,21 @@ class Shapes:
 
     @property
     def can_touch(self) -> bool:
-        """Whether two shapes, not both fixed, exist (then some pair can touch)."""
-        return self.kind.size >= 2 and not bool(self.fixed.all())
+        """Whether two shapes, not both fixed and not an excluded pair, exist (then some pair
+        can touch)."""
+        count = self.kind.size
+        if count < 2 or bool(self.fixed.all()):
+            return False
+        pairs = count * (count - 1) // 2 - int(self.fixed.sum()) * (int(self.fixed.sum()) - 1) // 2
+        return pairs > self.excluded.shape[0]
+
+    def allowed(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(c,) bool: the pairs ``a, b (c,)`` that are not ``excluded``."""
+        if not self.excluded.size:
+            return np.ones(a.shape, dtype=bool)
+        count = self.kind.size
+        keys = np.minimum(a, b) * count + np.maximum(a, b)
+        return ~np.isin(keys, self.excluded[:, 0] * count + self.excluded[:, 1])
 
 
 @dataclass(frozen=True)
@@ -558,7 +575,7 @@ def _candidates(shapes: Shapes, pos, margin: float) -> tuple[np.ndarray, ...]:
     s, p, f = (g.ravel() for g in np.meshgrid(states, plane, finite, indexing="ij"))
     near = _finite_candidates(shapes, pos[:, finite], finite, margin)
     state, i, j = (np.concatenate(x) for x in zip((s, p, f), near, strict=True))
-    keep = ~(shapes.fixed[i] & shapes.fixed[j])
+    keep = ~(shapes.fixed[i] & shapes.fixed[j]) & shapes.allowed(i, j)
     state, i, j = state[keep], i[keep], j[keep]
     swap = (shapes.kind[j] < shapes.kind[i]) | ((shapes.kind[j] == shapes.kind[i]) & (j < i))
     return state, np.where(swap, j, i), np.where(swap, i, j)
