@@ -90,9 +90,10 @@ class _Tracker:
         return [e for e in events if self.expectation.body in (e.body_a, e.body_b)]
 
     def contact_steps(self, t: np.ndarray, changed: np.ndarray) -> None:
-        """Told before each ``update`` which of its states ``t (k,)`` end an observed step in
-        which the body started or stopped touching something (``changed (k,)`` bool); only
-        the trackers that read between steps (``StateAt``) need it."""
+        """Told before each ``update`` which of its states ``t (k,)`` end an observed step an
+        impulse can act in (``changed (k,)`` bool: the step begins or ends where the body's
+        contacts changed, ``recording``); only the trackers that read between steps
+        (``StateAt``) need it."""
 
 
 @dataclass
@@ -102,10 +103,11 @@ class StateAt(_Tracker):
     of positions and velocities, a cubic through four velocities, the Hermite on the rotation
     group). Keeps the ``side`` states before the time and the ``side`` at or after it.
 
-    An interpolant never spans a step in which the body's contacts changed (an impact, a
-    contact starting or ending: ``contact_steps``), where its motion jumps: it takes only the
-    observed states on the time's side of that step, and when the step is the one the time
-    falls in, the value is the observed state after it; the row's message says which."""
+    An interpolant never spans a step an impulse can act in (one that begins or ends where
+    the body's contacts changed: an impact, a contact starting or ending; ``contact_steps``),
+    where its motion jumps: it takes only the observed states on the time's side of that
+    step, and when the step is the one the time falls in, the value is the observed state
+    after it; the row's message says which."""
 
     quantity: str = "pos"
     before_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -113,8 +115,8 @@ class StateAt(_Tracker):
     before: dict[str, np.ndarray] = field(default_factory=dict)
     after: dict[str, np.ndarray] = field(default_factory=dict)
     jumps: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """s, the end times of the observed steps near the time in which the body's contacts
-    changed (those from the earliest state kept on)."""
+    """s, the end times of the observed steps near the time an impulse can act in (those
+    after the earliest state kept)."""
 
     def contact_steps(self, t: np.ndarray, changed: np.ndarray) -> None:
         if self.after_t.size >= self.side:
@@ -160,7 +162,7 @@ class StateAt(_Tracker):
         if np.any((self.jumps > self.before_t[-1]) & (self.jumps <= first)):
             where = (
                 f"{self.quantity} at t = {first:.6g} s, the observed step after the contact "
-                f"change in the step around t = {time:.6g} s (no interpolation across it)"
+                f"change around t = {time:.6g} s (no interpolation across an impact)"
             )
             return self.after[self.arrays[0]][0], where
         t = np.concatenate([self.before_t, self.after_t])  # at most ``side`` on each side

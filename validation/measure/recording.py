@@ -444,6 +444,8 @@ class _Measurer:
     touching_before: np.ndarray | None = None
     """Pair codes touching at the last counted state of the previous batch (None before the
     first batch): the contact changes of a batch's first step."""
+    changed_before: np.ndarray | None = None
+    """(n,) bool, which bodies' contacts changed at the previous batch's last counted state."""
     penetration: float = 0.0
     failure: str | None = None
     last_time: float = 0.0
@@ -500,7 +502,7 @@ class _Measurer:
             new_events = self.detector.new_events
         self.impacts.add(new_events)
         judged = states.take(slice(0, counted + 1))
-        changes = self._contact_changes(touching, counted + 1)
+        changes = self._contact_steps(touching, counted + 1)
         for tracker in self.trackers:
             tracker.contact_steps(judged.t, changes[:, tracker.body])
             tracker.update(judged, new_events)
@@ -530,12 +532,28 @@ class _Measurer:
         whole = counted if self.extremes is None else Series.concat(self.extremes, counted)
         self.extremes = extreme_samples(self.scene, whole)
 
+    def _contact_steps(self, touching: _Touching | None, count: int) -> np.ndarray:
+        """(count, n) bool: for each of the scene's bodies, whether the observed step that ends
+        at each of the batch's first ``count`` states begins or ends at a state where the
+        body's contacts changed (it started or stopped touching a body or the ground): the
+        steps an impulse can act in, which no interpolant may span (``expectations.StateAt``).
+        Both sides of the change, because engines differ in where the impulse falls: one that
+        keeps shapes apart (speculative contacts) acts over the step into the first touching
+        state, one that resolves an overlap (mini, MuJoCo) over the step out of it; contacts
+        that stay unchanged over a step (resting, a soft contact's inside) are smooth enough."""
+        changed = self._contact_changes(touching, count)
+        before = self.changed_before
+        if before is None or count == 0:
+            before = np.zeros(changed.shape[1], dtype=bool)
+        steps = changed | np.concatenate([before[None], changed[:-1]])
+        if count:
+            self.changed_before = changed[-1]
+        return steps
+
     def _contact_changes(self, touching: _Touching | None, count: int) -> np.ndarray:
-        """(count, n) bool: which of the scene's bodies started or stopped touching something
-        (a body or the ground) over the observed step that ends at each of the batch's first
-        ``count`` states: the steps an impulse or a contact force begins or ends in, which no
-        interpolant may span (``expectations.StateAt``). None at the run's first state (no
-        step ends there)."""
+        """(count, n) bool: which of the scene's bodies touch a different set of bodies (the
+        ground one of them) at each of the batch's first ``count`` states than at the state
+        before; none at the run's first state (no state before it)."""
         changed = np.zeros((count, self.scene.model.n_bodies), dtype=bool)
         if touching is None or count == 0:
             return changed[:, : self.scene.count]
