@@ -514,7 +514,9 @@ class _Measurer:
                 "non_finite"
             )  # a non-finite state is named, not kept
         series = invariants(self.scene, states.take(slice(0, last + 1)), self.free)
-        self._fold(series.take(slice(0, counted + 1)))
+        # the metrics read what the series keeps of the run: every counted state, and the
+        # failing state where it is kept (a finite one that failed a check)
+        self._fold(series.take(slice(0, last + 1 if keep[last] else counted + 1)))
         self._keep(
             states.take(np.flatnonzero(keep)),
             series.take(np.flatnonzero(keep)),
