@@ -552,10 +552,10 @@ class _Measurer:
         """(count, n) bool: which of the scene's bodies touch a different set of bodies (the
         ground one of them) at each of the batch's first ``count`` states than at the state
         before; none at the run's first state (no state before it)."""
-        changed = np.zeros((count, self.scene.model.n_bodies), dtype=bool)
+        changed = np.zeros((count, self.scene.shape_count), dtype=bool)
         if touching is None or count == 0:
             return changed[:, : self.scene.count]
-        per_state = self.scene.model.n_bodies**2
+        per_state = self.scene.shape_count**2
         rows = touching.observation < count
         obs, key = touching.observation[rows], touching.key[rows]
         before = (
@@ -569,7 +569,7 @@ class _Measurer:
         ended_key = np.concatenate([before, key])
         ended = ~_member((ended_obs + 1) * per_state + ended_key, codes) & (ended_obs + 1 < count)
         for at, pair in ((obs[started], key[started]), (ended_obs[ended] + 1, ended_key[ended])):
-            a, b = np.divmod(pair, self.scene.model.n_bodies)
+            a, b = np.divmod(pair, self.scene.shape_count)
             changed[at, a] = True
             changed[at, b] = True
         self.touching_before = np.unique(key[obs == count - 1])
