@@ -147,6 +147,10 @@ def parse_engine_spec(text: str) -> EngineSpec:
             declaration.check_settings(dict(settings))
         except ValueError as error:
             raise EngineSpecError(f"{name}: {error}") from None
+        except Exception as error:  # a plugin's broken check: its line, not a traceback
+            raise EngineSpecError(
+                f"{name}: the engine's check_settings raised {type(error).__name__}: {error}"
+            ) from None
     return EngineSpec(name, tuple(settings))
 
 
