@@ -24,6 +24,7 @@ A worker also ends when the main process ends, even by SIGKILL (``_die_with``).
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import select
@@ -35,7 +36,6 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, as_completed
 from contextlib import closing
 from dataclasses import dataclass
-from multiprocessing import forkserver, resource_tracker
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -47,7 +47,6 @@ from validation.signals import (  # Interrupted: the commands catch it from here
     Interrupted,
     deferred,
     ignore_in_worker,
-    ignored_while_starting_helpers,
     signal_number,
 )
 
@@ -56,7 +55,10 @@ WORKER_PRELOAD = [
     "validation.jobs.sweep",
     "validation.jobs.stability_search",
 ]
-"""Modules the fork server imports once, so each worker starts with them loaded."""
+"""Modules a local Dask cluster's workers import as they start (``local_cluster``)."""
+
+PR_SET_PDEATHSIG = 1
+"""prctl(2)'s option: the signal the calling process gets when its parent ends (Linux)."""
 
 JOB_TIMEOUT_FACTOR = 20.0
 """The default time limit of a job is this many times its expected seconds
@@ -205,17 +207,15 @@ def failure_message(error: BaseException) -> str:
 
 
 class IsolatedPool:
-    """``workers`` worker processes forked from a clean fork server (no threads of the main
-    process are inherited, the job modules already imported), each running one job at a
-    time, sent over its own pipe. A worker that dies, or whose job runs past its time
-    limit (it is killed), is replaced: that job is ``JobFailed``, no other job notices.
-    Measured on the library (``physval run --timings``): see docs/commands.md,
-    ``--job-timeout``."""
+    """``workers`` worker processes forked from this process (each starts with what it has
+    imported and set: the job modules, the environment, a test's patches, as the jobs saw
+    when ``--jobs 1`` ran them in this process), each running one job at a time, sent over
+    its own pipe. A worker that dies, or whose job runs past its time limit (it is killed),
+    is replaced: that job is ``JobFailed``, no other job notices."""
 
     def __init__(self, workers: int):
         self._size = max(1, workers)
-        self._context = multiprocessing.get_context("forkserver")
-        self._context.set_forkserver_preload(WORKER_PRELOAD)
+        self._context = multiprocessing.get_context("fork")
 
     def results(
         self,
@@ -227,13 +227,11 @@ class IsolatedPool:
         """(index, result or ``JobFailed``) of each job as it finishes, handed out in
         ``order``; a job that raised re-raises here (a harness bug, not an engine's: the
         engines' exceptions are rows already), after every worker is stopped."""
-        with ignored_while_starting_helpers():  # they outlive a stop signal to the group
-            resource_tracker.ensure_running()
-            forkserver.ensure_running()
         waiting = deque(order)
         workers: list[_Worker] = []
         try:
-            with deferred():  # a worker started but not yet known could not be stopped
+            with deferred():  # a worker started but not yet known could not be stopped; a
+                # worker inherits the handler that holds a stop until it ignores them
                 workers = [_Worker(self._context) for _ in range(min(self._size, len(order)))]
             while waiting or any(w.index is not None for w in workers):
                 for worker in workers:
@@ -371,9 +369,18 @@ def _outcome(fn: Callable[[Any], Any], job: Any) -> tuple[str, Any]:
 
 
 def _die_with(main_pid: int) -> None:
-    """End this worker (SIGKILL) as soon as the main process ends, even by SIGKILL: a thread
-    waits on a pidfd of it. (A parent-death signal, ``PR_SET_PDEATHSIG``, cannot do it: a
-    worker's parent is the fork server, which lives on as long as any worker does.)"""
+    """End this worker (SIGKILL) as soon as the main process ends, even by SIGKILL: the
+    kernel's parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``, Linux), else a thread
+    waiting on a pidfd of the main process (or looking every ``WATCH_INTERVAL_S``); a main
+    process already gone when the worker starts ends it at once."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0:
+            if os.getppid() != main_pid:  # it ended before the signal was asked for
+                os.kill(os.getpid(), signal.SIGKILL)
+            return
+    except (OSError, AttributeError):  # no prctl here: the watching thread
+        pass
 
     def watch() -> None:
         try:
