@@ -151,6 +151,12 @@ def parse_engine_spec(text: str) -> EngineSpec:
             raise EngineSpecError(
                 f"{name}: the engine's check_settings raised {type(error).__name__}: {error}"
             ) from None
+    try:  # a plugin's capabilities_for, called by planning and every run: once here first
+        declaration.capabilities_of(dict(settings))
+    except Exception as error:
+        raise EngineSpecError(
+            f"{name}: the engine's capabilities_for raised {type(error).__name__}: {error}"
+        ) from None
     return EngineSpec(name, tuple(settings))
 
 
