@@ -326,3 +326,42 @@ def test_a_scheduler_address_that_does_not_speak_dask_is_refused_without_allocat
     huge, _ = _serve_once(dask_backend.HANDSHAKE_HEADER.pack(1 << 40))
     with pytest.raises(dask_backend.BackendError, match="1099511627776-byte handshake"):
         dask_backend.dask_executor(1, huge)
+
+
+def test_pytest_physval_fails_the_items_whose_engine_crashed_or_hung_and_goes_on(tmp_path):
+    """Before: a hung ``advance()`` hung ``pytest --physval`` for ever, a segfault ended it."""
+    scene = SCENE.read_text().replace(
+        'engines: [mini, mujoco, "mujoco(integrator=RK4)", pybullet, rapier, drake]',
+        'engines: [mini, "hostile(mode=segfault)", "hostile(mode=hang)"]',
+    )
+    assert "hostile(mode=hang)" in scene
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "projectile.yaml").write_text(scene)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "no:cacheprovider",
+            "-rA",
+            "--physval",
+            "scenes",
+            "--job-timeout",
+            str(TEST_TIMEOUT_S),
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=COMMAND_LIMIT_S,
+        env={
+            **{k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")},
+            "PYTHONPATH": os.pathsep.join([str(ROOT), str(HOSTILE)]),
+        },
+    )
+    shown = done.stdout + done.stderr
+    assert done.returncode == 1, shown[-3000:]
+    assert "PASSED scenes/projectile.yaml::mini" in shown, shown[-3000:]
+    assert "FAILED scenes/projectile.yaml::hostile(mode=segfault)" in shown, shown[-3000:]
+    assert "FAILED scenes/projectile.yaml::hostile(mode=hang)" in shown, shown[-3000:]
+    assert "[crashed]" in shown and "[timed_out]" in shown, shown[-3000:]

@@ -730,6 +730,21 @@ def run_conformance(text: str, only: list[str] | None = None) -> list[CheckResul
     return [run_check(subject, name) for name in (only or CHECKS)]
 
 
+def isolated_conformance(
+    text: str,
+    only: list[str] | None = None,
+    job_timeout: float | None = None,
+    on_result: Callable[[int, CheckResult], None] | None = None,
+) -> list[CheckResult]:
+    """``run_conformance``, each check in a worker process of its own (``executor.run_jobs``):
+    one that crashes or runs past ``job_timeout`` (``--job-timeout``) fails with that status;
+    ``on_result(index, result)`` as each finishes."""
+    checks = [(text, name) for name in only or CHECKS]
+    return run_jobs(
+        _isolated_check, checks, 1, on_result, lost=_lost_check, job_timeout=job_timeout
+    )
+
+
 def conformance_main(
     text: str, only: list[str] | None = None, job_timeout: float | None = None
 ) -> int:
@@ -754,8 +769,7 @@ def conformance_main(
         for problem in result.problems:
             print(f"     {problem}", flush=True)
 
-    checks = [(text, name) for name in only or CHECKS]
-    results = run_jobs(_isolated_check, checks, 1, shown, lost=_lost_check, job_timeout=job_timeout)
+    results = isolated_conformance(text, only, job_timeout, shown)
     failed = [r.name for r in results if not r.passed]
     summary = f"conformance of {subject.spec.label}: {len(results) - len(failed)} of {len(results)} checks pass"
     print(summary + (f" (failing: {', '.join(failed)})" if failed else ""))

@@ -303,7 +303,15 @@ def _lost(job: tuple[str, tuple], status: str, message: str) -> object:
     kind, payload = job
     if kind == "sweep":
         return lost_sweep_job(payload, status, message)
-    scene, spec = payload
+    return lost_run(payload, status, message)
+
+
+def lost_run(
+    job: tuple[CompiledScene, EngineSpec], status: str, message: str
+) -> tuple[EngineRun, list[Measurement]]:
+    """A (scene, engine) run that gave no result (``executor.run_jobs``): its ``status``
+    (``crashed``, ``timed_out``) and why, nothing measured."""
+    scene, spec = job
     return EngineRun(scene.name, spec.label, status, message), []
 
 
