@@ -332,7 +332,7 @@ def test_pytest_physval_fails_the_items_whose_engine_crashed_or_hung_and_goes_on
     """Before: a hung ``advance()`` hung ``pytest --physval`` for ever, a segfault ended it."""
     scene = SCENE.read_text().replace(
         'engines: [mini, mujoco, "mujoco(integrator=RK4)", pybullet, rapier, drake]',
-        'engines: [mini, "hostile(mode=segfault)", "hostile(mode=hang)"]',
+        'engines: [mini, "hostile(mode=segfault)", "hostile(mode=hang)", "mujoco(integrator=RK4)"]',
     )
     assert "hostile(mode=hang)" in scene
     (tmp_path / "scenes").mkdir()
@@ -347,6 +347,8 @@ def test_pytest_physval_fails_the_items_whose_engine_crashed_or_hung_and_goes_on
             "-rA",
             "--physval",
             "scenes",
+            "-k",
+            "mini or hostile",  # RK4 is there for the scene's checks that name it
             "--job-timeout",
             str(TEST_TIMEOUT_S),
         ],
@@ -365,3 +367,33 @@ def test_pytest_physval_fails_the_items_whose_engine_crashed_or_hung_and_goes_on
     assert "FAILED scenes/projectile.yaml::hostile(mode=segfault)" in shown, shown[-3000:]
     assert "FAILED scenes/projectile.yaml::hostile(mode=hang)" in shown, shown[-3000:]
     assert "[crashed]" in shown and "[timed_out]" in shown, shown[-3000:]
+
+
+def _misbehaves(x: int) -> int:
+    """Job 1 hangs, job 2 segfaults, the others return their square."""
+    if x == 1:
+        time.sleep(3600)
+    if x == 2:
+        import ctypes
+
+        ctypes.string_at(0)
+    return x * x
+
+
+def test_on_a_dask_cluster_a_hang_and_a_segfault_are_the_same_statuses():
+    """``--scheduler local``: each job runs in a process of its own on its Dask worker, with
+    the same time limit and the same statuses as locally."""
+    pytest.importorskip("distributed")
+    from validation.jobs.executor import run_jobs
+
+    results = run_jobs(
+        _misbehaves,
+        [0, 1, 2, 3],
+        2,
+        scheduler="local",
+        lost=lambda job, status, message: (status, message),
+        job_timeout=TEST_TIMEOUT_S,
+    )
+    assert results[0] == 0 and results[3] == 9, results
+    assert results[1][0] == "timed_out", results[1]
+    assert results[2][0] == "crashed" and "SIGSEGV" in results[2][1], results[2]

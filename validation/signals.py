@@ -12,6 +12,7 @@ ignore all three (``ignore_in_worker``), since the main process stops them.
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -81,7 +82,12 @@ def deferred() -> Iterator[None]:
     moments a stop must not split, such as a process pool spawning its workers (a worker
     started but not yet registered could not be stopped, and printed a traceback once this
     process had gone). Python runs signal handlers in the main thread whichever thread the
-    signal reaches, so the held signal is recorded by a handler, not blocked by a mask."""
+    signal reaches, so the held signal is recorded by a handler, not blocked by a mask.
+    Outside the main thread (a job on a Dask worker's thread) it holds nothing: only the main
+    thread can set handlers, and it alone receives the signals."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     held: list[int] = []
     previous = {
         signum: signal.signal(signum, lambda number, _frame: held.append(number))

@@ -36,6 +36,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, as_completed
 from contextlib import closing
 from dataclasses import dataclass
+from functools import partial
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -152,7 +153,8 @@ def run_jobs(
         if scheduler is None:
             finished = BACKENDS["processes"](workers, None).results(fn, jobs, order, limit)
         else:
-            finished = _on_cluster(BACKENDS["dask"](workers, scheduler), fn, jobs, order)
+            executor = BACKENDS["dask"](workers, scheduler)
+            finished = _on_cluster(executor, fn, jobs, order, limit)
         with closing(finished):  # whatever ends the loop, every worker is stopped now
             for index, result in finished:
                 if isinstance(result, JobFailed) and lost is not None:
@@ -178,14 +180,22 @@ def submission_order(jobs: list[Any], cost: Callable[[Any], float] | None) -> li
 
 
 def _on_cluster(
-    executor: Executor, fn: Callable[[Any], Any], jobs: list[Any], order: list[int]
+    executor: Executor,
+    fn: Callable[[Any], Any],
+    jobs: list[Any],
+    order: list[int],
+    limit: Callable[[Any], float | None],
 ) -> Iterator[tuple[int, Any]]:
-    """(index, result) of each job as it finishes on the Dask cluster (``executor``); a job
-    the cluster failed even after its retries (its worker died: ``KilledWorker``) is
-    ``JobFailed`` (``crashed``, with Dask's reason)."""
+    """(index, result) of each job as it finishes on the Dask cluster (``executor``), each in
+    a process of its own on its worker (``isolated_call``: the same ``crashed`` and
+    ``timed_out`` as locally); a job the cluster failed even after its retries (its worker
+    died: ``KilledWorker``) is ``JobFailed`` (``crashed``, with Dask's reason)."""
     try:
         with deferred():  # a stop comes after every job is handed over
-            futures = {executor.submit(fn, jobs[index]): index for index in order}
+            futures = {
+                executor.submit(partial(isolated_call, fn, limit(jobs[index])), jobs[index]): index
+                for index in order
+            }
         for future in as_completed(futures):
             try:
                 result = future.result()
@@ -204,6 +214,22 @@ def failure_message(error: BaseException) -> str:
     text = str(error).strip().splitlines()
     detail = f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
     return f"the job failed on the Dask cluster after its retries ({detail})"
+
+
+def isolated_call(fn: Callable[[Any], Any], limit: float | None, job: Any) -> Any:
+    """``fn(job)`` in a worker process of a pool of one, forked from this one (a Dask
+    worker's task): its result, or ``JobFailed`` when it crashed or ran past ``limit`` s. A
+    Dask worker is a daemonic process, which ``multiprocessing`` forbids children (they
+    would outlive it): this one dies with it (``_die_with``), so the rule is lifted while it
+    starts."""
+    config = multiprocessing.current_process()._config
+    daemon = config.pop("daemon", None)
+    try:
+        ((_, result),) = IsolatedPool(1).results(fn, [job], [0], lambda _: limit)
+    finally:
+        if daemon is not None:
+            config["daemon"] = daemon
+    return result
 
 
 class IsolatedPool:
