@@ -346,12 +346,11 @@ def execute(
     cluster at ``scheduler``), all in plan order whatever order the jobs finished in.
     ``done``: the results already finished (``journal.finished()``), not run again; with a
     ``journal``, each new result is committed to it as it finishes (sweeps after the runs,
-    indexed after them), in this process whatever the backend. A job the cluster lost gets
-    its error rows in this run but is not committed: the cluster failed, not the job, so a
-    ``--resume`` of this run (killed later) runs it again. ``clock``: where each job's worker
-    seconds are added up (``PhaseClock.job``). ``job_timeout``: ``--job-timeout``
-    (``executor.time_limit``); a job that crashed or timed out gets its row and, like a lost
-    one, is not committed (``--resume`` runs it again)."""
+    indexed after them), in this process whatever the backend. A job that crashed, timed out
+    (``job_timeout``: ``--job-timeout``, ``executor.time_limit``) or that the cluster lost
+    gets its rows in this run but is not committed: an out-of-memory kill or a loaded
+    machine may not happen again, so a ``--resume`` of this run (killed later) runs it
+    again. ``clock``: where each job's worker seconds are added up (``PhaseClock.job``)."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     ids = job_ids(plan)
     done = dict(done or {})

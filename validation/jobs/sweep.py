@@ -900,9 +900,8 @@ def lost_sweep_job(
     job: tuple[Scenario, EngineSpec | None, list[float]], status: str, message: str
 ) -> list[dict]:
     """The rows of a sweep job that gave none (``executor.run_jobs``: it crashed or timed
-    out): ``status`` at
-    every dt of the grid and for each fitted order, per sweep metric (one row per metric for
-    a cross-check), so the lost job is seen where its rows would be."""
+    out): ``status`` at every dt of the grid and for each fitted order, per sweep metric (one
+    row per metric for a cross-check), so the lost job is seen where its rows would be."""
     scenario, spec, dts = job
     if spec is None:
         common = {"engine": HIGH_ACCURACY, "metric": "reference_cross_check"}
