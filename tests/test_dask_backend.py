@@ -321,8 +321,6 @@ class _LosesTheFirstJob(Executor):
     """A cluster that loses the first job submitted (``KilledWorker`` after its retries, as
     Dask reports it) and runs the others in this process."""
 
-    loses_workers = True
-
     def __init__(self):
         self.submitted = 0
 

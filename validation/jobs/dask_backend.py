@@ -21,7 +21,10 @@ fails:
   ``distributed.scheduler.allowed-failures`` (Dask's default 3).
 
 A job that still failed reaches ``run_jobs`` as an exception, and the command records it as
-an ``error`` row (its ``lost`` function, with Dask's reason); the run goes on. Dask's own log
+a ``crashed`` row (its ``lost`` function, with Dask's reason); the run goes on. (Each job
+runs in a process of its own on its worker, ``executor.isolated_call``: a job that
+segfaults, exits or hangs is its own ``crashed`` or ``timed_out`` result, and its worker
+lives on.) Dask's own log
 lines are silenced in this process and in a local cluster's workers (the reason is in the
 row): the run prints its progress and summary, not the cluster's chatter. A finished job's
 result lives on its worker until this process fetches it; a worker lost before that makes
@@ -95,9 +98,6 @@ class DaskExecutor(Executor):
     """Jobs as Dask tasks on ``client``'s cluster; ``cluster`` (a LocalCluster this backend
     started) is closed with it."""
 
-    loses_workers = True
-    """A worker may die mid-job: ``run_jobs`` asks the command for the job's error result."""
-
     def __init__(self, client: Any, cluster: LocalClusterProcess | None = None):
         self._client = client
         self._cluster = cluster
@@ -162,7 +162,7 @@ class LocalClusterProcess:
 
 
 def quiet_dask_logs() -> None:
-    """Dask's log lines off in this process: what a lost job says is in its error row."""
+    """Dask's log lines off in this process: what a lost job says is in its row."""
     for name in ("distributed", "dask"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
