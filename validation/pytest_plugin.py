@@ -66,10 +66,7 @@ JOB_TIMEOUT_DEST = "physval_job_timeout"
 
 def _job_timeout(node) -> float | None:
     """``--job-timeout`` of the session ``node`` belongs to (None: derived, ``time_limit``)."""
-    value = node.config.getoption(JOB_TIMEOUT_DEST)
-    if value is not None and not value >= 0:
-        raise pytest.UsageError(f"{JOB_TIMEOUT_OPTION}: expected seconds >= 0; got {value}")
-    return value
+    return node.config.getoption(JOB_TIMEOUT_DEST)
 
 
 CONFORMANCE_OPTION = "--physval-conformance"
@@ -146,6 +143,12 @@ class ConformanceCollector:
 def pytest_configure(config: pytest.Config) -> None:
     """With ``--physval``: collect the scene paths and register the collector; with
     ``--physval-conformance``: register the conformance items."""
+    timeout = config.getoption(JOB_TIMEOUT_DEST)
+    if timeout is not None and not 0 <= timeout < float("inf"):
+        raise pytest.UsageError(
+            f"{JOB_TIMEOUT_OPTION}: expected a number of seconds >= 0 (0: no time limit); "
+            f"got {timeout}"
+        )
     specs = config.getoption(CONFORMANCE_DEST)
     if specs:
         config.pluginmanager.register(ConformanceCollector(specs), "physval-conformance")
