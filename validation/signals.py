@@ -61,22 +61,6 @@ def ignore_in_worker() -> None:
 
 
 @contextmanager
-def ignored_while_starting_helpers() -> Iterator[None]:
-    """Ignore every stop signal while helper processes are started (multiprocessing's fork
-    server and resource tracker): an ignored signal stays ignored across ``exec`` (Python
-    installs its Ctrl-C handler only where SIGINT was not ignored), so they live on through
-    a stop signal sent to the whole process group and end when this process does. A fork
-    server hit by Ctrl-C while importing its preload printed a traceback; a resource tracker
-    killed by SIGHUP was relaunched and printed tracebacks."""
-    previous = {signum: signal.signal(signum, signal.SIG_IGN) for signum in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-
-
-@contextmanager
 def deferred() -> Iterator[None]:
     """Hold every stop signal until the block ends, then stop as it would have: for the
     moments a stop must not split, such as a process pool spawning its workers (a worker
