@@ -80,9 +80,10 @@ def _dies_on_three(x: int) -> int:
     return x * x
 
 
-def test_a_job_that_kills_its_worker_twice_becomes_its_lost_result():
-    """The job's worker dies, the job is given to another worker, that one dies too: the job
-    gets the command's ``lost`` result (an error row) and every other job its own."""
+def test_a_job_that_ends_its_process_becomes_its_lost_result():
+    """The job ends its process (on its Dask worker, a process of its own: the worker lives
+    on): the job gets the command's ``lost`` result (a ``crashed`` row naming the exit code)
+    and every other job its own."""
     finished: list[int] = []
     results = run_jobs(
         _dies_on_three,
@@ -90,12 +91,12 @@ def test_a_job_that_kills_its_worker_twice_becomes_its_lost_result():
         2,
         lambda index, _: finished.append(index),
         scheduler="local",
-        lost=lambda job, message: ("lost", job, message),
+        lost=lambda job, status, message: ("lost", job, status, message),
     )
     assert results[:3] == [0, 1, 4] and results[4:] == [16, 25]
-    kind, job, message = results[3]
-    assert (kind, job) == ("lost", 3)
-    assert "KilledWorker" in message, message
+    kind, job, status, message = results[3]
+    assert (kind, job, status) == ("lost", 3, "crashed")
+    assert "exited with code 1" in message, message
     assert sorted(finished) == list(range(6))
 
 
@@ -213,7 +214,7 @@ def test_a_worker_killed_mid_run_costs_a_retry_not_the_run(tmp_path, cluster):
     assert "Traceback" not in output, output
     rows = pd.read_csv(out / "results.csv")
     assert set(rows.scenario) == {Path(p).stem for p in FOUR_SCENES}, sorted(set(rows.scenario))
-    lost = rows[rows.status == "error"]
+    lost = rows[rows.status == "crashed"]
     if becomes == "retried":
         assert lost.empty, lost[["scenario", "engine", "message"]]
     else:
@@ -320,8 +321,6 @@ class _LosesTheFirstJob(Executor):
     """A cluster that loses the first job submitted (``KilledWorker`` after its retries, as
     Dask reports it) and runs the others in this process."""
 
-    loses_workers = True
-
     def __init__(self):
         self.submitted = 0
 
@@ -343,7 +342,7 @@ def test_a_job_the_cluster_lost_is_an_error_row_and_runs_again_on_resume(tmp_pat
     monkeypatch.setitem(BACKENDS, "dask", lambda workers, scheduler: _LosesTheFirstJob())
     journal = Journal.create(tmp_path / "journal", {"run": "test"}, JOURNAL_SCHEMA)
     first = execute(plan, 2, journal, scheduler="tcp://lossy:8786")
-    lost = [run for run in first.runs if run.status == "error"]
+    lost = [run for run in first.runs if run.status == "crashed"]
     assert [run.engine for run in lost] == ["mini"], [(r.engine, r.status) for r in first.runs]
     assert "KilledWorker" in lost[0].message, lost[0].message
     committed = journal.finished(job_ids(plan))

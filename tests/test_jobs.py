@@ -155,18 +155,18 @@ def test_the_longest_jobs_are_handed_out_first_and_results_keep_job_order():
 
 def test_a_pool_receives_the_jobs_longest_first(monkeypatch):
     """What the pool is handed, in order: ``run_jobs`` with a cost submits by it."""
-    from concurrent.futures import Future
-
     from validation.jobs import executor
 
-    handed: list[int] = []
+    handed: list[list[int]] = []
 
-    class Recording(executor.SerialExecutor):
-        def submit(self, fn, /, *args, **kwargs) -> Future:
-            handed.append(args[0])
-            return super().submit(fn, *args, **kwargs)
+    class Recording(executor.IsolatedPool):
+        def results(self, fn, jobs, order, limit):
+            handed.append([jobs[index] for index in order])
+            return super().results(fn, jobs, order, limit)
 
-    monkeypatch.setitem(executor.BACKENDS, "processes", lambda workers, scheduler: Recording())
+    monkeypatch.setitem(
+        executor.BACKENDS, "processes", lambda workers, scheduler: Recording(workers)
+    )
     results = run_jobs(_square, [3, 9, 1, 7], 2, cost=float)
-    assert handed == [9, 7, 3, 1]
+    assert handed == [[9, 7, 3, 1]]
     assert results == [9, 81, 1, 49]

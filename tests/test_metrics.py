@@ -57,14 +57,16 @@ def context(scenario, pos, vel, impacts=()) -> Context:
 
 def test_energy_drift_by_hand():
     """m = 2 kg, no gravity: speeds 1, 1, 1.1 m/s give E = 1, 1, 1.21 J: ΔE = 0.21 J over
-    E_scale = the largest kinetic energy, 1.21 J (no gravity: no weight term)."""
+    E_scale = the largest internal energy (no gravity: no weight term). One free body has no
+    kinetic energy about its centre of mass (no spin); its centre of mass's change of motion,
+    ½ m |v(t) - v(0)|², is 0, 2, 0.01 J (v turns from x to y): E_scale = 2 J."""
     ctx = context(scene(gravity=[0, 0, 0]), [[0, 0, 0]] * 3, [[1, 0, 0], [0, 1, 0], [1.1, 0, 0]])
     result = METRICS["energy_drift"](ctx)
-    assert result.value == pytest.approx(0.21 / 1.21) and result.error == result.value
-    assert result.signed == pytest.approx((0.21 / 1.21,)), "energy gained: a positive sign"
+    assert result.value == pytest.approx(0.21 / 2.0) and result.error == result.value
+    assert result.signed == pytest.approx((0.21 / 2.0,)), "energy gained: a positive sign"
     # value the measured drift, expected its target 0, error the difference
     assert result.expected == 0.0 and result.expected_kind == "conserved"
-    assert "0.21 J" in result.message and "1.21 J" in result.message, result.message
+    assert "0.21 J" in result.message and "E_scale 2 J" in result.message, result.message
 
 
 def test_energy_drift_scale_is_kinetic_plus_weight_times_size():
@@ -165,7 +167,8 @@ def test_measure_lists_only_definable_metrics_for_a_free_body():
 
 def test_angular_momentum_drift_by_hand():
     """Two 2 kg spheres at x = ±1 m moving ±1 m/s along y: L about their centre = 4 kg·m²/s
-    along z; moving them to ±1.1 m/s gives 4.4: drift 0.1."""
+    along z; moving them to ±1.1 m/s gives 4.4: ΔL = 0.4 over the scale, the largest sum of
+    the bodies' own |L| over the run (2.2 + 2.2 = 4.4): drift 1/11."""
     two = scene(
         gravity=[0, 0, 0],
         bodies=[
@@ -189,8 +192,8 @@ def test_angular_momentum_drift_by_hand():
         np.array([0.0, 0.1]), pos, np.tile([1.0, 0, 0, 0], (2, 2, 1)), vel, np.zeros_like(vel)
     )
     result = METRICS["angular_momentum_drift"](recorded(two, traj))
-    assert result.value == pytest.approx(0.1) and result.expected == 0.0
-    assert "|initial value| 4" in result.message, result.message
+    assert result.value == pytest.approx(0.4 / 4.4) and result.expected == 0.0
+    assert "without cancellation 4.4" in result.message, result.message
 
 
 def test_penetration_max_is_the_deepest_overlap_over_the_samples():

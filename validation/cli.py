@@ -66,6 +66,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.history,
         args.scheduler,
         clock,
+        args.job_timeout,
     )
 
 
@@ -87,6 +88,7 @@ def command_stability(args: argparse.Namespace) -> int:
         args.out,
         args.jobs,
         args.scheduler,
+        args.job_timeout,
     )
 
 
@@ -102,6 +104,7 @@ def command_sweep(args: argparse.Namespace) -> int:
         args.jobs,
         args.out,
         args.scheduler,
+        args.job_timeout,
     )
 
 
@@ -137,7 +140,7 @@ def command_conformance(args: argparse.Namespace) -> int:
     """Check an engine adapter against the adapter contract; 0 all pass, 1 one fails, 2 bad input."""
     from validation.jobs.conformance import conformance_main
 
-    return conformance_main(args.engine, args.only)
+    return conformance_main(args.engine, args.only, args.job_timeout)
 
 
 def command_schema(args: argparse.Namespace) -> int:
@@ -292,8 +295,36 @@ def _positive_count(text: str) -> int:
     return value
 
 
+def _seconds_or_zero(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (0 <= value < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"expected a number of seconds >= 0 (0: no time limit); got {text!r}"
+        )
+    return value
+
+
+def _job_timeout_argument(command: argparse.ArgumentParser) -> None:
+    """--job-timeout: each job's time limit (run, sweep, stability, conformance)."""
+    from validation.jobs.executor import JOB_TIMEOUT_FACTOR, JOB_TIMEOUT_FLOOR_S
+
+    command.add_argument(
+        "--job-timeout",
+        type=_seconds_or_zero,
+        metavar="SECONDS",
+        help="each job's time limit, for its engine's import, advance and close alike: a job "
+        "past it is stopped and its row is timed_out (exit 1); default: "
+        f"{JOB_TIMEOUT_FACTOR:g} x the job's expected time (from its steps and bodies), at "
+        f"least {JOB_TIMEOUT_FLOOR_S:g} s; 0: no limit",
+    )
+
+
 def _jobs_argument(command: argparse.ArgumentParser) -> None:
-    """--jobs and --scheduler: where the jobs run (run, sweep, stability)."""
+    """--jobs, --scheduler and --job-timeout: where the jobs run (run, sweep, stability)."""
+    _job_timeout_argument(command)
     command.add_argument(
         "--jobs",
         type=_positive_count,
@@ -341,6 +372,7 @@ def _conformance_arguments(command: argparse.ArgumentParser) -> None:
         metavar="CHECK",
         help=f"run only this check (repeatable): {', '.join(CONFORMANCE_CHECKS)}",
     )
+    _job_timeout_argument(command)
 
 
 def _db_argument(command: argparse.ArgumentParser) -> None:

@@ -94,6 +94,11 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
     "model_mismatch": "the engine's model differs from the scenario (the message names the "
     "quantity and both values); the engine was not run",
     "error": "the engine raised; the message carries the exception",
+    "crashed": "the engine's process died or exited mid-job (a segfault, an abort, an "
+    "out-of-memory kill, sys.exit); the message names the signal or exit code; the other jobs "
+    "ran on",
+    "timed_out": "the job ran past its time limit (--job-timeout) and was stopped; the other "
+    "jobs ran on",
     "unsupported": "the engine cannot represent something the scene or metric needs",
     "not_installed": "the scene names an engine whose package is not installed here (the "
     "message says how to install it); the engine was not run",
@@ -118,13 +123,19 @@ NOT_JUDGED_STATUSES = ("unsupported", "not_installed")
 """Row statuses of a scene not run in an engine for a reason that is no fault of the engine:
 never judged (``passed`` empty), never failing a run, always shown."""
 
-BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error")
+RUN_FAILURE_STATUSES = ("error", "crashed", "timed_out", "model_mismatch", "unstable")
+"""Row statuses of a run that produced no trustworthy numbers (the report shows the word, a
+JUnit case and a pytest item are an error): the engine raised, its process died, it ran past
+its time limit, it built another model, or it went unstable."""
+
+BAD_STATUSES = ("failed", "unstable", "model_mismatch", "error", "crashed", "timed_out")
 """Row statuses that fail a row; ``physval run`` exits 1 on such a row unless it is a known
 finding of its scene or, against a baseline, failed there too (``nightly.baseline``)."""
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 """physval's exit codes: nothing regressed and no new failure; a regression or a new failure
-(a failed check or an unstable, errored or mismatched run that is not known); bad input."""
+(a failed check or an unstable, errored, crashed, timed-out or mismatched run that is not
+known); bad input."""
 
 BASELINE_CLASSES = (
     "regressed",

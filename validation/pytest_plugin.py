@@ -3,7 +3,8 @@
 One item per (scene, engine spec), node id ``<scene file>::<spec label>`` (e.g.
 ``scenarios/formulas/projectile.yaml::mujoco(integrator=RK4)``). An item runs its job in the
 pytest process as ``physval run`` does (``run_job``, ``compare_scene``, ``apply_known``); it
-fails when a row of its case is bad (failed, unstable, model_mismatch, error), showing each
+fails when a row of its case is bad (failed, unstable, model_mismatch, error, crashed,
+timed_out: the job runs in a worker process, ``--job-timeout`` its time limit), showing each
 such row against its tolerance; a case whose every bad row is a known finding is xfail
 (strict=False: a known finding that passes again reads XPASS, not a failure). ``-k``, ``-x``,
 ``--junitxml`` and pytest-xdist's ``-n`` work as for any test.
@@ -47,6 +48,25 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "library), one test per (scene, engine spec)",
     )
     _add_conformance_option(group)
+    group.addoption(
+        JOB_TIMEOUT_OPTION,
+        type=float,
+        default=None,
+        dest=JOB_TIMEOUT_DEST,
+        metavar="SECONDS",
+        help="each scene item's and conformance check's time limit (physval run "
+        "--job-timeout: default derived from the job's expected time; 0: none); an item "
+        "past it, or whose engine crashed, fails with status timed_out or crashed",
+    )
+
+
+JOB_TIMEOUT_OPTION = "--job-timeout"
+JOB_TIMEOUT_DEST = "physval_job_timeout"
+
+
+def _job_timeout(node) -> float | None:
+    """``--job-timeout`` of the session ``node`` belongs to (None: derived, ``time_limit``)."""
+    return node.config.getoption(JOB_TIMEOUT_DEST)
 
 
 CONFORMANCE_OPTION = "--physval-conformance"
@@ -85,9 +105,9 @@ class ConformanceItem(pytest.Item):
         self.spec, self.check = spec, check
 
     def runtest(self) -> None:
-        from validation.jobs.conformance import run_conformance
+        from validation.jobs.conformance import isolated_conformance
 
-        (result,) = run_conformance(self.spec, [self.check])
+        (result,) = isolated_conformance(self.spec, [self.check], _job_timeout(self))
         if not result.passed:
             raise ConformanceFailedError(
                 "\n".join([f"{self.spec} {self.check}:", *result.problems])
@@ -123,6 +143,12 @@ class ConformanceCollector:
 def pytest_configure(config: pytest.Config) -> None:
     """With ``--physval``: collect the scene paths and register the collector; with
     ``--physval-conformance``: register the conformance items."""
+    timeout = config.getoption(JOB_TIMEOUT_DEST)
+    if timeout is not None and not 0 <= timeout < float("inf"):
+        raise pytest.UsageError(
+            f"{JOB_TIMEOUT_OPTION}: expected a number of seconds >= 0 (0: no time limit); "
+            f"got {timeout}"
+        )
     specs = config.getoption(CONFORMANCE_DEST)
     if specs:
         config.pluginmanager.register(ConformanceCollector(specs), "physval-conformance")
@@ -203,11 +229,22 @@ class SceneFile(pytest.File):
             yield item
 
     def job(self, index: int) -> tuple:
-        """(run, measurements) of the spec at ``index``, run once per process."""
-        from validation.jobs.run import run_job
+        """(run, measurements) of the spec at ``index``, run once per process, in a worker
+        process of its own (``executor.run_jobs``): an engine that crashes or hangs fails its
+        item (``crashed``, ``timed_out``), never the session."""
+        from validation.jobs.executor import run_jobs
+        from validation.jobs.plan import expected_cost
+        from validation.jobs.run import lost_run, run_job
 
         if index not in self._done:
-            self._done[index] = run_job((self.scene, self.specs[index]))
+            (self._done[index],) = run_jobs(
+                run_job,
+                [(self.scene, self.specs[index])],
+                1,
+                lost=lost_run,
+                cost=lambda job: expected_cost(job[0].scenario),
+                job_timeout=_job_timeout(self),
+            )
         return self._done[index]
 
     def rows(self, index: int) -> list[dict]:

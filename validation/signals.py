@@ -12,6 +12,7 @@ ignore all three (``ignore_in_worker``), since the main process stops them.
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -60,28 +61,17 @@ def ignore_in_worker() -> None:
 
 
 @contextmanager
-def ignored_while_starting_helpers() -> Iterator[None]:
-    """Ignore every stop signal while helper processes are started (multiprocessing's fork
-    server and resource tracker): an ignored signal stays ignored across ``exec`` (Python
-    installs its Ctrl-C handler only where SIGINT was not ignored), so they live on through
-    a stop signal sent to the whole process group and end when this process does. A fork
-    server hit by Ctrl-C while importing its preload printed a traceback; a resource tracker
-    killed by SIGHUP was relaunched and printed tracebacks."""
-    previous = {signum: signal.signal(signum, signal.SIG_IGN) for signum in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-
-
-@contextmanager
 def deferred() -> Iterator[None]:
     """Hold every stop signal until the block ends, then stop as it would have: for the
     moments a stop must not split, such as a process pool spawning its workers (a worker
     started but not yet registered could not be stopped, and printed a traceback once this
     process had gone). Python runs signal handlers in the main thread whichever thread the
-    signal reaches, so the held signal is recorded by a handler, not blocked by a mask."""
+    signal reaches, so the held signal is recorded by a handler, not blocked by a mask.
+    Outside the main thread (a job on a Dask worker's thread) it holds nothing: only the main
+    thread can set handlers, and it alone receives the signals."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     held: list[int] = []
     previous = {
         signum: signal.signal(signum, lambda number, _frame: held.append(number))

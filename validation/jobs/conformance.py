@@ -48,7 +48,8 @@ from validation.engines.base import Snapshot
 from validation.engines.parity import PRECISION_TOLERANCE, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
-from validation.measure.runner import run_engine
+from validation.jobs.executor import run_jobs
+from validation.measure.runner import raised_message, run_engine
 from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import Scenario
 from validation.scenario.compiled import CompiledScene, compile_scene
@@ -733,7 +734,19 @@ def run_check(subject: Subject, name: str) -> CheckResult:
     try:
         return CHECKS[name](subject)
     except Exception as error:
-        return CheckResult(name, (f"raised {type(error).__name__}: {error}",))
+        return CheckResult(name, (f"raised {raised_message(error)}",))
+
+
+def _isolated_check(job: tuple[str, str]) -> CheckResult:
+    """One check of the engine spec ``text`` (``job``: text, check name), in a worker."""
+    text, name = job
+    return run_check(subject_of(text), name)
+
+
+def _lost_check(job: tuple[str, str], status: str, message: str) -> CheckResult:
+    """A check whose process crashed or ran past its time limit (``executor.run_jobs``): a
+    failure naming which."""
+    return CheckResult(job[1], (f"{status}: {message}",))
 
 
 def run_conformance(text: str, only: list[str] | None = None) -> list[CheckResult]:
@@ -742,8 +755,28 @@ def run_conformance(text: str, only: list[str] | None = None) -> list[CheckResul
     return [run_check(subject, name) for name in (only or CHECKS)]
 
 
-def conformance_main(text: str, only: list[str] | None = None) -> int:
-    """Print one line per check; 0 all pass, 1 one fails, 2 bad input."""
+def isolated_conformance(
+    text: str,
+    only: list[str] | None = None,
+    job_timeout: float | None = None,
+    on_result: Callable[[int, CheckResult], None] | None = None,
+) -> list[CheckResult]:
+    """``run_conformance``, each check in a worker process of its own (``executor.run_jobs``):
+    one that crashes or runs past ``job_timeout`` (``--job-timeout``) fails with that status;
+    ``on_result(index, result)`` as each finishes."""
+    checks = [(text, name) for name in only or CHECKS]
+    return run_jobs(
+        _isolated_check, checks, 1, on_result, lost=_lost_check, job_timeout=job_timeout
+    )
+
+
+def conformance_main(
+    text: str, only: list[str] | None = None, job_timeout: float | None = None
+) -> int:
+    """Print one line per check; 0 all pass, 1 one fails, 2 bad input. Each check runs in a
+    worker process of its own (``executor.run_jobs``): an adapter that crashes, exits or
+    hangs fails that check (``crashed``, ``timed_out``: ``job_timeout`` is
+    ``--job-timeout``) and the others still run."""
     unknown = [name for name in only or [] if name not in CHECKS]
     if unknown:
         print(
@@ -755,13 +788,13 @@ def conformance_main(text: str, only: list[str] | None = None) -> int:
     except EngineSpecError as error:
         print(f"conformance {text}: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    results = []
-    for name in only or CHECKS:
-        result = run_check(subject, name)
-        results.append(result)
-        print(f"{'pass' if result.passed else 'FAIL'} {name}: {result.detail}", flush=True)
+
+    def shown(_: int, result: CheckResult) -> None:
+        print(f"{'pass' if result.passed else 'FAIL'} {result.name}: {result.detail}", flush=True)
         for problem in result.problems:
             print(f"     {problem}", flush=True)
+
+    results = isolated_conformance(text, only, job_timeout, shown)
     failed = [r.name for r in results if not r.passed]
     summary = f"conformance of {subject.spec.label}: {len(results) - len(failed)} of {len(results)} checks pass"
     print(summary + (f" (failing: {', '.join(failed)})" if failed else ""))

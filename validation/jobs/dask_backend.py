@@ -21,7 +21,10 @@ fails:
   ``distributed.scheduler.allowed-failures`` (Dask's default 3).
 
 A job that still failed reaches ``run_jobs`` as an exception, and the command records it as
-an ``error`` row (its ``lost`` function, with Dask's reason); the run goes on. Dask's own log
+a ``crashed`` row (its ``lost`` function, with Dask's reason); the run goes on. (Each job
+runs in a process of its own on its worker, ``executor.isolated_call``: a job that
+segfaults, exits or hangs is its own ``crashed`` or ``timed_out`` result, and its worker
+lives on.) Dask's own log
 lines are silenced in this process and in a local cluster's workers (the reason is in the
 row): the run prints its progress and summary, not the cluster's chatter. A finished job's
 result lives on its worker until this process fetches it; a worker lost before that makes
@@ -35,11 +38,15 @@ import logging
 import os
 import select
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import tempfile
+import time
 from concurrent.futures import Executor, Future
 from typing import IO, Any
+from urllib.parse import urlsplit
 
 
 class BackendError(Exception):
@@ -51,7 +58,16 @@ RETRIES = 1
 """Dask ``retries=``: a job that raised is run once more before it counts as failed."""
 
 CONNECT_TIMEOUT_S = 30
-"""How long to wait for the scheduler at ``--scheduler ADDRESS`` to answer."""
+"""How long to wait for the scheduler at ``--scheduler ADDRESS`` to answer, its handshake
+included (Dask's ``distributed.comm.timeouts.connect``, 30 s by default)."""
+
+MAX_HANDSHAKE_BYTES = 1 << 20
+"""The largest first message a scheduler may announce (a real one's handshake is a few
+hundred bytes): Dask allocates whatever a server announces, so a larger one is refused
+before Dask reads it."""
+
+HANDSHAKE_HEADER = struct.Struct("<Q")
+"""The first 8 bytes a Dask comm sends: the length of its first message (``distributed.comm.tcp``)."""
 
 LOCAL_CLUSTER_COMMAND = [sys.executable, "-m", "validation.jobs.local_cluster"]
 """The local cluster's process, given its number of workers (``local_cluster.serve``)."""
@@ -81,9 +97,6 @@ def distributed_missing() -> str:
 class DaskExecutor(Executor):
     """Jobs as Dask tasks on ``client``'s cluster; ``cluster`` (a LocalCluster this backend
     started) is closed with it."""
-
-    loses_workers = True
-    """A worker may die mid-job: ``run_jobs`` asks the command for the job's error result."""
 
     def __init__(self, client: Any, cluster: LocalClusterProcess | None = None):
         self._client = client
@@ -149,9 +162,46 @@ class LocalClusterProcess:
 
 
 def quiet_dask_logs() -> None:
-    """Dask's log lines off in this process: what a lost job says is in its error row."""
+    """Dask's log lines off in this process: what a lost job says is in its row."""
     for name in ("distributed", "dask"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def dask_config(settings: dict[str, object]) -> Any:
+    import dask
+
+    return dask.config.set(settings)
+
+
+def check_handshake(scheduler: str) -> None:
+    """For a ``tcp://`` address (or ``host:port``), that what answers there begins Dask's
+    handshake within ``CONNECT_TIMEOUT_S`` (a scheduler speaks first: the length of its
+    handshake message) and announces at most ``MAX_HANDSHAKE_BYTES``; ``TimeoutError`` or
+    ``ValueError`` saying which otherwise (an HTTP server says nothing; a hostile one may
+    announce a huge message, which Dask would allocate). Other schemes are left to Dask."""
+    parts = urlsplit(scheduler if "://" in scheduler else f"tcp://{scheduler}")
+    if parts.scheme != "tcp" or parts.hostname is None or parts.port is None:
+        return
+    deadline = time.monotonic() + CONNECT_TIMEOUT_S
+    with socket.create_connection((parts.hostname, parts.port), CONNECT_TIMEOUT_S) as probe:
+        header = b""
+        while len(header) < HANDSHAKE_HEADER.size:
+            probe.settimeout(max(0.01, deadline - time.monotonic()))
+            try:
+                chunk = probe.recv(HANDSHAKE_HEADER.size - len(header))
+            except TimeoutError:
+                raise TimeoutError(
+                    f"no Dask handshake within {CONNECT_TIMEOUT_S} s: not a Dask scheduler"
+                ) from None
+            if not chunk:
+                raise ValueError("the server closed the connection: not a Dask scheduler")
+            header += chunk
+    (size,) = HANDSHAKE_HEADER.unpack(header)
+    if size > MAX_HANDSHAKE_BYTES:
+        raise ValueError(
+            f"the server announced a {size}-byte handshake (at most {MAX_HANDSHAKE_BYTES}): "
+            "not a Dask scheduler"
+        )
 
 
 def dask_executor(workers: int, scheduler: str) -> DaskExecutor:
@@ -171,7 +221,9 @@ def dask_executor(workers: int, scheduler: str) -> DaskExecutor:
             cluster.stop()
             raise
     try:
-        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        check_handshake(scheduler)
+        with dask_config({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT_S}s"}):
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
     except (OSError, TimeoutError, ValueError) as error:
         raise BackendError(
             f"--scheduler {scheduler}: no Dask scheduler answered ({type(error).__name__}: "

@@ -38,7 +38,7 @@ behind it."""
 
 def serve(workers: int) -> None:
     """Start the cluster (each worker imports the job modules, ``executor.WORKER_PRELOAD``,
-    as it starts, like the local pool's fork server), print its address, hold it until stdin
+    as it starts), print its address, hold it until stdin
     closes, close it."""
     import dask
     from distributed import LocalCluster
@@ -51,7 +51,7 @@ def serve(workers: int) -> None:
             processes=True,
             dashboard_address=None,
             silence_logs=logging.CRITICAL,
-            preload=WORKER_PRELOAD,  # imported as each worker starts (the pool's fork server)
+            preload=WORKER_PRELOAD,  # imported as each worker starts
         )
     try:
         print(cluster.scheduler_address, flush=True)

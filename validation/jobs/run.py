@@ -297,14 +297,22 @@ def _cost(job: tuple[str, tuple]) -> float:
     return expected_cost(scene.scenario)
 
 
-def _lost(job: tuple[str, tuple], message: str) -> object:
-    """The result recorded for a job the cluster lost (``executor.run_jobs``): an engine run
-    with status ``error``, or the sweep's error rows."""
+def _lost(job: tuple[str, tuple], status: str, message: str) -> object:
+    """The result recorded for a job that gave none (``executor.run_jobs``: it crashed or
+    timed out): an engine run with that status, or the sweep's rows of it."""
     kind, payload = job
     if kind == "sweep":
-        return lost_sweep_job(payload, message)
-    scene, spec = payload
-    return EngineRun(scene.name, spec.label, "error", message), []
+        return lost_sweep_job(payload, status, message)
+    return lost_run(payload, status, message)
+
+
+def lost_run(
+    job: tuple[CompiledScene, EngineSpec], status: str, message: str
+) -> tuple[EngineRun, list[Measurement]]:
+    """A (scene, engine) run that gave no result (``executor.run_jobs``): its ``status``
+    (``crashed``, ``timed_out``) and why, nothing measured."""
+    scene, spec = job
+    return EngineRun(scene.name, spec.label, status, message), []
 
 
 @dataclasses.dataclass
@@ -332,24 +340,26 @@ def execute(
     done: dict | None = None,
     scheduler: str | None = None,
     clock: PhaseClock | None = None,
+    job_timeout: float | None = None,
 ) -> Executed:
     """Run every (scene, engine) and every scene's sweep on ``jobs`` workers (or on the Dask
     cluster at ``scheduler``), all in plan order whatever order the jobs finished in.
     ``done``: the results already finished (``journal.finished()``), not run again; with a
     ``journal``, each new result is committed to it as it finishes (sweeps after the runs,
-    indexed after them), in this process whatever the backend. A job the cluster lost gets
-    its error rows in this run but is not committed: the cluster failed, not the job, so a
-    ``--resume`` of this run (killed later) runs it again. ``clock``: where each job's worker
-    seconds are added up (``PhaseClock.job``)."""
+    indexed after them), in this process whatever the backend. A job that crashed, timed out
+    (``job_timeout``: ``--job-timeout``, ``executor.time_limit``) or that the cluster lost
+    gets its rows in this run but is not committed: an out-of-memory kill or a loaded
+    machine may not happen again, so a ``--resume`` of this run (killed later) runs it
+    again. ``clock``: where each job's worker seconds are added up (``PhaseClock.job``)."""
     work = [("run", job) for job in plan.jobs] + [("sweep", job) for job in _sweep_work(plan)]
     ids = job_ids(plan)
     done = dict(done or {})
     todo = [index for index in range(len(work)) if index not in done]
-    lost_jobs: list[tuple] = []  # the cluster lost them: their error rows are not journaled
+    lost_jobs: list[tuple] = []  # crashed, timed out or lost: their rows are not journaled
 
-    def lost(job: tuple, message: str) -> tuple[float, object]:
+    def lost(job: tuple, status: str, message: str) -> tuple[float, object]:
         lost_jobs.append(job)
-        return 0.0, _lost(job, message)
+        return 0.0, _lost(job, status, message)
 
     def finished(position: int, timed: tuple[float, object]) -> None:
         seconds, result = timed
@@ -367,7 +377,16 @@ def execute(
         )
 
     with Progress(len(todo)) as progress:
-        run_jobs(_timed, [work[index] for index in todo], jobs, finished, scheduler, lost, _cost)
+        run_jobs(
+            _timed,
+            [work[index] for index in todo],
+            jobs,
+            finished,
+            scheduler,
+            lost,
+            _cost,
+            job_timeout,
+        )
     rows, series, impacts, all_runs = [], [], [], []
     position = 0
     for scene, specs in plan.scenes:
@@ -634,18 +653,19 @@ def _finish(
     scheduler: str | None = None,
     keep_copy: bool | None = None,
     clock: PhaseClock | None = None,
+    job_timeout: float | None = None,
 ) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code.
     ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``).
     ``clock``: the clock that times the phases (printed on stderr at the end when it is
-    ``shown``: ``--timings``)."""
+    ``shown``: ``--timings``). ``job_timeout``: ``--job-timeout``."""
     clock = PhaseClock() if clock is None else clock
     with clock.phase("planning"):
         options = request.nightly()
         done = _journaled(journal, plan)
     resumed = len(done)
     with clock.phase("jobs"):
-        executed = execute(plan, jobs, journal, done, scheduler, clock)  # Ctrl-C: Interrupted
+        executed = execute(plan, jobs, journal, done, scheduler, clock, job_timeout)  # Ctrl-C
     with clock.phase("write"):
         rows, comparison = _written(output, plan, request, executed, options, resumed)
     with clock.phase("report"):
@@ -711,7 +731,16 @@ def _written(
     return rows, comparison
 
 
-RUN_STATUSES = ("ok", "model_mismatch", "unstable", "error", "unsupported", "not_installed")
+RUN_STATUSES = (
+    "ok",
+    "model_mismatch",
+    "unstable",
+    "error",
+    "crashed",
+    "timed_out",
+    "unsupported",
+    "not_installed",
+)
 """An engine run's statuses (``validation.measure.runner``)."""
 
 RECORDED_STATUSES = ("ok", "unstable")
@@ -791,6 +820,7 @@ def run_main(
     history: str | None = None,
     scheduler: str | None = None,
     clock: PhaseClock | None = None,
+    job_timeout: float | None = None,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
@@ -800,7 +830,7 @@ def run_main(
     clock = PhaseClock() if clock is None else clock
     try:
         if resume is not None:
-            return _resume_main(resume, jobs, scheduler, junit, history, clock)
+            return _resume_main(resume, jobs, scheduler, junit, history, clock, job_timeout)
         with clock.phase("planning"):
             request, plan = _planned(paths, engines, out, dt, only, argv, baseline, junit, history)
             if scheduler is None:  # on a cluster the workers' memory is the cluster's
@@ -809,7 +839,16 @@ def run_main(
             with clock.phase("planning"):
                 header = _header(request, plan)
                 journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
-            return _finish(output, journal, plan, request, jobs, scheduler, clock=clock)
+            return _finish(
+                output,
+                journal,
+                plan,
+                request,
+                jobs,
+                scheduler,
+                clock=clock,
+                job_timeout=job_timeout,
+            )
     except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -847,6 +886,7 @@ def _resume_main(
     junit: str | None = None,
     history: str | None = None,
     clock: PhaseClock | None = None,
+    job_timeout: float | None = None,
 ) -> int:
     """``--resume DIR``: the journal read, its header checked and its request run writing only
     to DIR and to this command line's ``junit`` and ``history``, before any work."""
@@ -861,4 +901,6 @@ def _resume_main(
             if scheduler is None:
                 check_memory(plan, jobs, _sample_every)
         keep_copy = journal.header["request"]["out"] is None
-        return _finish(output, journal, plan, request, jobs, scheduler, keep_copy, clock)
+        return _finish(
+            output, journal, plan, request, jobs, scheduler, keep_copy, clock, job_timeout
+        )

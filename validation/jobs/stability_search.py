@@ -97,6 +97,11 @@ the cost of a probe, and a scheme that is unstable 16 times below the author's s
 unstable for the scene's purposes (explicit Euler on an undamped spring grows as
 exp(ω² dt t): at any fixed dt it explodes given time, so "every dt tried" is the finding)."""
 
+SEARCH_COST_RUNS = 2 * SEARCH_DOWN + MAX_BISECTIONS
+"""A search's expected cost in runs at the scene's dt (its job's cost, from which its default
+time limit is derived, ``executor.time_limit``): the bracketing probes down to dt /
+``SEARCH_DOWN`` sum to under 2 x ``SEARCH_DOWN`` runs, each bisection about one more."""
+
 SEARCH_UP_FRACTION = 0.1
 """... and for an unstable one up to a tenth of the scene's duration."""
 
@@ -141,10 +146,13 @@ def _limit_job(job: tuple[Scenario, EngineSpec]) -> StabilityLimit:
     return stability_limit(*job)
 
 
-def _lost_limit(job: tuple[Scenario, EngineSpec], message: str) -> StabilityLimit:
-    """The finding recorded for a job the cluster lost (``executor.run_jobs``): not run."""
+def _lost_limit(job: tuple[Scenario, EngineSpec], status: str, message: str) -> StabilityLimit:
+    """The finding recorded for a job that gave none (``executor.run_jobs``: it crashed or
+    timed out): not run."""
     scenario, spec = job
-    return StabilityLimit(scenario.name or "", spec.label, None, None, f"error: {message}", "error")
+    return StabilityLimit(
+        scenario.name or "", spec.label, None, None, f"{status}: {message}", status
+    )
 
 
 STABILITY_CSV = csv_written(
@@ -165,6 +173,7 @@ def stability_main(
     out: Path | None,
     jobs: int = 1,
     scheduler: str | None = None,
+    job_timeout: float | None = None,
 ) -> int:
     """``physval stability``: every limit printed as a sentence and written to stability.csv."""
     out = out or Path("reports") / "stability.csv"
@@ -185,7 +194,8 @@ def stability_main(
                 None,
                 scheduler,
                 _lost_limit,
-                lambda job: expected_cost(job[0]),  # the longest scenes first
+                lambda job: SEARCH_COST_RUNS * expected_cost(job[0]),  # the longest first
+                job_timeout,
             )
             rows = [{**limit.__dict__, "sentence": limit.sentence()} for limit in limits]
             write_table(rows, out)  # atomically

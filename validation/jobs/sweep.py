@@ -907,11 +907,11 @@ def sweep_cost(job: tuple[Scenario, EngineSpec | None, list[float]]) -> float:
 
 
 def lost_sweep_job(
-    job: tuple[Scenario, EngineSpec | None, list[float]], message: str
+    job: tuple[Scenario, EngineSpec | None, list[float]], status: str, message: str
 ) -> list[dict]:
-    """The rows of a sweep job the cluster lost (``executor.run_jobs``): status ``error`` at
-    every dt of the grid and for each fitted order, per sweep metric (one row per metric for
-    a cross-check), so the lost job is seen where its rows would be."""
+    """The rows of a sweep job that gave none (``executor.run_jobs``: it crashed or timed
+    out): ``status`` at every dt of the grid and for each fitted order, per sweep metric (one
+    row per metric for a cross-check), so the lost job is seen where its rows would be."""
     scenario, spec, dts = job
     if spec is None:
         common = {"engine": HIGH_ACCURACY, "metric": "reference_cross_check"}
@@ -922,7 +922,7 @@ def lost_sweep_job(
         points = [{"dt": dt, "metric": m} for dt in dts for m in SWEEP_METRICS]
         points += [{"metric": "convergence_order", "of": m} for m in SWEEP_METRICS]
     return [
-        {"scenario": scenario.name, **common, **point, "status": "error", "message": message}
+        {"scenario": scenario.name, **common, **point, "status": status, "message": message}
         for point in points
     ]
 
@@ -931,10 +931,12 @@ def run_sweep(
     jobs: list[tuple[Scenario, EngineSpec, list[float]]],
     workers: int,
     scheduler: str | None = None,
+    job_timeout: float | None = None,
 ) -> list[dict]:
     """All jobs through the executor (one (scene, engine) dt grid per job: a job is worth
     shipping to a worker), plus one cross-check per scene with a DOP853 reference; rows in
-    job order. ``scheduler``: on that Dask cluster (``executor.run_jobs``)."""
+    job order. ``scheduler``: on that Dask cluster; ``job_timeout``: ``--job-timeout``
+    (``executor.run_jobs``)."""
     found = run_jobs(
         sweep_job,
         with_cross_checks(jobs),
@@ -943,6 +945,7 @@ def run_sweep(
         scheduler,
         lost_sweep_job,
         sweep_cost,
+        job_timeout,
     )
     return [row for rows in found for row in rows]
 
@@ -974,6 +977,7 @@ def sweep_main(
     jobs: int,
     out: Path | None,
     scheduler: str | None = None,
+    job_timeout: float | None = None,
 ) -> int:
     """``physval sweep``: the sweep of every planned (scene, engine); sweep.csv and sweep.html."""
     try:
@@ -991,7 +995,7 @@ def sweep_main(
         return EXIT_BAD_INPUT
     try:
         with locked(out):  # a second sweep on the same --out: exit 2 at once
-            rows = run_sweep(work, jobs, scheduler)
+            rows = run_sweep(work, jobs, scheduler, job_timeout)
             out.mkdir(parents=True, exist_ok=True)
             write_table(rows, out / "sweep.csv")  # each file written atomically
             render_sweep(rows, out / "sweep.html", FIT_RULE)

@@ -66,6 +66,8 @@ ABBREVIATIONS = {
     "passed": "pass",
     "failed": "fail",
     "unstable": "unst.",
+    "crashed": "crash",
+    "timed_out": "t/out",
     "model_mismatch": "mism.",
     "unsupported": "unsup",
     "not installed": "n/inst",
@@ -74,6 +76,8 @@ ABBREVIATIONS = {
 
 STYLES = {
     "error": "bold red",
+    "crashed": "bold red",
+    "timed_out": "bold red",
     "model_mismatch": "red",
     "unstable": "red",
     "failed": "red",

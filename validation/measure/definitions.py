@@ -16,31 +16,39 @@ from validation.measure.resolution import (
 )
 
 METRIC_DEFINITIONS: dict[str, str] = {
-    "energy_drift": "max over t of |E(t) - E(0)| / E_scale, E = kinetic (translational + "
-    "rotational) + gravitational potential + spring energy + the applied forces' potential -F·x; "
-    "E_scale = the largest kinetic + spring energy over the run + Σ m|g + F/m|·r (each body's "
-    "weight, with its constant force, over its bounding radius r): no choice of origin or "
-    "potential zero changes it; the message keeps max|ΔE| in J; signed_error is ΔE/E_scale at "
-    "the worst time (negative: energy lost); absolute (J) when E_scale = 0; not defined under an "
-    "applied torque (its work has no potential) or with a damped spring (it dissipates)",
-    "angular_momentum_drift": "max over t of |L(t) - L(0) - Στ t| / max(|L(0)|, |Στ| t_end), L of "
-    "all bodies about the system's centre of mass, world frame, τ the applied torques; absolute "
-    "when both are 0; defined only while no fixed body, ground or spring to the world acts and "
-    "g + F/m is the same for every body (then the forces exert no torque about the centre of mass)",
-    "linear_momentum_drift": "max over t of |p(t) - p(0) - (M g + ΣF) t| / max(|p(0)|, |M g + ΣF| "
-    "t_end), F the applied forces; defined only while no fixed body, ground or spring to the world "
-    "acts",
-    "position_error": "max over t and bodies of the distance (m) from the analytic ballistic "
-    "trajectory (acceleration g + F/m); only for scenes where nothing can touch and no spring acts",
-    "velocity_error": "max over t and bodies of the distance (m/s) from the analytic ballistic "
-    "velocity; only for scenes where nothing can touch and no spring acts",
+    "energy_drift": "max over every step t of |E(t) - E(0)| / E_scale, E = kinetic "
+    "(translational + rotational) + gravitational potential + spring energy + the applied "
+    "forces' potential -F·x; E_scale = the largest internal energy over the run + Σ m|g + F/m|·r "
+    "(each body's weight, with its constant force, over its bounding radius r), the internal "
+    "energy being the kinetic energy about the centre of mass + ½M|v_c(t) - v_c(0)|² (the "
+    "centre of mass's change of motion) + spring energy for a free system, the kinetic + spring "
+    "energy where a ground, fixed body or spring to the world holds it: no choice of origin or "
+    "potential zero changes it, nor a Galilean boost of a free system; the message keeps "
+    "max|ΔE| in J; signed_error is ΔE/E_scale at the worst time (negative: energy lost); "
+    "absolute (J) when E_scale = 0; not defined under an applied torque (its work has no "
+    "potential) or with a damped spring (it dissipates)",
+    "angular_momentum_drift": "max over every step t of |L(t) - L(0) - Στ t| / L_scale, L of all "
+    "bodies about the system's centre of mass c, world frame, τ the applied torques; L_scale = "
+    "max(the largest Σ m|(x - c) × (v - v_c)| + |I ω| over the run (the bodies' own angular "
+    "momenta, without cancellation), |Στ| t_end); absolute when it is 0; defined only while no "
+    "fixed body, ground or spring to the world acts and g + F/m is the same for every body (then "
+    "the forces exert no torque about the centre of mass)",
+    "linear_momentum_drift": "max over every step t of |p(t) - p(0) - (M g + ΣF) t| / p_scale, F "
+    "the applied forces; p_scale = max(the largest Σ m|v| over the run (the bodies' momenta, "
+    "without cancellation), |M g + ΣF| t_end); absolute when it is 0; defined only while no fixed "
+    "body, ground or spring to the world acts",
+    "position_error": "max over every step t and bodies of the distance (m) from the analytic "
+    "ballistic trajectory (acceleration g + F/m); only for scenes where nothing can touch and no "
+    "spring acts",
+    "velocity_error": "max over every step t and bodies of the distance (m/s) from the analytic "
+    "ballistic velocity; only for scenes where nothing can touch and no spring acts",
     "restitution_error": "|e_measured - e_requested| of the impact farthest beyond its band, "
     "e_measured = -(v_rel'·n)/(v_rel·n) from the impact events (velocities carried to the "
     "impulse centroid); passes when |Δe| <= tolerance + band, band = (1 + e)·|a·n|·dt/|v_before| "
     "(engines take e before or after the step's forces: the two differ by exactly this)",
     "penetration_max": "the deepest overlap (m) of any two shapes over every observed step",
-    "divergence": "max over t of the centre-of-mass distance (m) between this engine and the "
-    "reference engine of the scene (the first engine listed) on the same scene",
+    "divergence": "max over the kept samples t of the centre-of-mass distance (m) between this "
+    "engine and the reference engine of the scene (the first engine listed) on the same scene",
 }
 """Metric name -> the one-line definition shown in the report legend."""
 
@@ -51,9 +59,12 @@ EXPECTATION_DEFINITIONS: dict[str, str] = {
     "a body resting on a support)",
     "position_at": "|x(time) - expected| (m), x observed at the time, or between observed steps "
     "the cubic Hermite of the observed positions and velocities (exact for a constant "
-    "acceleration; error <= h⁴·max|x⁗|/384)",
+    "acceleration; error <= h⁴·max|x⁗|/384), never across an impact (the interpolation "
+    "convention below); time at most the run's last observed time (a duration is a whole "
+    "number of steps)",
     "velocity_at": "|v(time) - expected| (m/s), v observed at the time, or between observed steps "
-    "the cubic through the four observed velocities around it (error <= 9h⁴·max|v⁗|/384)",
+    "the cubic through the four observed velocities around it (error <= 9h⁴·max|v⁗|/384), "
+    "never across an impact (the interpolation convention below)",
     "angular_velocity_at": "|ω(time) - expected| (rad/s, world frame), as velocity_at",
     "angular_velocity_after_impact": "|ω after the body's first impact - expected| (rad/s), read "
     "once the contact has ended and carried back with the angular acceleration observed over "
@@ -66,7 +77,8 @@ EXPECTATION_DEFINITIONS: dict[str, str] = {
     "expected| (s), crossings interpolated between steps",
     "impact_times": "max over the body's impacts of |impulse time - expected| (s)",
     "energy_at": "|the body's kinetic + gravitational energy at the time - expected| (J), "
-    "between observed steps the cubic through the four observed energies around it",
+    "between observed steps the cubic through the four observed energies around it, never "
+    "across an impact (the interpolation convention below)",
     "bounce_heights": "max over bounces of |apex height of the COM - expected| (m)",
     "precession_rate": "|fitted body-frame precession rate - expected| (rad/s)",
     "flips": "|number of sign changes of the body-axis angular velocity - expected|",
@@ -78,7 +90,10 @@ INTERPOLATION_BOUND = (
     "velocities (error <= h⁴·max|x⁗|/384), velocities, angular velocities and energies by the "
     "cubic through the four observed values around the time (<= 9h⁴·max|f⁗|/384), "
     "orientations by the same Hermite on the rotation group with the observed ω; each exact "
-    "for a constant acceleration (a constant ω)"
+    "for a constant acceleration (a constant ω); never across a step an impulse can act in (one "
+    "that begins or ends where the body's contacts changed): only the observed states on the "
+    "time's side of it, and within that step the observed state at its end (the row's message "
+    "says so)"
 )
 """The interpolants and their error bounds in one line, for the legend and the README
 (the interpolants: ``validation.measure.interpolation``)."""
@@ -103,8 +118,8 @@ BAND_DEFINITION = (
 """The legend's line for the ``band`` column (``validation.measure.resolution``)."""
 
 MAX_SAMPLES = 5000
-"""Samples kept per run (the series the metrics and plots read): every step of the library's
-short scenes, every k-th of long ones. Measuring sees every step whatever is kept."""
+"""Samples kept per run (the series the plots read): every step of the library's short scenes,
+every k-th of long ones. Measuring (the metrics too) sees every step whatever is kept."""
 
 MAX_SERIES_POINTS = 1000
 """Points per (scene, engine) written to series.csv for the report's plots."""
@@ -116,10 +131,11 @@ bodies at 5,001 samples, keeps 3.2 million), every k-th kept sample beyond, the 
 every engine of a scene (``recording.position_stride``)."""
 
 SAMPLING_DEFINITION = (
-    f"every step is observed and measured (impacts, stability, expectations); the series the "
-    f"metrics read keep at most {MAX_SAMPLES:,} samples per run (every step of a run of up to "
-    f"{MAX_SAMPLES:,} steps, every k-th step of a longer one, k = ceil(steps / {MAX_SAMPLES:,}), "
-    f"and the last); plots show at most {MAX_SERIES_POINTS:,} of them per series and engine, "
+    f"every step is observed and measured (impacts, stability, expectations, and every metric "
+    f"that is a maximum over time but divergence: energy_drift, the momentum drifts, "
+    f"position_error, velocity_error, penetration_max); the series kept for plots hold at most "
+    f"{MAX_SAMPLES:,} samples per run (every step of a run of up to {MAX_SAMPLES:,} steps, every "
+    f"k-th step of a longer one, k = ceil(steps / {MAX_SAMPLES:,}), and the last); plots show at most {MAX_SERIES_POINTS:,} of them per series and engine, "
     f"evenly spaced; divergence compares the positions at every kept sample, or every m-th "
     f"kept sample (and the last) where samples x bodies x 3 exceed {MAX_KEPT_POSITIONS:,} "
     f"numbers (m the least that fits, the same in every engine of the scene); impacts.csv and "

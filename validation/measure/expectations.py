@@ -89,19 +89,41 @@ class _Tracker:
     def mine(self, events) -> list:
         return [e for e in events if self.expectation.body in (e.body_a, e.body_b)]
 
+    def contact_steps(self, t: np.ndarray, changed: np.ndarray) -> None:
+        """Told before each ``update`` which of its states ``t (k,)`` end an observed step an
+        impulse can act in (``changed (k,)`` bool: the step begins or ends where the body's
+        contacts changed, ``recording``); only the trackers that read between steps
+        (``StateAt``) need it."""
+
 
 @dataclass
 class StateAt(_Tracker):
     """A quantity of the body at ``time``: the observed state there, or between the observed
     states around it the interpolant of ``validation.measure.interpolation`` (a cubic Hermite
     of positions and velocities, a cubic through four velocities, the Hermite on the rotation
-    group). Keeps the ``side`` states before the time and the ``side`` at or after it."""
+    group). Keeps the ``side`` states before the time and the ``side`` at or after it.
+
+    An interpolant never spans a step an impulse can act in (one that begins or ends where
+    the body's contacts changed: an impact, a contact starting or ending; ``contact_steps``),
+    where its motion jumps: it takes only the observed states on the time's side of that
+    step, and when the step is the one the time falls in, the value is the observed state
+    after it; the row's message says which."""
 
     quantity: str = "pos"
     before_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     after_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     before: dict[str, np.ndarray] = field(default_factory=dict)
     after: dict[str, np.ndarray] = field(default_factory=dict)
+    jumps: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """s, the end times of the observed steps near the time an impulse can act in (those
+    after the earliest state kept)."""
+
+    def contact_steps(self, t: np.ndarray, changed: np.ndarray) -> None:
+        if self.after_t.size >= self.side:
+            return
+        jumps = np.concatenate([self.jumps, t[changed]])
+        earliest = np.concatenate([self.before_t, t[t < self.expectation.time]])[-self.side :]
+        self.jumps = jumps[jumps > earliest[0]] if earliest.size else jumps
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -137,10 +159,24 @@ class StateAt(_Tracker):
         time, first = self.expectation.time, float(self.after_t[0])
         if self.before_t.size == 0 or abs(first - time) <= self._slack():
             return self.after[self.arrays[0]][0], f"{self.quantity} at t = {first:.6g} s"
+        if np.any((self.jumps > self.before_t[-1]) & (self.jumps <= first)):
+            where = (
+                f"{self.quantity} at t = {first:.6g} s, the observed step after the contact "
+                f"change around t = {time:.6g} s (no interpolation across an impact)"
+            )
+            return self.after[self.arrays[0]][0], where
         t = np.concatenate([self.before_t, self.after_t])  # at most ``side`` on each side
         arrays = [np.concatenate([self.before[name], self.after[name]]) for name in self.arrays]
-        where = f"{self.quantity} at t = {time:.6g} s (interpolated between observations)"
-        return self.interpolant(time, t, *arrays), where
+        # a jump at the end of step (t_k-1, t_k]: t_k is after it, t_k-1 before
+        after_jump = self.jumps[self.jumps <= self.before_t[-1]]
+        before_jump = self.jumps[self.jumps > first]
+        lowest = after_jump.max(initial=-np.inf)
+        smooth = (t >= lowest) & (t < before_jump.min(initial=np.inf))
+        where = f"{self.quantity} at t = {time:.6g} s (interpolated between observations"
+        if not smooth.all():
+            where += f" from t = {t[smooth][0]:.6g} to {t[smooth][-1]:.6g} s: not across a contact change"
+        arrays = [values[smooth] for values in arrays]
+        return self.interpolant(time, t[smooth], *arrays), where + ")"
 
     def result(self) -> Measurement:
         found = self.value_at()

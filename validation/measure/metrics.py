@@ -20,12 +20,17 @@ import numpy as np
 from validation.measure.impact_log import RANKINGS, restitution_error_of
 from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
-from validation.measure.states import farthest
+from validation.measure.states import (
+    farthest,
+    impulse_residual,
+    internal_energy,
+    momentum_rates,
+)
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.definability import scene_traits, why_undefined
 
 ZERO_SCALE = 1e-12
-"""Below this magnitude (in the quantity's SI unit) an initial energy or momentum counts as
+"""Below this magnitude (in the quantity's SI unit) an energy or momentum scale counts as
 zero, and its drift is reported as an absolute difference instead of a relative one."""
 
 
@@ -37,7 +42,9 @@ class Context:
         self.scenario = scene.scenario
         self.recording = recording
         self.trajectory = recording.trajectory
-        self.series = recording.series
+        self.series = recording.series if recording.extremes is None else recording.extremes
+        """The samples the metrics read: every step's extremes (``states.extreme_samples``), or
+        the kept series of a recording made without them."""
         self.moving = scene.moving
         self.mass = np.array([b.mass for b in scene.scenario.bodies])
         self.gravity = scene.gravity
@@ -53,22 +60,25 @@ def _conserved(name: str, drift: float, signed: tuple[float, ...], message: str)
 
 def energy_scale(ctx: Context) -> tuple[float, float, float]:
     """(E_scale, motion, weight) J: the scale of ``energy_drift``, the sum of ``motion``, the
-    largest kinetic plus spring energy over the samples (``Series.motion``), and ``weight``,
-    Σ m |g + F/m| r over the moving bodies (each body's weight, with its constant applied
-    force, over its bounding radius r). Neither depends on where the origin is or where a
-    potential is zero: the kinetic and spring energies have a physical zero, and a weight times
-    a size is the energy scale of a body that rests (a resting stack has no motion, but sinking
-    by its own size would release this much)."""
+    largest internal energy over the run (``states.internal_energy``: kinetic energy about
+    the centre of mass plus spring energy plus the centre of mass's own change of kinetic
+    energy, for a free system; kinetic plus spring energy where a ground, fixed body or world
+    spring holds it), and ``weight``, Σ m |g + F/m| r over the moving bodies (each body's
+    weight, with its constant applied force, over its bounding radius r). None of them depends
+    on where the origin is, where a potential is zero, or (for a free system) on a Galilean
+    boost of the whole scene: the kinetic and spring energies have a physical zero, and a
+    weight times a size is the energy scale of a body that rests (a resting stack has no
+    motion, but sinking by its own size would release this much)."""
     pull = np.linalg.norm(ctx.scene.acceleration, axis=1)  # g + F/m, zero for fixed bodies
     radius = ctx.scene.bound_radius[: ctx.scene.count]
     weight = float(np.sum(ctx.scene.mass * pull * radius))
-    largest = float(np.max(ctx.series.motion, initial=0.0))
+    largest = float(np.max(internal_energy(ctx.scene, ctx.series), initial=0.0))
     return largest + weight, largest, weight
 
 
 def energy_drift(ctx: Context) -> Measurement | None:
     """max |E(t) - E(0)| / E_scale (``energy_scale``): the energy error on a scale no choice
-    of origin or potential zero changes; the message keeps the error in J."""
+    of origin, potential zero or boost changes; the message keeps the error in J."""
     change = ctx.series.energy - ctx.series.energy[0]
     worst = int(np.argmax(np.abs(change)))
     scale, motion, weight = energy_scale(ctx)
@@ -76,40 +86,46 @@ def energy_drift(ctx: Context) -> Measurement | None:
     divisor = scale if relative else 1.0
     drift = float(abs(change[worst]) / divisor)
     message = f"max |ΔE| {abs(change[worst]):.6g} J at t = {ctx.series.t[worst]:.6g} s; " + (
-        f"E_scale {scale:.6g} J (kinetic + spring {motion:.6g} J, weight x size {weight:.6g} J)"
+        f"E_scale {scale:.6g} J (internal kinetic + spring {motion:.6g} J, weight x size "
+        f"{weight:.6g} J)"
         if relative
         else "E_scale is zero: absolute drift (J)"
     )
     return _conserved("energy_drift", drift, (float(change[worst] / divisor),), message)
 
 
-def _impulse_balance(ctx: Context, values: np.ndarray, rate: np.ndarray, name: str) -> Measurement:
-    """max |x(t) - x(0) - rate·t| / max(|x(0)|, |rate|·t_end) of a momentum ``values (s, 3)``
-    whose rate of change ``rate (3,)`` is constant (the external loads' sum); absolute when
-    both scales are zero."""
-    t = ctx.series.t
-    residual = values - values[0] - rate * t[:, None]
+def _impulse_balance(ctx: Context, name: str, metric: str) -> Measurement:
+    """max |x(t) - x(0) - rate·t| / scale of the momentum ``name`` of the series (``momentum``
+    or ``angular_momentum``) whose rate of change is constant (``states.momentum_rates``), the
+    scale the larger of the largest ``<name>_scale`` over the run (the bodies' momenta added
+    without cancellation: ``Series``) and the loads' impulse |rate|·t_end; absolute when both
+    are zero. Never |x(0)|: a total that cancels to round-off is no scale."""
+    series = ctx.series
+    residual = impulse_residual(ctx.scene, series, name)
     change = np.linalg.norm(residual, axis=1)
     worst = int(np.argmax(change))
-    magnitude = float(np.linalg.norm(values[0]))
-    scale = max(magnitude, float(np.linalg.norm(rate)) * float(t[-1]))
+    carried = float(np.max(getattr(series, f"{name}_scale"), initial=0.0))
+    rate = momentum_rates(ctx.scene)[name == "angular_momentum"]
+    impulse = float(np.linalg.norm(rate)) * float(series.t[-1] - series.t[0])
+    scale = max(carried, impulse)
     relative = scale > ZERO_SCALE
     divisor = scale if relative else 1.0
     note = (
-        f"|initial value| {magnitude:.6g}" if relative else "initial value is zero: absolute drift"
+        f"max drift {change[worst]:.6g} at t = {series.t[worst]:.6g} s; scale {scale:.6g} "
+        f"(bodies' momenta without cancellation {carried:.6g}, loads' impulse {impulse:.6g})"
+        if relative
+        else "scale is zero: absolute drift"
     )
     signed = tuple(float(x) for x in residual[worst] / divisor)
-    return _conserved(name, float(change[worst] / divisor), signed, note)
+    return _conserved(metric, float(change[worst] / divisor), signed, note)
 
 
 def angular_momentum_drift(ctx: Context) -> Measurement:
-    rate = ctx.scene.torque.sum(axis=0)  # uniform g + F/m exerts no torque about the COM
-    return _impulse_balance(ctx, ctx.series.angular_momentum, rate, "angular_momentum_drift")
+    return _impulse_balance(ctx, "angular_momentum", "angular_momentum_drift")
 
 
 def linear_momentum_drift(ctx: Context) -> Measurement:
-    rate = ctx.mass[ctx.moving].sum() * ctx.gravity + ctx.scene.force.sum(axis=0)
-    return _impulse_balance(ctx, ctx.series.momentum, rate, "linear_momentum_drift")
+    return _impulse_balance(ctx, "momentum", "linear_momentum_drift")
 
 
 def _largest_offset(name: str, offset: np.ndarray, expected_kind: str) -> Measurement:

@@ -46,7 +46,7 @@ from validation.measure.expectations import trackers
 from validation.measure.impact_log import ImpactEvent, ImpactLog
 from validation.measure.measurement import Measurement
 from validation.measure.stability import StabilityChecks
-from validation.measure.states import Series, Trajectory, invariants
+from validation.measure.states import Series, Trajectory, extreme_samples, invariants
 from validation.reference.contacts import Found
 from validation.reference.rotation import cross
 from validation.scenario.compiled import CompiledScene
@@ -404,7 +404,7 @@ class Recording:
     """Wall time spent inside the engine's ``advance`` alone (observation excluded)."""
     series: Series
     """Energy, momenta and the metrics' per-sample reductions at every kept sample (computed
-    as the run goes, for metrics and plots)."""
+    as the run goes, for plots)."""
     expectations: list[Measurement] = field(default_factory=list)
     """The scene's expectations, evaluated online over every observed state (``expectations``)."""
     penetration_max: float | None = None
@@ -413,6 +413,10 @@ class Recording:
     """Why the run failed (``kind: detail``, kinds in ``stability.KINDS``), or None."""
     impact_count: int = 0
     """Every impact the run had, kept in ``impacts`` or not."""
+    extremes: Series | None = None
+    """The samples the metrics read, from every counted state of the run
+    (``states.extreme_samples``: the first, the last and each per-sample maximum); None in a
+    recording made by hand, whose metrics then read ``series``."""
 
 
 @dataclass
@@ -431,6 +435,13 @@ class _Measurer:
     series: list[Series] = field(default_factory=list)
     kept: int = 0
     """Samples kept so far (the series' length)."""
+    extremes: Series | None = None
+    """Every counted state so far, reduced to what the metrics read (``extreme_samples``)."""
+    touching_before: np.ndarray | None = None
+    """Pair codes touching at the last counted state of the previous batch (None before the
+    first batch): the contact changes of a batch's first step."""
+    changed_before: np.ndarray | None = None
+    """(n,) bool, which bodies' contacts changed at the previous batch's last counted state."""
     penetration: float = 0.0
     failure: str | None = None
     last_time: float = 0.0
@@ -457,6 +468,7 @@ class _Measurer:
             penetration_max=self.penetration if self.scene.can_touch else None,
             unstable=self.failure,
             impact_count=self.impacts.count,
+            extremes=self.extremes,
         )
 
     def measure(self, states: Trajectory, steps, final: int) -> bool:
@@ -486,7 +498,9 @@ class _Measurer:
             new_events = self.detector.new_events
         self.impacts.add(new_events)
         judged = states.take(slice(0, counted + 1))
+        changes = self._contact_steps(touching, counted + 1)
         for tracker in self.trackers:
+            tracker.contact_steps(judged.t, changes[:, tracker.body])
             tracker.update(judged, new_events)
         keep = (step_index % self.sample_every == 0) | (step_index == final)
         if found is not None:
@@ -495,18 +509,79 @@ class _Measurer:
             keep[last] = not self.failure.startswith(
                 "non_finite"
             )  # a non-finite state is named, not kept
-        self._keep(states.take(np.flatnonzero(keep)), step_index[keep] == final)
+        series = invariants(self.scene, states.take(slice(0, last + 1)), self.free)
+        # the metrics read what the series keeps of the run: every counted state, and the
+        # failing state where it is kept (a finite one that failed a check)
+        self._fold(series.take(slice(0, last + 1 if keep[last] else counted + 1)))
+        self._keep(
+            states.take(np.flatnonzero(keep)),
+            series.take(np.flatnonzero(keep)),
+            step_index[keep] == final,
+        )
         if counted >= 0:
             self.last_time = float(states.t[counted])
         return found is None
 
-    def _keep(self, kept: Trajectory, last: np.ndarray) -> None:
+    def _fold(self, counted: Series) -> None:
+        """Reduce every counted state to the samples the metrics read (``extreme_samples``):
+        the metrics are maxima over every step, whatever the kept series thins."""
+        if counted.t.size == 0:
+            return
+        whole = counted if self.extremes is None else Series.concat(self.extremes, counted)
+        self.extremes = extreme_samples(self.scene, whole)
+
+    def _contact_steps(self, touching: _Touching | None, count: int) -> np.ndarray:
+        """(count, n) bool: for each of the scene's bodies, whether the observed step that ends
+        at each of the batch's first ``count`` states begins or ends at a state where the
+        body's contacts changed (it started or stopped touching a body or the ground): the
+        steps an impulse can act in, which no interpolant may span (``expectations.StateAt``).
+        Both sides of the change, because engines differ in where the impulse falls: one that
+        keeps shapes apart (speculative contacts) acts over the step into the first touching
+        state, one that resolves an overlap (mini, MuJoCo) over the step out of it; contacts
+        that stay unchanged over a step (resting, a soft contact's inside) are smooth enough."""
+        changed = self._contact_changes(touching, count)
+        before = self.changed_before
+        if before is None or count == 0:
+            before = np.zeros(changed.shape[1], dtype=bool)
+        steps = changed | np.concatenate([before[None], changed[:-1]])
+        if count:
+            self.changed_before = changed[-1]
+        return steps
+
+    def _contact_changes(self, touching: _Touching | None, count: int) -> np.ndarray:
+        """(count, n) bool: which of the scene's bodies touch a different set of bodies (the
+        ground one of them) at each of the batch's first ``count`` states than at the state
+        before; none at the run's first state (no state before it)."""
+        changed = np.zeros((count, self.scene.shape_count), dtype=bool)
+        if touching is None or count == 0:
+            return changed[:, : self.scene.count]
+        per_state = self.scene.shape_count**2
+        rows = touching.observation < count
+        obs, key = touching.observation[rows], touching.key[rows]
+        before = (
+            np.zeros(0, dtype=np.int64) if self.touching_before is None else self.touching_before
+        )
+        codes = np.sort(np.concatenate([before - per_state, obs * per_state + key]))
+        started = ~_member((obs - 1) * per_state + key, codes) & (
+            (obs > 0) | (self.touching_before is not None)
+        )
+        ended_obs = np.concatenate([np.full(before.size, -1), obs])
+        ended_key = np.concatenate([before, key])
+        ended = ~_member((ended_obs + 1) * per_state + ended_key, codes) & (ended_obs + 1 < count)
+        for at, pair in ((obs[started], key[started]), (ended_obs[ended] + 1, ended_key[ended])):
+            a, b = np.divmod(pair, self.scene.shape_count)
+            changed[at, a] = True
+            changed[at, b] = True
+        self.touching_before = np.unique(key[obs == count - 1])
+        return changed[:, : self.scene.count]
+
+    def _keep(self, kept: Trajectory, series: Series, last: np.ndarray) -> None:
         """The series at the batch's kept samples, and the states ``KEEP`` says (``last``:
         which of them is the run's final state). One object per kept batch, not per batch (a
         2,000,000-step run keeps 5,000 samples from 7,813 batches), and at least one."""
         if len(kept) == 0 and self.series:
             return
-        self.series.append(invariants(self.scene, kept, self.free))
+        self.series.append(series)
         ordinal = self.kept + np.arange(len(kept))
         self.kept += len(kept)
         if self.states:

@@ -9,7 +9,9 @@ returns an ``EngineRun`` whose ``status`` says what happened:
 - ``unstable``: the run failed one of the stability checks (``stability.KINDS``: non-finite
   state, energy blow-up, quaternion drift, tunnelling, impossible speed, the engine's own
   instability warning); the run stops there and is kept for the report;
-- ``error``: the engine raised; the message carries the exception;
+- ``error``: the engine raised (its constructor, its declaration's ``capabilities_for``,
+  any adapter call, ``close`` included) or broke the adapter contract (a provenance that is
+  not text); the message carries the exception;
 - ``unsupported``: the scene needs a capability the engine's declaration lacks
   (``validation.scenario.needs``); the message names each and why; the engine is not even
   imported;
@@ -67,15 +69,24 @@ def run_engine(
     if absent:
         run.status, run.message = "not_installed", absent
         return run
-    capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
+    try:
+        capabilities = declaration_of(spec.name).capabilities_of(spec.as_dict())
+    except Exception as error:  # a plugin's declaration: its failure is its row
+        run.status, run.message = "error", f"capabilities_for: {raised_message(error)}"
+        return run
     lacking = missing(capabilities, scene.scenario)
     if lacking:
         run.status, run.message = "unsupported", unsupported_message(spec.name, lacking)
         return run
-    adapter = create_adapter(spec)
+    try:
+        adapter = create_adapter(spec)
+    except Exception as error:
+        run.status, run.message = "error", f"the adapter's constructor: {raised_message(error)}"
+        run.wall_time_s = time.perf_counter() - start
+        return run
     try:
         adapter.load(scene)
-        run.provenance = adapter.provenance()
+        run.provenance = checked_provenance(adapter.provenance())
         run.mismatches = compare(
             adapter.model_report(),
             reference_report(scene),
@@ -90,8 +101,47 @@ def run_engine(
         run.status = "unstable" if run.recording.unstable else "ok"
         run.message = run.recording.unstable or ""
     except Exception as error:  # an engine's crash is a result for the report, not the harness's
-        run.status, run.message = "error", f"{type(error).__name__}: {error}"
+        run.status, run.message = "error", raised_message(error)
     finally:
-        adapter.close()
+        _close(adapter, run)
         run.wall_time_s = time.perf_counter() - start
     return run
+
+
+def raised_message(error: BaseException) -> str:
+    """An exception as an ``error`` row's message, even one whose ``__str__`` raises."""
+    try:
+        return f"{type(error).__name__}: {error}"
+    except Exception:
+        return f"{type(error).__name__} (its message cannot be shown)"
+
+
+def _close(adapter: Any, run: EngineRun) -> None:
+    """``adapter.close()``; when it raises, the run is an ``error`` (its recording dropped:
+    an engine that cannot release what it holds has broken the contract), unless it already
+    failed otherwise."""
+    try:
+        adapter.close()
+    except Exception as error:
+        if run.status not in ("error", "model_mismatch"):
+            run.status, run.recording = "error", None
+            run.message = f"close: {raised_message(error)}"
+
+
+def checked_provenance(provenance: Any) -> Provenance:
+    """The adapter's provenance, its fields of the types the contract names (``version``
+    text, not None: the journal and the report write it); ``TypeError`` naming the field
+    otherwise (the run's ``error`` row)."""
+    if not isinstance(provenance, Provenance):
+        raise TypeError(f"provenance(): expected a Provenance; got {type(provenance).__name__}")
+    for name, kind in PROVENANCE_TYPES.items():
+        value = getattr(provenance, name)
+        if not isinstance(value, kind):
+            raise TypeError(
+                f"provenance().{name}: expected {kind.__name__}; got {type(value).__name__}"
+            )
+    return provenance
+
+
+PROVENANCE_TYPES = {"engine": str, "version": str, "settings": dict, "notes": list}
+"""What each field of an adapter's ``Provenance`` must be (``checked_provenance``)."""

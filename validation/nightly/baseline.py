@@ -36,6 +36,7 @@ from validation.contract import (
     EXIT_OK,
     PROVENANCE_FILE,
     RESULTS_FILE,
+    RUN_FAILURE_STATUSES,
     SIGNED_COLUMNS,
     SIGNED_ERROR_COLUMN,
     VECTOR_ERROR_COLUMNS,
@@ -80,9 +81,7 @@ CLASSES = BASELINE_CLASSES
 """Every class a row can get against a baseline, the news first (``validation.contract``)."""
 
 VERDICT_RANK = {
-    "error": 0,
-    "model_mismatch": 0,
-    "unstable": 0,
+    **dict.fromkeys(RUN_FAILURE_STATUSES, 0),
     "failed": 1,
     KNOWN: 1,
     "unsupported": 2,
@@ -94,7 +93,7 @@ VERDICT_RANK = {
 """How good a row's verdict is (higher is better): a move between ranks is always news; a
 known failure is as bad as a failure (the baseline compares physics, not paperwork)."""
 
-FAILING = ("error", "model_mismatch", "unstable", "failed")
+FAILING = (*RUN_FAILURE_STATUSES, "failed")
 """Outcomes that fail a run when they are new (a ``known`` row never does)."""
 
 

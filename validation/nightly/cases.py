@@ -2,7 +2,7 @@
 
 A case is what a CI dashboard or a pytest item shows as one test. Its rows keep their own
 outcomes (``known.apply_known``'s, or the row's own verdict when none was applied); the case
-reads ``error`` when a row is unstable, errored or built another model, else ``failure`` when
+reads ``error`` when a row is unstable, errored, crashed, timed out or built another model, else ``failure`` when
 a check failed, else ``skipped`` when every bad row is a known finding, else ``passed``.
 """
 
@@ -13,6 +13,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from numbers import Real
 
+from validation.contract import RUN_FAILURE_STATUSES
 from validation.nightly.known import KNOWN, outcome_of
 
 FAILURE, ERROR, SKIPPED, PASSED = "failure", "error", "skipped", "passed"
@@ -22,7 +23,7 @@ OUTCOME_KINDS: dict[str, str] = {
     "failed": FAILURE,
     "unstable": ERROR,
     "model_mismatch": ERROR,
-    "error": ERROR,
+    **dict.fromkeys(RUN_FAILURE_STATUSES, ERROR),
     KNOWN: SKIPPED,
 }
 """Row outcome -> what it makes of its case. An engine that could not run the scene (unstable,

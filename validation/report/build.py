@@ -19,7 +19,12 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from validation.contract import NOT_JUDGED_STATUSES, SERIES_FILE, STATUS_DESCRIPTIONS
+from validation.contract import (
+    NOT_JUDGED_STATUSES,
+    RUN_FAILURE_STATUSES,
+    SERIES_FILE,
+    STATUS_DESCRIPTIONS,
+)
 from validation.measure.definitions import (
     BAND_DEFINITION,
     EXPECTATION_DEFINITIONS,
@@ -65,7 +70,7 @@ SETTINGS_INLINE_UP_TO = 3
 """A run's settings that differ from its spec's (provenance.json) are listed inline up to this
 many; more are folded under their count (they are long: one line of the table each)."""
 
-OPEN_ROWS = ("error", "model_mismatch", "unstable", "failed", "fixed")
+OPEN_ROWS = (*RUN_FAILURE_STATUSES, "failed", "fixed")
 """A scene's rows table starts open when one of its rows has one of these outcomes (the rows a
 reader comes for: news); otherwise, known findings included (listed with their reasons in the
 news), it shows its summary line and opens on a click."""

@@ -14,6 +14,7 @@ from typing import Any
 import pandas as pd
 from markupsafe import Markup
 
+from validation.contract import RUN_FAILURE_STATUSES
 from validation.measure.noise import (
     FAILS_A_RUN,
     LARGE_IMPROVEMENT,
@@ -22,7 +23,7 @@ from validation.measure.noise import (
 )
 from validation.report.sweep_page import UNITS, sweep_chart, sweep_orders
 
-FAILING = ("error", "model_mismatch", "unstable", "failed")
+FAILING = (*RUN_FAILURE_STATUSES, "failed")
 """Outcomes that are a failure unless the baseline had them failing too."""
 
 NEWS_SECTIONS = (

@@ -8,10 +8,17 @@ import math
 import numpy as np
 import pandas as pd
 
-from validation.contract import NOT_JUDGED_STATUSES, RESULTS_FILE, STATUS_DESCRIPTIONS
+from validation.contract import (
+    NOT_JUDGED_STATUSES,
+    RESULTS_FILE,
+    RUN_FAILURE_STATUSES,
+    STATUS_DESCRIPTIONS,
+)
 
 OUTCOME_ORDER = (
     "error",
+    "crashed",
+    "timed_out",
     "model_mismatch",
     "unstable",
     "failed",
@@ -25,7 +32,7 @@ OUTCOME_ORDER = (
 )
 """Outcomes worst first; a cell shows the worst outcome of its rows."""
 
-RUN_FAILURES = ("error", "model_mismatch", "unstable")
+RUN_FAILURES = RUN_FAILURE_STATUSES
 """Outcomes that mean the engine produced no trustworthy numbers (the cell shows the word)."""
 
 RED_OUTCOMES = (*RUN_FAILURES, "failed")
@@ -45,6 +52,8 @@ AMBER, BLUE = "#f6deb0", "#b9d5f2"
 """A known finding (expected, not news) and a fixed one (its entry can go)."""
 OUTCOME_COLOURS = {
     "error": RED,
+    "crashed": RED,
+    "timed_out": RED,
     "model_mismatch": RED,
     "unstable": RED,
     "failed": RED,

@@ -39,6 +39,28 @@ from validation.scenario.yaml_source import SourceMap
 Location = tuple[str | int, ...]
 Found = Iterator[tuple[Location, str]]
 
+WHOLE_STEPS = 1e-9
+"""Relative to the step count. A duration within this of a whole number of steps is that
+number: decimal durations and steps round to about 1e-16 relative each (0.6 / 0.001 =
+599.9999999999999), while this lets through at most 0.005 of a step at ``MAX_STEPS`` (6e-7 of
+a step at 600 steps: 0.6004 s at 1 ms is 0.4 of one)."""
+
+
+def whole_steps(duration: float, dt: float) -> str | None:
+    """Why a run of ``duration`` s at step ``dt`` s would not end at its duration (a run takes
+    whole steps: it would stop short of it, or past it), or None when it is a whole number of
+    steps."""
+    count = duration / dt
+    nearest = round(count)
+    if abs(count - nearest) <= WHOLE_STEPS * max(nearest, 1):
+        return None
+    below, above = int(np.floor(count)), int(np.ceil(count))
+    return (
+        f"expected a whole number of steps of dt {dt} s; duration {duration} s is {count:.6g} "
+        f"steps ({below} steps end at {below * dt:.6g} s, {above} at {above * dt:.6g} s)"
+    )
+
+
 RESERVED_NAMES = ("world", "ground")
 """Names that mean the world frame (springs) and the ground plane (pairs): no body may take them."""
 
@@ -221,6 +243,8 @@ def sweep_steps(scenario: Scenario) -> Found:
                 ("sweep", "dt", i),
                 f"{scenario.duration / dt:.3g} steps; at most {MAX_STEPS} are allowed",
             )
+        elif (fraction := whole_steps(scenario.duration, dt)) is not None:
+            yield ("sweep", "dt", i), fraction
     if len(set(scenario.sweep.dt)) < len(scenario.sweep.dt):
         yield ("sweep", "dt"), "expected distinct steps (an order is fitted through them)"
 
@@ -237,7 +261,8 @@ def loads_on_moving_bodies(scenario: Scenario) -> Found:
 
 
 def step_count(scenario: Scenario) -> Found:
-    """At least one step, at most ``MAX_STEPS``."""
+    """At least one step, at most ``MAX_STEPS``, and a whole number of them: the run's last
+    observed state is at its duration, never short of an expectation's time."""
     if scenario.duration < scenario.dt:
         yield ("duration",), f"expected duration >= dt ({scenario.dt} s); got {scenario.duration} s"
     if scenario.duration / scenario.dt > MAX_STEPS:
@@ -245,6 +270,10 @@ def step_count(scenario: Scenario) -> Found:
             ("duration",),
             f"{scenario.duration / scenario.dt:.3g} steps (duration / dt); at most {MAX_STEPS} are allowed",
         )
+    elif scenario.duration >= scenario.dt and (
+        fraction := whole_steps(scenario.duration, scenario.dt)
+    ):
+        yield ("duration",), fraction
 
 
 Rule = Callable[[Scenario], Found]

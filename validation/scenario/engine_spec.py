@@ -147,6 +147,16 @@ def parse_engine_spec(text: str) -> EngineSpec:
             declaration.check_settings(dict(settings))
         except ValueError as error:
             raise EngineSpecError(f"{name}: {error}") from None
+        except Exception as error:  # a plugin's broken check: its line, not a traceback
+            raise EngineSpecError(
+                f"{name}: the engine's check_settings raised {type(error).__name__}: {error}"
+            ) from None
+    try:  # a plugin's capabilities_for, called by planning and every run: once here first
+        declaration.capabilities_of(dict(settings))
+    except Exception as error:
+        raise EngineSpecError(
+            f"{name}: the engine's capabilities_for raised {type(error).__name__}: {error}"
+        ) from None
     return EngineSpec(name, tuple(settings))
 
 
