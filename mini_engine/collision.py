@@ -62,9 +62,26 @@ def detect_contacts(
     found += _collide_pairs(model, pos, rot, margin, *finite_pairs(model, pos, reach), finite_pair)
     if not found:
         return Contacts.empty()
-    if len(found) == 1:
-        return found[0]
-    return Contacts(*(np.concatenate(parts) for parts in zip(*found, strict=True)))
+    contacts = (
+        found[0]
+        if len(found) == 1
+        else Contacts(*(np.concatenate(parts) for parts in zip(*found, strict=True)))
+    )
+    return contacts if model.joints is None else _without_jointed_pairs(model, contacts)
+
+
+def _without_jointed_pairs(model: Model, contacts: Contacts) -> Contacts:
+    """``contacts`` less those between a joint's two bodies: jointed bodies meet at their
+    anchor by construction, and their joint, not a contact, holds them (MuJoCo's parent
+    filter and Bullet's adjacent links do the same)."""
+    n = model.n_bodies
+    keys = np.minimum(contacts.body_a, contacts.body_b) * n + np.maximum(
+        contacts.body_a, contacts.body_b
+    )
+    keep = ~np.isin(keys, model.joints.pair_keys(n))
+    if keep.all():
+        return contacts
+    return Contacts(*(np.asarray(field)[keep] for field in contacts))
 
 
 def _collide_pairs(

@@ -125,6 +125,13 @@ class JointModel:
     def count(self) -> int:
         return int(self.kind.size)
 
+    def pair_keys(self, bodies: int) -> np.ndarray:
+        """(p,) int, ``min(a, b) · bodies + max(a, b)`` of every joint between two bodies (the
+        pairs that never collide: ``collision.detect_contacts``)."""
+        between = self.body_a != WORLD
+        a, b = self.body_a[between], self.body_b[between]
+        return np.minimum(a, b) * bodies + np.maximum(a, b)
+
 
 def build_joints(
     joints: list[Joint], pos: np.ndarray, quat: np.ndarray, fixed: np.ndarray

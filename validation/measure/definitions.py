@@ -47,6 +47,10 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "impulse centroid); passes when |Δe| <= tolerance + band, band = (1 + e)·|a·n|·dt/|v_before| "
     "(engines take e before or after the step's forces: the two differ by exactly this)",
     "penetration_max": "the deepest overlap (m) of any two shapes over every observed step",
+    "joint_violation": "the largest joint violation (m) over every observed step and joint, "
+    "from the two bodies' poses alone: the anchor as a point of the parent against it as a "
+    "point of the child (a slider's across its axis), or the angle a hinge's axis (a slider's "
+    "or fixed joint's whole rotation) is off times the child's centre's distance from the anchor",
     "divergence": "max over the kept samples t of the centre-of-mass distance (m) between this "
     "engine and the reference engine of the scene (the first engine listed) on the same scene",
 }

@@ -194,6 +194,15 @@ def penetration_max(ctx: Context) -> Measurement | None:
     return Measurement("penetration_max", deepest, 0.0, "analytic", deepest, signed=(deepest,))
 
 
+def joint_violation(ctx: Context) -> Measurement:
+    """The largest joint violation over every observed step (``states.joint_violation``): an
+    anchor's separation, or a misalignment times the child's reach, in m."""
+    worst = int(np.argmax(ctx.series.joint_violation))
+    value = float(ctx.series.joint_violation[worst])
+    message = f"largest at t = {ctx.series.t[worst]:.6g} s"
+    return Measurement("joint_violation", value, 0.0, "analytic", value, message, signed=(value,))
+
+
 Metric = Callable[[Context], Measurement | None]
 
 
@@ -217,6 +226,7 @@ METRICS: dict[str, Metric] = {
         "velocity_error": velocity_error,
         "restitution_error": restitution_error,
         "penetration_max": penetration_max,
+        "joint_violation": joint_violation,
     }.items()
 }
 """Metric name -> its function, None where the scene cannot define it (``divergence`` needs

@@ -19,8 +19,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from validation.engines.base import Trajectory
+from validation.reference.articulated import joint_violations
 from validation.reference.rotation import cross
-from validation.scenario.compiled import CompiledScene, kinetic_energy
+from validation.scenario.compiled import CompiledScene, kinetic_energy, rotations
 
 __all__ = ["EXTREMES", "Series", "Trajectory", "ballistic", "extreme_samples", "invariants"]
 
@@ -45,6 +46,8 @@ class Series:
             difference from the analytic ballistic motion (``ballistic``) of the body farthest
             from it (the first such body); (0, 3) when the scene has no ballistic closed form
             (``definability``: bodies can touch, or a spring acts).
+        joint_violation: (s,) m, the largest of the scene's joint violations at each sample
+            (``joint_violation``); zeros without joints.
     """
 
     t: np.ndarray
@@ -57,6 +60,7 @@ class Series:
     angular_momentum_scale: np.ndarray
     position_offset: np.ndarray
     velocity_offset: np.ndarray
+    joint_violation: np.ndarray
 
     @staticmethod
     def concat(*parts: Series) -> Series:
@@ -123,7 +127,22 @@ def invariants(scene: CompiledScene, trajectory: Trajectory, free: bool = False)
             angular_momentum_scale=_angular_momentum_scale(scene, trajectory, momentum),
             position_offset=offsets[0],
             velocity_offset=offsets[1],
+            joint_violation=joint_violation(scene, trajectory),
         )
+
+
+def joint_violation(scene: CompiledScene, trajectory: Trajectory) -> np.ndarray:
+    """(s,) m: at each sample the largest joint violation as a distance, over the joints of
+    ``scene.joint_tree`` (``articulated.joint_violations``, from the bodies' poses alone): an
+    anchor's separation, or a misalignment times the child's reach from the anchor (how far
+    the rotation error moves its centre). Zeros without joints."""
+    tree = scene.joint_tree
+    if tree is None:
+        return np.zeros(trajectory.t.shape)
+    separation, misalignment, reach = joint_violations(
+        tree, trajectory.pos, rotations(trajectory.quat)
+    )
+    return np.maximum(separation, misalignment * reach).max(axis=1, initial=0.0)
 
 
 def _centre_velocity(scene: CompiledScene, momentum: np.ndarray) -> np.ndarray:
@@ -206,6 +225,7 @@ EXTREMES: dict[str, Magnitude] = {
     "angular_momentum_scale": lambda scene, s: s.angular_momentum_scale,
     "position_offset": lambda scene, s: np.linalg.norm(s.position_offset, axis=1),
     "velocity_offset": lambda scene, s: np.linalg.norm(s.velocity_offset, axis=1),
+    "joint_violation": lambda scene, s: s.joint_violation,
 }
 """Per-sample magnitude (of a series that starts at the run's first sample) -> its values:
 every quantity whose maximum over time a metric reads (``validation.measure.metrics``)."""

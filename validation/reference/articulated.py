@@ -586,6 +586,42 @@ def joint_coordinates(tree: JointTree, pos: np.ndarray, rot: np.ndarray) -> dict
     return coordinates
 
 
+def joint_violations(tree: JointTree, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, ...]:
+    """How far body poses ``pos (s, n, 3)``, ``rot (s, n, 3, 3)`` (an engine's observed states)
+    break each stated joint, from the two bodies' poses alone: ``separation (s, j)`` m, the
+    distance between the anchor as a point of the parent and as a point of the child (a
+    slider's across its axis only), and ``misalignment (s, j)`` rad, the angle between the
+    hinge's axis as the parent and the child carry it, or the whole relative rotation a slider
+    or fixed joint forbids (none for a ball); ``reach (j,)`` m, the child's centre's distance
+    from the anchor (what a misalignment moves it by, per radian). Joints in tree order,
+    floating roots left out."""
+    stated = [joint for joint in tree.joints if joint.type != "free"]
+    states = pos.shape[0]
+    separation = np.zeros((states, len(stated)))
+    misalignment = np.zeros((states, len(stated)))
+    for k, joint in enumerate(stated):
+        parent_pos, parent_rot = _parent_poses(joint, pos, rot)
+        child_rot = rot[:, joint.child]
+        anchor_parent = parent_pos + np.einsum("sij,j->si", parent_rot, joint.anchor)
+        anchor_child = pos[:, joint.child] - np.einsum(
+            "sij,kj,k->si", child_rot, joint.rotation, joint.offset
+        )  # the child's anchor is -R0ᵀ r0 in its frame
+        gap = anchor_child - anchor_parent
+        axis_parent = np.einsum("sij,j->si", parent_rot, joint.axis)
+        if joint.type == "slider":
+            gap = gap - axis_parent * np.einsum("si,si->s", gap, axis_parent)[:, None]
+        separation[:, k] = np.linalg.norm(gap, axis=1)
+        if joint.type == "hinge":
+            axis_child = np.einsum("sij,kj,k->si", child_rot, joint.rotation, joint.axis)
+            sine = np.linalg.norm(np.cross(axis_parent, axis_child), axis=1)
+            misalignment[:, k] = np.arctan2(sine, np.einsum("si,si->s", axis_parent, axis_child))
+        elif joint.type in ("slider", "fixed"):
+            relative = np.einsum("sji,sjk,lk->sil", parent_rot, child_rot, joint.rotation)
+            misalignment[:, k] = np.linalg.norm(_rotation_vector(relative), axis=1)
+    reach = np.array([np.linalg.norm(joint.offset) for joint in stated])
+    return separation, misalignment, reach
+
+
 def _parent_poses(joint: Joint, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     states = pos.shape[0]
     if joint.parent == WORLD:

@@ -128,7 +128,7 @@ class CompiledScene:
         force: (n, 3) N, torque: (n, 3) N·m, world frame: each body's constant applied load
             (0 for fixed bodies). acceleration: (n, 3) m/s², what acts on each centre of mass
             besides contacts and springs: g + F/m (0 for fixed bodies).
-        external_loads: a ground, fixed body or world spring can push the moving bodies (then
+        external_loads: a ground, fixed body, world spring or world joint can push the moving bodies (then
             momentum is not conserved).
         springs: the scene's springs as the reference evaluates them (``physics.scene_springs``).
         start: the scene's bodies at t = 0 as the scene states them (one state; fixed bodies
@@ -334,6 +334,7 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
     moving = np.array([not b.fixed for b in scenario.bodies])
     mass = np.where(moving, [b.mass for b in scenario.bodies], 0.0)
     world_springs = any(s.b == "world" for s in scenario.springs)
+    world_joints = any(j.parent == "world" for j in scenario.joints)
     force = np.where(moving[:, None], [b.force for b in scenario.bodies], 0.0).reshape(-1, 3)
     torque = np.where(moving[:, None], [b.torque for b in scenario.bodies], 0.0).reshape(-1, 3)
     gravity = np.asarray(scenario.gravity, dtype=float)
@@ -353,7 +354,10 @@ def compile_scene(scenario: Scenario) -> CompiledScene:
         torque=torque,
         acceleration=np.where(moving[:, None], gravity + force / safe_mass[:, None], 0.0),
         can_touch=shapes.can_touch,
-        external_loads=scenario.ground is not None or not moving.all() or world_springs,
+        external_loads=scenario.ground is not None
+        or not moving.all()
+        or world_springs
+        or world_joints,
         springs=scene_springs(scenario),
         start=scene_start(scenario),
         bound_radius=shapes.bound_radius,

@@ -34,6 +34,7 @@ class Traits:
         uniform_acceleration: g + F/m is the same vector for every moving body.
         applies_torque: a constant applied torque acts.
         engines: how many engine specs the scene lists.
+        joints: the scene has joints. damped_joint: a joint has damping > 0.
     """
 
     can_touch: bool
@@ -43,6 +44,8 @@ class Traits:
     uniform_acceleration: bool
     applies_torque: bool
     engines: int
+    joints: bool = False
+    damped_joint: bool = False
 
 
 def scene_traits(scene: CompiledScene) -> Traits:
@@ -56,6 +59,8 @@ def scene_traits(scene: CompiledScene) -> Traits:
         uniform_acceleration=scene.uniform_acceleration,
         applies_torque=scene.applies_torque,
         engines=len(scene.scenario.engines),
+        joints=bool(scene.scenario.joints),
+        damped_joint=any(joint.damping > 0.0 for joint in scene.scenario.joints),
     )
 
 
@@ -64,12 +69,13 @@ Condition = tuple[Callable[[Traits], bool], str]
 
 _PUSHED = (
     lambda t: t.external_loads,
-    "a ground, a fixed body or a spring to the world pushes the bodies, so momentum is not "
-    "an invariant",
+    "a ground, a fixed body, a spring or a joint to the world pushes the bodies, so momentum "
+    "is not an invariant",
 )
 _NOT_FREE = (
     (lambda t: t.can_touch, "bodies can touch, so there is no ballistic closed form"),
     (lambda t: t.springs, "a spring acts, so there is no ballistic closed form"),
+    (lambda t: t.joints, "joints hold the bodies, so there is no ballistic closed form"),
 )
 _NOTHING_TOUCHES = (lambda t: not t.can_touch, "nothing in the scene can touch")
 
@@ -80,6 +86,7 @@ UNDEFINED_WHEN: dict[str, tuple[Condition, ...]] = {
             "an applied torque does work with no potential, so energy is not an invariant",
         ),
         (lambda t: t.damped_spring, "a damped spring dissipates energy"),
+        (lambda t: t.damped_joint, "a damped joint dissipates energy"),
     ),
     "angular_momentum_drift": (
         _PUSHED,
@@ -94,6 +101,7 @@ UNDEFINED_WHEN: dict[str, tuple[Condition, ...]] = {
     "velocity_error": _NOT_FREE,
     "restitution_error": (_NOTHING_TOUCHES,),
     "penetration_max": (_NOTHING_TOUCHES,),
+    "joint_violation": ((lambda t: not t.joints, "the scene has no joints"),),
     "divergence": (
         (
             lambda t: t.engines < 2,

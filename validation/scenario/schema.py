@@ -56,6 +56,7 @@ METRIC_NAMES = (
     "velocity_error",
     "restitution_error",
     "penetration_max",
+    "joint_violation",
     "divergence",
 )
 """The metrics a ``checks`` entry may name besides the scene's own expectations (CI jobs and scene files use these names)."""

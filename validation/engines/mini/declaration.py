@@ -7,7 +7,14 @@ from __future__ import annotations
 from dataclasses import fields
 
 from mini_engine.settings import CHOICES, INTEGRATORS, Settings
-from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    BASE_FEATURES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 
 MEANINGS: dict[str, str] = {
     "integrator": "time integrator (semi-implicit Euler is the documented one)",
@@ -57,6 +64,8 @@ DECLARATION = EngineDeclaration(
         for item in fields(Settings)
         if item.name != "dt"
     ),
-    capabilities=Capabilities(integrators=INTEGRATORS),
+    capabilities=Capabilities(
+        features=frozenset({*BASE_FEATURES, "joints"}), integrators=INTEGRATORS
+    ),  # joints by the documented impulse (mini_engine.joints); no limits yet
     check_settings=_check,
 )

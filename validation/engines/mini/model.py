@@ -7,7 +7,8 @@ model; mini_engine, the engine under test, is given the scene as every other eng
 
 from __future__ import annotations
 
-from mini_engine import Body, PairProperties, Plane, Spring, build_model
+from mini_engine import Body, Joint, PairProperties, Plane, Spring, build_model
+from mini_engine.joints import WORLD
 from mini_engine.model import SHARED_WORLD, Model, State
 from mini_engine.shapes import Box, Capsule, Sphere
 from validation.scenario.physics import GROUND, ground_pose, rest_length
@@ -41,7 +42,8 @@ def _body(spec: BodySpec) -> Body:
 
 
 def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
-    """Model and initial state: the scene's bodies in order, then the ground plane if any."""
+    """Model and initial state: the scene's bodies in order, then the ground plane if any;
+    the scene's joints as mini's (``mini_engine.joints``, the documented impulse with e = 0)."""
     bodies = [_body(spec) for spec in scenario.bodies]
     if scenario.ground is not None:
         point, quat = ground_pose(scenario.ground)
@@ -73,4 +75,16 @@ def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
     pairs = [
         PairProperties(index[p.a], index[p.b], p.restitution, p.friction) for p in scenario.pairs
     ]
-    return build_model(bodies, springs, gravity=scenario.gravity, pairs=pairs)
+    joints = [
+        Joint(
+            type=j.type,
+            body_a=WORLD if j.parent == "world" else index[j.parent],
+            body_b=index[j.child],
+            anchor=j.anchor,
+            axis=(0.0, 0.0, 0.0) if j.axis is None else j.axis,
+            damping=j.damping,
+            name=j.name,
+        )
+        for j in scenario.joints
+    ]
+    return build_model(bodies, springs, gravity=scenario.gravity, pairs=pairs, joints=joints)
