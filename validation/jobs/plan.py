@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,11 +132,11 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
             overrides.append(spec)
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
-    missing = [p for p in paths if not p.exists()]
+    missing = [p for p in paths if not os.path.lexists(p)]  # a dangling link is read (refused)
     problems += [f"{p}: no such file or folder" for p in missing]
     scenes: list[tuple[CompiledScene, list[EngineSpec]]] = []
     names: dict[str, Path] = {}
-    for file in scenario_files([p for p in paths if p.exists()]):
+    for file in scenario_files([p for p in paths if p not in missing]):
         try:
             scenario = load_scenario(file)
         except ScenarioError as error:
