@@ -8,6 +8,7 @@ from pathlib import Path
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.jobs.plan import duplicate_name
 from validation.scenario import check_scenario, scenario_files
+from validation.scenario.problems import printable
 
 
 def _counted(count: int, noun: str) -> str:
@@ -20,11 +21,11 @@ def check_main(paths: list[Path]) -> int:
     missing = [p for p in paths if not Path(p).exists()]
     if missing:
         for path in missing:
-            print(f"{path}: no such file or folder", file=sys.stderr)
+            print(f"{printable(path)}: no such file or folder", file=sys.stderr)
         return EXIT_BAD_INPUT
     files = scenario_files(paths)
     if not files:
-        print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
+        print(f"{printable(', '.join(map(str, paths)))}: no .yaml files found", file=sys.stderr)
         return EXIT_BAD_INPUT
     invalid = warnings = 0
     names: dict[str, Path] = {}
