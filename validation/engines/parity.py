@@ -7,7 +7,7 @@ the body and both values, and becomes a result row with status ``model_mismatch`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -55,15 +55,11 @@ def _relative(engine: np.ndarray, expected: np.ndarray, tolerance: float) -> flo
     return float(np.max(np.abs(engine - expected), initial=0.0)) / scale
 
 
-QUANTITIES = (
-    "mass",
-    "com",
-    "inertia_world",
-    "energy",
-    "linear_momentum",
-    "angular_momentum",
-)
+QUANTITIES = tuple(f.name for f in fields(ModelReport))
 """The fields of a ``ModelReport``, in the order the gate reports them."""
+
+PER_BODY = ("mass", "com", "inertia_world")
+"""The quantities a ``ModelReport`` has one row of per dynamic body; the others are totals."""
 
 
 def _as_floats(value: object) -> np.ndarray | None:
@@ -101,10 +97,6 @@ def unusable(engine: ModelReport, expected: ModelReport) -> list[Mismatch]:
     return found
 
 
-PER_BODY = ("mass", "com", "inertia_world")
-"""The quantities a ``ModelReport`` has one row of per dynamic body."""
-
-
 def compare(
     engine: ModelReport, expected: ModelReport, tolerance: float = PARITY_TOLERANCE
 ) -> list[Mismatch]:
@@ -114,12 +106,8 @@ def compare(
     mismatches = unusable(engine, expected)
     if mismatches:
         return mismatches
-    per_body = {
-        "mass": (engine.mass, expected.mass),
-        "com": (engine.com, expected.com),
-        "inertia_world": (engine.inertia_world, expected.inertia_world),
-    }
-    for quantity, (got, want) in per_body.items():
+    for quantity in PER_BODY:
+        got, want = getattr(engine, quantity), getattr(expected, quantity)
         for body in range(len(want)):
             error = _relative(np.asarray(got[body]), np.asarray(want[body]), tolerance)
             if error > tolerance:
@@ -133,12 +121,8 @@ def compare(
                         tolerance,
                     )
                 )
-    totals = {
-        "energy": (engine.energy, expected.energy),
-        "linear_momentum": (engine.linear_momentum, expected.linear_momentum),
-        "angular_momentum": (engine.angular_momentum, expected.angular_momentum),
-    }
-    for quantity, (got, want) in totals.items():
+    for quantity in (q for q in QUANTITIES if q not in PER_BODY):
+        got, want = getattr(engine, quantity), getattr(expected, quantity)
         error = _relative(np.asarray(got), np.asarray(want), tolerance)
         if error > tolerance:
             mismatches.append(

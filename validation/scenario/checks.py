@@ -181,11 +181,11 @@ def bounded_scales(scenario: Scenario) -> Found:
             scales = list(_motion_scales(body, inertia, gravity, scenario.duration))
         for field, what, value in scales:
             if not value <= LARGEST_SCALE:
+                size = "past the largest float" if np.isinf(value) else f"{value:.3g}"
                 yield (
                     ("bodies", i, field),
-                    f"{what} of {body.name!r} is "
-                    f"{'past the largest float' if np.isinf(value) else f'{value:.3g}'}; expected values whose products "
-                    f"stay below {LARGEST_SCALE:.0e} (LARGEST_SCALE): every row would overflow",
+                    f"{what} of {body.name!r} is {size}; expected values whose products stay "
+                    f"below {LARGEST_SCALE:.0e} (LARGEST_SCALE): every row would overflow",
                 )
                 break
     for i, spring in enumerate(scenario.springs):

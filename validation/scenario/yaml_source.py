@@ -21,10 +21,10 @@ from __future__ import annotations
 import os
 import re
 import stat
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 MAX_BYTES = 5_000_000
@@ -89,7 +89,7 @@ YAML11_NUMBERS = {
 ``1:30`` is 90 (1.2: the text "1:30"), ``0b101`` is 5 (1.2: text). A scene means one number;
 a form two readers read differently is refused, never guessed."""
 
-SMALLEST_NORMAL = float(np.finfo(np.float64).tiny)
+SMALLEST_NORMAL = sys.float_info.min
 """2.2250738585072014e-308, the smallest double of full precision. A non-zero value below it
 (subnormal, ``5e-324``) or one that rounds to 0 (``1e-400``) has no physical meaning in a
 scene and breaks the arithmetic after it (a mass of 5e-324 has a singular inertia)."""
@@ -207,6 +207,8 @@ def _refused(message: str, node: yaml.Node) -> YamlSourceError:
 
 
 NUMBER_TAGS = {"tag:yaml.org,2002:int", "tag:yaml.org,2002:float"}
+"""The tags of the scalars read as numbers (the ones ``YAML11_NUMBERS`` and
+``SMALLEST_NORMAL`` judge)."""
 
 
 def _nonzero(text: str) -> bool:
