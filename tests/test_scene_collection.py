@@ -5,6 +5,7 @@ one collection for both) and reports the same refusals: a dangling link or a FIF
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -82,3 +83,12 @@ def test_a_dangling_link_named_alone_is_refused_as_in_a_folder(library, capsys):
         capsys.readouterr().err.strip()
         == f"{link}: cannot read the file: No such file or directory"
     )
+
+
+def test_a_fifo_named_alone_is_the_same_collection_error(library, capsys):
+    pipe = library / "pipe.yaml"
+    assert main(["run", str(pipe), "--out", str(library.parent / "o")]) == 2
+    line = capsys.readouterr().err.strip()
+    result = collect(pipe)
+    assert line in result.stdout + result.stderr, result.stdout + result.stderr
+    assert re.search(r"^ERROR \S*pipe.yaml$", result.stdout, re.MULTILINE), result.stdout

@@ -152,6 +152,7 @@ class SceneCollector:
 
         self.roots = [root.resolve() for root in roots]
         self.files = {Path(os.path.abspath(f)) for f in scenario_files(_present(roots))}
+        self.folders = {file.parent for file in self.files}
 
     def _under_roots(self, path: Path) -> bool:
         path = path.resolve()
@@ -163,7 +164,7 @@ class SceneCollector:
         return None
 
     def pytest_collect_directory(self, path: Path, parent: pytest.Collector):
-        if self._under_roots(path):
+        if self._under_roots(path) or Path(os.path.abspath(path)) in self.folders:
             return SceneFolder.from_parent(parent, path=path)
         return None
 
