@@ -76,13 +76,13 @@ def test_pytest_collects_the_valid_scene_alongside(library):
 
 
 def test_a_dangling_link_named_alone_is_refused_as_in_a_folder(library, capsys):
-    """``run`` of the link itself says what ``run`` of its folder says."""
+    """``run`` and ``check`` of the link itself say what ``run`` of its folder says."""
     link = library / "dangling.yaml"
+    line = f"{link}: cannot read the file: No such file or directory"
     assert main(["run", str(link), "--out", str(library.parent / "o")]) == 2
-    assert (
-        capsys.readouterr().err.strip()
-        == f"{link}: cannot read the file: No such file or directory"
-    )
+    assert capsys.readouterr().err.strip() == line
+    assert main(["check", str(link)]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[0] == line
 
 
 def test_a_fifo_named_alone_is_the_same_collection_error(library, capsys):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -18,7 +19,7 @@ def _counted(count: int, noun: str) -> str:
 
 def check_main(paths: list[Path]) -> int:
     """Print every problem of the files under ``paths``; 0 if all are valid, else 2."""
-    missing = [p for p in paths if not Path(p).exists()]
+    missing = [p for p in paths if not os.path.lexists(p)]  # a dangling link is read (refused)
     if missing:
         for path in missing:
             print(f"{printable(path)}: no such file or folder", file=sys.stderr)
