@@ -23,14 +23,13 @@ arguments are collected too.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 OPTION = "--physval"
 DEST = "physval"
-SCENE_SUFFIXES = (".yaml", ".yml")
-"""What ``physval run`` reads as scenes in a folder (``scenario_files``)."""
 
 PLUGIN_NAME = "physval-scenes"
 """The name of the collecting plugin, registered only when ``--physval`` is given."""
@@ -169,19 +168,49 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 class SceneCollector:
-    """The hook that turns scene files under the ``--physval`` paths into ``SceneFile``s."""
+    """The hooks that turn the scene files under the ``--physval`` paths into ``SceneFile``s:
+    exactly the files ``physval run`` reads (``scenario_files``, the one collection of both),
+    so a dangling link or a FIFO named ``*.yaml``, which pytest's folders pass over, is an item
+    whose collection error is ``run``'s refusal."""
 
     def __init__(self, roots: list[Path]):
+        from validation.scenario import scenario_files
+
         self.roots = [root.resolve() for root in roots]
+        self.files = {Path(os.path.abspath(f)) for f in scenario_files(_present(roots))}
+        self.folders = {file.parent for file in self.files}
 
     def _under_roots(self, path: Path) -> bool:
         path = path.resolve()
         return any(path == root or root in path.parents for root in self.roots)
 
     def pytest_collect_file(self, file_path: Path, parent: pytest.Collector):
-        if file_path.suffix in SCENE_SUFFIXES and self._under_roots(file_path):
+        if Path(os.path.abspath(file_path)) in self.files:
             return SceneFile.from_parent(parent, path=file_path)
         return None
+
+    def pytest_collect_directory(self, path: Path, parent: pytest.Collector):
+        if self._under_roots(path) or Path(os.path.abspath(path)) in self.folders:
+            return SceneFolder.from_parent(parent, path=path)
+        return None
+
+
+def _present(roots: list[Path]) -> list[Path]:
+    """The roots that exist (a missing one is pytest's "file or directory not found")."""
+    return [root for root in roots if os.path.lexists(root)]
+
+
+class SceneFolder(pytest.Dir):
+    """A folder under the ``--physval`` paths: pytest's own, plus the scene files in it that
+    are not regular files (pytest collects regular files only), as ``physval run`` lists them."""
+
+    def collect(self):
+        yield from super().collect()
+        collector = self.config.pluginmanager.get_plugin(PLUGIN_NAME)
+        here = Path(os.path.abspath(self.path))
+        for file in sorted(collector.files):
+            if file.parent == here and not file.is_file():
+                yield SceneFile.from_parent(self, path=file)
 
 
 class SceneFailedError(Exception):

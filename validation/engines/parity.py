@@ -7,7 +7,7 @@ the body and both values, and becomes a result row with status ``model_mismatch`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -36,9 +36,14 @@ class Mismatch:
     expected: object
     relative_error: float
     tolerance: float = PARITY_TOLERANCE
+    problem: str = ""
+    """Set when the engine's value cannot be compared at all (a wrong shape, a NaN): what is
+    wrong with it, said instead of a relative error."""
 
     def __str__(self) -> str:
         where = f" of body {self.body}" if self.body is not None else ""
+        if self.problem:
+            return f"{self.quantity}{where}: {self.problem}"
         return (
             f"{self.quantity}{where}: engine {self.engine_value}, scenario {self.expected} "
             f"(relative error {self.relative_error:.3g} > {self.tolerance})"
@@ -50,18 +55,59 @@ def _relative(engine: np.ndarray, expected: np.ndarray, tolerance: float) -> flo
     return float(np.max(np.abs(engine - expected), initial=0.0)) / scale
 
 
+QUANTITIES = tuple(f.name for f in fields(ModelReport))
+"""The fields of a ``ModelReport``, in the order the gate reports them."""
+
+PER_BODY = ("mass", "com", "inertia_world")
+"""The quantities a ``ModelReport`` has one row of per dynamic body; the others are totals."""
+
+
+def _as_floats(value: object) -> np.ndarray | None:
+    """``value`` as a float array, or None when it is not numbers."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+
+
+def unusable(engine: ModelReport, expected: ModelReport) -> list[Mismatch]:
+    """The contract before any comparison: each quantity of ``engine`` is numbers, of the
+    shape of ``expected``'s (so a body too many or too few is found for every scene size,
+    one body included, where indexing would have read past it) and finite (a NaN compares
+    as neither greater nor smaller than a tolerance, so it would pass)."""
+    found = []
+    for quantity in QUANTITIES:
+        got = _as_floats(getattr(engine, quantity, None))
+        want = np.shape(getattr(expected, quantity))
+        body = None
+        if got is None or got.shape != want:
+            shape = "not numbers" if got is None else f"shape {got.shape}"
+            bodies = f" ({want[0]} dynamic bodies)" if quantity in PER_BODY else ""
+            problem = f"the engine reported {shape}; expected shape {want}{bodies}"
+        elif not np.isfinite(got).all():
+            bad = ~np.isfinite(got)
+            body = int(np.argwhere(bad)[0][0]) if quantity in PER_BODY else None
+            problem = (
+                f"the engine reported {int(bad.sum())} non-finite value(s) (first: "
+                f"{got[bad][0]}); expected finite numbers"
+            )
+        else:
+            continue
+        found.append(Mismatch(quantity, body, None, None, float("inf"), problem=problem))
+    return found
+
+
 def compare(
     engine: ModelReport, expected: ModelReport, tolerance: float = PARITY_TOLERANCE
 ) -> list[Mismatch]:
     """Every quantity of ``engine`` that differs from ``expected`` beyond ``tolerance``
-    (relative; ``PRECISION_TOLERANCE`` of the engine's declared precision)."""
-    mismatches = []
-    per_body = {
-        "mass": (engine.mass, expected.mass),
-        "com": (engine.com, expected.com),
-        "inertia_world": (engine.inertia_world, expected.inertia_world),
-    }
-    for quantity, (got, want) in per_body.items():
+    (relative; ``PRECISION_TOLERANCE`` of the engine's declared precision); a quantity of the
+    wrong shape or not finite (``unusable``) is a mismatch before any is compared."""
+    mismatches = unusable(engine, expected)
+    if mismatches:
+        return mismatches
+    for quantity in PER_BODY:
+        got, want = getattr(engine, quantity), getattr(expected, quantity)
         for body in range(len(want)):
             error = _relative(np.asarray(got[body]), np.asarray(want[body]), tolerance)
             if error > tolerance:
@@ -75,12 +121,8 @@ def compare(
                         tolerance,
                     )
                 )
-    totals = {
-        "energy": (engine.energy, expected.energy),
-        "linear_momentum": (engine.linear_momentum, expected.linear_momentum),
-        "angular_momentum": (engine.angular_momentum, expected.angular_momentum),
-    }
-    for quantity, (got, want) in totals.items():
+    for quantity in (q for q in QUANTITIES if q not in PER_BODY):
+        got, want = getattr(engine, quantity), getattr(expected, quantity)
         error = _relative(np.asarray(got), np.asarray(want), tolerance)
         if error > tolerance:
             mismatches.append(
@@ -94,3 +136,30 @@ def compare(
                 )
             )
     return mismatches
+
+
+OBSERVED_COLUMNS = {"pos": 3, "quat": 4, "vel": 3, "ang_vel": 3}
+"""The per-body width of each observed state field (``Snapshot``, ``Trajectory``)."""
+
+
+class ObservationError(ValueError):
+    """States an engine observed that break the adapter contract (a wrong body count or
+    shape): the run's ``error`` row, its message naming the field."""
+
+
+def check_observation(states, bodies: int) -> None:
+    """The observation contract: ``states`` (a ``Trajectory`` of s states) holds ``t`` (s,)
+    and, for every one of the scene's ``bodies``, ``pos``, ``vel``, ``ang_vel`` (s, n, 3) and
+    ``quat`` (s, n, 4); else ``ObservationError`` naming the field (an engine reporting one
+    body too many would otherwise be measured by broadcasting). Values are not judged here:
+    a non-finite state is the stability checks' finding (``unstable``)."""
+    if len(np.shape(states.t)) != 1:
+        raise ObservationError(f"observed t has shape {np.shape(states.t)}; expected (states,)")
+    count = np.shape(states.t)[0]
+    for name, width in OBSERVED_COLUMNS.items():
+        shape = np.shape(getattr(states, name))
+        if shape != (count, bodies, width):
+            raise ObservationError(
+                f"observed {name} has shape {shape}; expected ({count}, {bodies}, {width}): "
+                f"{count} states of the scene's {bodies} bodies"
+            )

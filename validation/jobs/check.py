@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 from validation.contract import EXIT_BAD_INPUT, EXIT_OK
 from validation.jobs.plan import duplicate_name
 from validation.scenario import check_scenario, scenario_files
+from validation.scenario.problems import printable
 
 
 def _counted(count: int, noun: str) -> str:
@@ -17,14 +19,14 @@ def _counted(count: int, noun: str) -> str:
 
 def check_main(paths: list[Path]) -> int:
     """Print every problem of the files under ``paths``; 0 if all are valid, else 2."""
-    missing = [p for p in paths if not Path(p).exists()]
+    missing = [p for p in paths if not os.path.lexists(p)]  # a dangling link is read (refused)
     if missing:
         for path in missing:
-            print(f"{path}: no such file or folder", file=sys.stderr)
+            print(f"{printable(path)}: no such file or folder", file=sys.stderr)
         return EXIT_BAD_INPUT
     files = scenario_files(paths)
     if not files:
-        print(f"{', '.join(map(str, paths))}: no .yaml files found", file=sys.stderr)
+        print(f"{printable(', '.join(map(str, paths)))}: no .yaml files found", file=sys.stderr)
         return EXIT_BAD_INPUT
     invalid = warnings = 0
     names: dict[str, Path] = {}

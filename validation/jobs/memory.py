@@ -10,6 +10,10 @@ job's series and positions until the run is written. The estimate is that, summe
 ``--jobs`` largest jobs running at once, plus the command's process; the constants are peak
 RSS measured with ``benchmarks/scale.py`` (the sphere grids, every engine), rounded up.
 
+A scene's expectation lists (``bounce_heights``, ``impact_times``, ``flip_times``: a list
+of any length) cost the command's process ``EXPECTED_VALUE_BYTES`` per listed value, once per
+scene: reading, validating and writing them (900,000 bounce heights: 1.9 GB).
+
 A run keeps at most ``impact_log.KEPT_IMPACTS_BOUND`` impact records (``IMPACT_BYTES``
 each), however many impacts it has: they are in the worker's estimate of every scene that
 can touch. The command's process holds each run's kept impacts too; its estimate leaves them
@@ -21,6 +25,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from validation.jobs.plan import BadInputError, Plan
 from validation.measure.impact_log import KEPT_IMPACTS_BOUND
@@ -62,6 +68,18 @@ SERIES_NUMBERS = 20
 momentum, angular momentum, centre of mass, the two ballistic offsets: 3 each)."""
 
 
+EXPECTED_VALUE_BYTES = 2_200
+"""Bytes per value of a scene's expectations in the command's process: its YAML node and
+source position, the validated scenario, and the rows and report written from it (measured:
+the peak RSS of ``physval run --jobs 1`` of one ball with 200,000 bounce heights less that of
+one with 1, 420 MB, 2,150 bytes a value), rounded up."""
+
+
+def expected_values(scene: CompiledScene) -> int:
+    """The numbers the scene's expectations list (a vector's 3, a list's every entry)."""
+    return sum(int(np.size(e.value)) for e in scene.scenario.expect)
+
+
 @dataclass(frozen=True)
 class Estimate:
     """A job's estimated peak memory (bytes) in its worker, and what it leaves with the
@@ -89,10 +107,13 @@ def job_estimate(scene: CompiledScene, spec: EngineSpec, sample_every: int) -> E
 
 def run_estimate(estimates: list[Estimate], jobs: int) -> tuple[int, Estimate]:
     """(bytes, the largest job): the ``jobs`` largest workers at once, plus the command's
-    process holding every job's kept numbers (without workers, ``jobs`` 1: in that process)."""
+    process holding every job's kept numbers and every scene's expectation values (without
+    workers, ``jobs`` 1: in that process)."""
     ordered = sorted(estimates, key=lambda e: e.worker, reverse=True)
     running = sum(e.worker for e in ordered[: max(jobs, 1)])
-    parent = (PROCESS_BYTES if jobs > 1 else 0) + sum(e.kept for e in estimates)
+    scenes = {id(e.scene): e.scene for e in estimates}.values()  # a scene's specs share it
+    expectations = sum(expected_values(scene) for scene in scenes) * EXPECTED_VALUE_BYTES
+    parent = (PROCESS_BYTES if jobs > 1 else 0) + sum(e.kept for e in estimates) + expectations
     return running + parent, ordered[0]
 
 
@@ -127,11 +148,15 @@ def check_memory(plan: Plan, jobs: int, sample_every) -> None:
     needed, largest = run_estimate(estimates, jobs)
     if needed <= free:
         return
-    scene = largest.scene
+    scene = max((e.scene for e in estimates), key=expected_values)
+    if expected_values(scene) * EXPECTED_VALUE_BYTES < largest.worker:
+        scene = largest.scene
     source = scene.scenario.source or scene.name
     raise BadInputError(
         f"{source}: the run needs an estimated {needed / MB:,.0f} MB, more than the "
-        f"{free / MB:,.0f} MB available (its largest job, scene {scene.name!r} in "
-        f"{largest.engine}: {scene.count} bodies, {scene.scenario.steps} steps, "
-        f"{largest.worker / MB:,.0f} MB; --jobs {jobs}); run fewer bodies, steps or --jobs"
+        f"{free / MB:,.0f} MB available (its largest job, scene {largest.scene.name!r} in "
+        f"{largest.engine}: {largest.scene.count} bodies, {largest.scene.scenario.steps} "
+        f"steps, {largest.worker / MB:,.0f} MB; scene {scene.name!r} lists "
+        f"{expected_values(scene):,} expected values, {EXPECTED_VALUE_BYTES:,} bytes each; "
+        f"--jobs {jobs}); run fewer bodies, steps, expected values or --jobs"
     )

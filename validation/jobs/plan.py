@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from validation.scenario.engine_spec import (
     parse_installed_spec,
     split_engine_list,
 )
+from validation.scenario.problems import printable
 
 
 @dataclass
@@ -56,7 +58,12 @@ class Plan:
 
 
 class BadInputError(ValueError):
-    """User input that stops the run before anything is written (exit code 2)."""
+    """User input that stops the run before anything is written (exit code 2): one line per
+    problem, each printed with its control characters escaped (``printable``: a folder named
+    with an escape sequence cannot drive the terminal that prints the refusal)."""
+
+    def __str__(self) -> str:
+        return "\n".join(printable(line) for line in super().__str__().split("\n"))
 
 
 def step_ratio(duration: float, dt: float) -> float:
@@ -95,7 +102,7 @@ def _with_dt(scenario: Scenario, dt: float, file: Path) -> Scenario:
     """The scenario at ``--dt``; ``BadInputError`` when its step count is out of range."""
     if not steps_in_range(scenario.duration, dt):
         raise BadInputError(
-            f"--dt {dt} for {file}: {step_ratio(scenario.duration, dt):.3g} steps (duration / dt) is out of range; "
+            f"--dt {dt} for {printable(file)}: {step_ratio(scenario.duration, dt):.3g} steps (duration / dt) is out of range; "
             f"expected 1 to {MAX_STEPS} (MAX_STEPS)"
         )
     try:
@@ -103,7 +110,7 @@ def _with_dt(scenario: Scenario, dt: float, file: Path) -> Scenario:
             {**scenario.model_dump(), "dt": dt, "source": scenario.source}
         )
     except ValueError as error:
-        raise BadInputError(f"--dt {dt} for {file}: {error}") from None
+        raise BadInputError(f"--dt {dt} for {printable(file)}: {error}") from None
 
 
 def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> str | None:
@@ -111,7 +118,9 @@ def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> st
     other = names.setdefault(scenario.name, file)
     if other == file:
         return None
-    return f"{file}: name: {scenario.name!r} is also the name of {other}; expected a unique name"
+    return printable(
+        f"{file}: name: {scenario.name!r} is also the name of {other}; expected a unique name"
+    )
 
 
 def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
@@ -131,11 +140,11 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
             overrides.append(spec)
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         problems.append(f"--dt: expected a number of seconds > 0; got {dt}")
-    missing = [p for p in paths if not p.exists()]
-    problems += [f"{p}: no such file or folder" for p in missing]
+    missing = [p for p in paths if not os.path.lexists(p)]  # a dangling link is read (refused)
+    problems += [f"{printable(p)}: no such file or folder" for p in missing]
     scenes: list[tuple[CompiledScene, list[EngineSpec]]] = []
     names: dict[str, Path] = {}
-    for file in scenario_files([p for p in paths if p.exists()]):
+    for file in scenario_files([p for p in paths if p not in missing]):
         try:
             scenario = load_scenario(file)
         except ScenarioError as error:

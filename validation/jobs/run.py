@@ -81,6 +81,7 @@ from validation.report.closed_form import expectation_records, trace_rows, trace
 from validation.report.render import render_report
 from validation.scenario.compiled import CompiledScene
 from validation.scenario.engine_spec import EngineSpec
+from validation.scenario.problems import printable
 
 STATE_NUMBERS = 13
 """Numbers of one body's kept state: position 3, quaternion 4, velocity 3, angular velocity 3."""
@@ -680,7 +681,7 @@ def _finish(
     print(news(rows, comparison, options.baseline))
     total = len(plan.jobs) + len(_sweep_work(plan))
     journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
-    written = f"{len(rows)} rows -> {output.destination / RESULTS_FILE}"
+    written = f"{len(rows)} rows -> {printable(output.destination / RESULTS_FILE)}"
     print(
         "\n".join(
             packed_lines(

@@ -36,6 +36,7 @@ from validation.engine_api import declarations
 from validation.nightly.known import outcome_of
 from validation.report.news import NEWS_SECTIONS, NEWS_WORDS, news_selections
 from validation.report.outcomes import OUTCOME_ORDER, error_ratio, outcome_label
+from validation.scenario.problems import printable
 
 BAR_WIDTH = 30
 """Characters of the progress bar itself (the old hand-drawn bar's width)."""
@@ -163,7 +164,7 @@ class Progress:
         elapsed = datetime.timedelta(seconds=round(time.monotonic() - self._started))
         width = len(str(self.total))
         parts = [PROGRESS_PREFIX, f"{self.done:>{width}}/{self.total}", str(elapsed), label]
-        return " ".join([*parts, detail] if detail else parts)
+        return printable(" ".join([*parts, detail] if detail else parts))  # one line each
 
     def close(self) -> None:
         """Stop drawing and leave the final bar on its own line; safe to call twice."""

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from validation.engines.base import EngineAdapter, Snapshot, StoppedEarlyError
+from validation.engines.parity import check_observation
 from validation.measure.definitions import MAX_KEPT_POSITIONS
 from validation.measure.expectations import trackers
 from validation.measure.impact_log import ImpactEvent, ImpactLog
@@ -474,6 +475,7 @@ class _Measurer:
     def measure(self, states: Trajectory, steps, final: int) -> bool:
         """Judge and measure a batch of consecutive states observed after ``steps`` steps;
         False once a state has failed (the run must stop; later states are not kept)."""
+        check_observation(states, self.scene.count)
         step_index = np.asarray(steps)
         deepest = radius = touching = None
         if self.scene.can_touch:

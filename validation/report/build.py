@@ -70,6 +70,51 @@ SETTINGS_INLINE_UP_TO = 3
 """A run's settings that differ from its spec's (provenance.json) are listed inline up to this
 many; more are folded under their count (they are long: one line of the table each)."""
 
+REPORT_TEXT_CAP = 2_000
+"""Characters of one text of an engine's (a row's message, a setting, a version, a note) the
+report shows; the rest is counted and left to the run folder, whose results.csv and
+provenance.json keep it whole. The library's longest message is 731 characters; an engine
+that raised with a 20 MiB message made a 482 MB report.html (the text in every table that
+shows the row)."""
+
+CAPPED_COLUMNS = {
+    "message": "results.csv",
+    "settings": "results.csv",
+    "engine_version": "results.csv",
+    "known": "results.csv",
+    "news_note": "results.csv",
+}
+"""The text columns of the rows the report shows, each capped at ``REPORT_TEXT_CAP``, and the
+file that keeps the whole text."""
+
+
+def capped(text: Any, kept_in: str) -> Any:
+    """``text`` cut at ``REPORT_TEXT_CAP`` characters with how many more ``kept_in`` has; any
+    other value as it is."""
+    if not isinstance(text, str) or len(text) <= REPORT_TEXT_CAP:
+        return text
+    return (
+        f"{text[:REPORT_TEXT_CAP]}… ({len(text) - REPORT_TEXT_CAP:,} more characters in {kept_in})"
+    )
+
+
+def capped_rows(table: pd.DataFrame) -> pd.DataFrame:
+    """The rows with their engine texts capped (``CAPPED_COLUMNS``)."""
+    present = {c: f for c, f in CAPPED_COLUMNS.items() if c in table}
+    return table.assign(
+        **{c: table[c].map(lambda v, f=f: capped(v, f)) for c, f in present.items()}
+    )
+
+
+def capped_values(value: Any, kept_in: str = "provenance.json") -> Any:
+    """Every text in ``value`` (provenance.json's nested mappings and lists) capped."""
+    if isinstance(value, dict):
+        return {capped(k, kept_in): capped_values(v, kept_in) for k, v in value.items()}
+    if isinstance(value, list):
+        return [capped_values(v, kept_in) for v in value]
+    return capped(value, kept_in)
+
+
 OPEN_ROWS = (*RUN_FAILURE_STATUSES, "failed", "fixed")
 """A scene's rows table starts open when one of its rows has one of these outcomes (the rows a
 reader comes for: news); otherwise, known findings included (listed with their reasons in the
@@ -517,7 +562,8 @@ def split_by_scene(run: RunData) -> dict[str, RunData]:
 
 def build_context(run: RunData) -> dict[str, Any]:
     """Everything the template prints, as plain strings, lists and dicts."""
-    table = classify_rows(run.results, run.warnings)
+    table = capped_rows(classify_rows(run.results, run.warnings))
+    run = dataclasses.replace(run, provenance=capped_values(run.provenance))
     engines = _engine_order(table, run.series)
     scenes = scene_order(table)
     taken: set[str] = set()

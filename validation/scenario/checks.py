@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import difflib
 import fnmatch
+import math
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -34,7 +35,7 @@ from validation.scenario.schema import (
     Scenario,
     Tolerance,
 )
-from validation.scenario.yaml_source import SourceMap
+from validation.scenario.yaml_source import SMALLEST_NORMAL, SourceMap
 
 Location = tuple[str | int, ...]
 Found = Iterator[tuple[Location, str]]
@@ -127,24 +128,95 @@ def expectations(scenario: Scenario) -> Found:
 
 
 def finite_inertia(body: BodySpec) -> np.ndarray | None:
-    """The body's inertia (``physics.body_inertia``), or None when it overflows a float."""
+    """The body's inertia (``physics.body_inertia``), or None when it overflows a float or
+    underflows (a subnormal moment: its inverse, which every engine takes, is infinite)."""
     try:
-        with np.errstate(over="raise", invalid="raise"):
+        with np.errstate(over="raise", invalid="raise", under="ignore"):
             inertia = body_inertia(body)
-    except (OverflowError, FloatingPointError):
+            smallest = float(np.linalg.eigvalsh(inertia).min())
+    except (OverflowError, FloatingPointError, np.linalg.LinAlgError):
         return None
-    return inertia if np.isfinite(inertia).all() else None
+    finite = np.isfinite(inertia).all() and smallest >= SMALLEST_NORMAL
+    return inertia if finite else None
 
 
 def finite_mass_properties(scenario: Scenario) -> Found:
     """A body's derived mass properties are finite numbers (a radius of 1e200 m squares past
-    the largest float: every engine would get an infinite inertia)."""
+    the largest float: every engine would get an infinite inertia; a mass of 1e-307 kg a
+    subnormal inertia whose inverse is infinite)."""
     for i, body in enumerate(scenario.bodies):
         if finite_inertia(body) is None:
             yield (
                 ("bodies", i),
-                f"the inertia of {body.name!r} (mass x size²) overflows a float; expected a "
-                "size and a mass whose inertia is finite",
+                f"the inertia of {body.name!r} (mass x size²) overflows or underflows a "
+                "float; expected a size and a mass whose principal moments are finite and "
+                f"at least {SMALLEST_NORMAL:.3g} kg·m² (SMALLEST_NORMAL)",
+            )
+
+
+LARGEST_SCALE = 1e150
+"""The largest physical scale (a weight, a momentum, an energy, a reachable speed or
+distance) a scene may imply, in SI units. The measurements square such values (norms, kinetic
+energy) and sum them over bodies: 1e150 squares to 1e300 and 20,000 bodies of it sum to 2e304,
+below the largest double 1.8e308; a scale beyond it turns rows into inf - inf = NaN, which no
+tolerance can judge (a mass of 1e308 gave NaN rows marked ok)."""
+
+
+def _motion_scales(body: BodySpec, inertia: np.ndarray, gravity: float, duration: float):
+    """(field, what, value) of one moving body: the products of its values that its rows
+    compute, at t = 0 and as far as its loads can take it in ``duration`` (a bound: constant
+    acceleration, touching nothing)."""
+    # NumPy floats: an overflow is inf (errstate ignores it), not Python's OverflowError
+    mass, force = np.float64(body.mass), np.float64(math.hypot(*body.force))
+    speed = np.float64(math.hypot(*body.velocity))
+    spin = np.float64(math.hypot(*body.angular_velocity))
+    acceleration = force / mass + gravity
+    reach_speed = speed + acceleration * duration
+    reach = math.hypot(*body.position) + speed * duration + acceleration * duration**2
+    moment = float(np.linalg.eigvalsh(inertia).max())
+    yield "mass", "mass x |gravity|", mass * gravity
+    yield "force", "|force|", force
+    yield "force", "|force| / mass", force / mass
+    yield "torque", "|torque|", math.hypot(*body.torque)
+    yield "velocity", "mass x |velocity|", mass * speed
+    yield "velocity", "mass x |velocity|²", mass * speed**2
+    yield "angular_velocity", "inertia x |angular velocity|²", moment * spin**2
+    yield "position", "|position| reached in the run", reach
+    yield "velocity", "mass x |velocity|² reached in the run", mass * reach_speed**2
+    yield "position", "mass x |gravity| x |position| reached in the run", mass * gravity * reach
+
+
+def bounded_scales(scenario: Scenario) -> Found:
+    """The physical scales a scene implies stay below ``LARGEST_SCALE``, the field that makes
+    each one named (a mass, force or gravity of 1e308 overflows every row it enters)."""
+    gravity = math.hypot(*scenario.gravity)  # hypot does not overflow where its result fits
+    if not gravity <= LARGEST_SCALE:
+        yield (
+            ("gravity",),
+            f"expected |gravity| <= {LARGEST_SCALE:.0e} m/s² (LARGEST_SCALE); got {gravity:.3g}",
+        )
+        return
+    for i, body in enumerate(scenario.bodies):
+        inertia = finite_inertia(body)
+        if body.fixed or inertia is None:
+            continue  # a fixed body does not move; an unusable inertia is its own problem
+        with np.errstate(over="ignore", invalid="ignore"):
+            scales = list(_motion_scales(body, inertia, gravity, scenario.duration))
+        for field, what, value in scales:
+            if not value <= LARGEST_SCALE:
+                size = "past the largest float" if np.isinf(value) else f"{value:.3g}"
+                yield (
+                    ("bodies", i, field),
+                    f"{what} of {body.name!r} is {size}; expected values whose products stay "
+                    f"below {LARGEST_SCALE:.0e} (LARGEST_SCALE): every row would overflow",
+                )
+                break
+    for i, spring in enumerate(scenario.springs):
+        if not spring.stiffness <= LARGEST_SCALE or not spring.damping <= LARGEST_SCALE:
+            yield (
+                ("springs", i),
+                f"expected a stiffness and a damping below {LARGEST_SCALE:.0e} (LARGEST_SCALE); "
+                f"got {spring.stiffness:.3g} N/m, {spring.damping:.3g} N·s/m",
             )
 
 
@@ -180,7 +252,8 @@ def engine_specs(scenario: Scenario) -> Found:
 
 def check_names(scenario: Scenario) -> Found:
     """A ``checks`` entry names a metric of this scene; a per-engine key names one of its engines."""
-    metrics = sorted({*METRIC_NAMES, *(e.metric for e in scenario.expect)})
+    known = {*METRIC_NAMES, *(e.metric for e in scenario.expect)}
+    metrics = sorted(known)
     labels = set()
     for text in scenario.engines:
         try:
@@ -188,7 +261,7 @@ def check_names(scenario: Scenario) -> Found:
         except EngineSpecError:
             continue  # reported by engine_specs
     for metric, tolerance in scenario.checks.items():
-        if metric not in metrics:
+        if metric not in known:  # a set: a list made ``check`` quadratic in the entries
             hint = (
                 _hint(metric, metrics).removeprefix("; ") or f"expected one of {', '.join(metrics)}"
             )
@@ -281,6 +354,7 @@ Rule = Callable[[Scenario], Found]
 RULES: tuple[Rule, ...] = (
     unique_body_names,
     finite_mass_properties,
+    bounded_scales,
     spring_ends,
     *JOINT_RULES,
     pair_bodies,
@@ -420,15 +494,16 @@ def requested_restitutions(scenario: Scenario) -> set[float]:
     return found
 
 
-def _expected_size(scenario: Scenario, metric: str) -> float:
+def _expected_size(scenario: Scenario, metric: str, expected: dict) -> float:
     """|expected| of the rows of ``metric``: 0 for a conserved drift, a control (nothing
-    turns, no penetration) or a comparison with another engine, which do not warn."""
+    turns, no penetration) or a comparison with another engine, which do not warn.
+    ``expected`` maps each expectation's metric to it (built once per document: a map per
+    check made ``check`` quadratic in the ``checks`` entries)."""
     if metric == "restitution_error":  # each impact is judged against its pair's e
         return min((e for e in requested_restitutions(scenario) if e > 0.0), default=0.0)
-    kinds = {e.metric: e for e in scenario.expect}
-    if metric not in kinds:
+    if metric not in expected:
         return 0.0
-    return EXPECTED_SIZE[kinds[metric].kind](kinds[metric])
+    return EXPECTED_SIZE[expected[metric].kind](expected[metric])
 
 
 def _tolerance_entries(scenario: Scenario, metric: str, tolerance: Tolerance) -> Iterator:
@@ -452,8 +527,9 @@ FIX = (
 def tolerances_can_fail(scenario: Scenario) -> Found:
     """A check's tolerance is below |expected|: else a reading of zero, an engine that did
     nothing, passes it. Controls (expected 0) and conserved drifts do not warn."""
+    expected = {e.metric: e for e in scenario.expect}
     for metric, tolerance in scenario.checks.items():
-        size = _expected_size(scenario, metric)
+        size = _expected_size(scenario, metric, expected)
         if size <= 0.0:
             continue
         for loc, value, specs in _tolerance_entries(scenario, metric, tolerance):

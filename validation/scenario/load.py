@@ -30,6 +30,7 @@ from validation.scenario.problems import (
     _found,
     _schema_problem,
     merged,
+    path_text,
 )
 from validation.scenario.schema import (
     Scenario,
@@ -54,7 +55,7 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     try:
         data, source = read_yaml(path)
     except YamlSourceError as error:
-        return None, [Problem(file, "", error.message, error.line, error.column)]
+        return None, [Problem(file, path_text(error.path), error.message, error.line, error.column)]
     if not isinstance(data, dict):
         return None, [
             Problem(file, "", f"expected a mapping of scenario fields; got {_found(data)}", 1, 1)

@@ -21,6 +21,18 @@ from validation.scenario.schema import (
 )
 from validation.scenario.yaml_source import SourceMap
 
+UNPRINTABLE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff]")
+"""Characters a line of text must not print raw: C0 and C1 controls (a newline would split
+one message into two lines, ESC starts a sequence that drives the terminal), Unicode's line
+separators, and the surrogates a file name's undecodable bytes become."""
+
+
+def printable(text: object) -> str:
+    """``text`` with every ``UNPRINTABLE`` character written as its Python escape (``\\n``,
+    ``\\x1b``, ``\\udcff``): a folder or file name printed in a terminal, a log or a one-line
+    message stays on its line and says exactly what it is."""
+    return UNPRINTABLE.sub(lambda found: repr(found.group())[1:-1], str(text))
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -37,7 +49,7 @@ class Problem:
         where = self.file + (f":{self.line}:{self.column}" if self.line else "")
         field = f" {self.path}:" if self.path else ""
         kind = " warning:" if self.warning else ""
-        return f"{where}:{kind}{field} {self.message}"
+        return printable(f"{where}:{kind}{field} {self.message}")
 
 
 class ScenarioError(ValueError):

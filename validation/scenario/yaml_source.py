@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import re
 import stat
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -79,12 +80,34 @@ for _loader in (_ScenarioLoader, _FastScenarioLoader):
     )
 
 
-class YamlSourceError(ValueError):
-    """A document that is not acceptable YAML; ``line`` and ``column`` are 1-based or None."""
+YAML11_NUMBERS = {
+    "binary": re.compile(r"^[-+]?0b[0-1_]+$"),
+    "octal": re.compile(r"^[-+]?0[0-7_]+$"),
+    "base-60": re.compile(r"^[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?$"),
+}
+"""Number forms of YAML 1.1 that PyYAML reads and YAML 1.2 does not: ``010`` is 8 (1.2: 10),
+``1:30`` is 90 (1.2: the text "1:30"), ``0b101`` is 5 (1.2: text). A scene means one number;
+a form two readers read differently is refused, never guessed."""
 
-    def __init__(self, message: str, line: int | None = None, column: int | None = None):
+SMALLEST_NORMAL = sys.float_info.min
+"""2.2250738585072014e-308, the smallest double of full precision. A non-zero value below it
+(subnormal, ``5e-324``) or one that rounds to 0 (``1e-400``) has no physical meaning in a
+scene and breaks the arithmetic after it (a mass of 5e-324 has a singular inertia)."""
+
+
+class YamlSourceError(ValueError):
+    """A document that is not acceptable YAML; ``line`` and ``column`` are 1-based or None,
+    ``path`` the field path of the value it concerns (empty: the document)."""
+
+    def __init__(
+        self,
+        message: str,
+        line: int | None = None,
+        column: int | None = None,
+        path: tuple[str | int, ...] = (),
+    ):
         super().__init__(message)
-        self.message, self.line, self.column = message, line, column
+        self.message, self.line, self.column, self.path = message, line, column, path
 
 
 @dataclass
@@ -183,6 +206,17 @@ def _refused(message: str, node: yaml.Node) -> YamlSourceError:
     return YamlSourceError(message, node.start_mark.line + 1, node.start_mark.column + 1)
 
 
+NUMBER_TAGS = {"tag:yaml.org,2002:int", "tag:yaml.org,2002:float"}
+"""The tags of the scalars read as numbers (the ones ``YAML11_NUMBERS`` and
+``SMALLEST_NORMAL`` judge)."""
+
+
+def _nonzero(text: str) -> bool:
+    """Whether a number's text has a non-zero digit in its mantissa (``1e-400``, not ``0.0``)."""
+    mantissa = re.split(r"[eE]", text, maxsplit=1)[0]
+    return any(c in "123456789" for c in mantissa)
+
+
 def check_graph(root: yaml.Node) -> None:
     """Refuse a composed document that refers to itself through an alias, nests deeper than
     ``MAX_DEPTH`` or would expand to more than ``MAX_VALUES`` values (aliases counted at every
@@ -247,7 +281,39 @@ class _Builder:
             return self._mapping(node, path)
         if isinstance(node, yaml.SequenceNode):
             return [self.build(item, (*path, i)) for i, item in enumerate(node.value)]
-        return self.constructor.construct_object(node, deep=True)
+        return self._scalar(node, path)
+
+    def _scalar(self, node: yaml.ScalarNode, path: Path_) -> object:
+        """The value of a plain scalar; a YAML 1.1 number form (``YAML11_NUMBERS``) or a
+        number below ``SMALLEST_NORMAL`` is refused at its field."""
+        value = self.constructor.construct_object(node, deep=True)
+        if node.tag not in NUMBER_TAGS:
+            return value
+        for form, pattern in YAML11_NUMBERS.items():
+            if pattern.match(node.value):
+                raise self._refused(
+                    f"{node.value} is {value} in YAML 1.1 ({form}) and not that number in "
+                    f"YAML 1.2; expected a decimal number: write {value}, or quote text",
+                    node,
+                    path,
+                )
+        if 0 < abs(value) < SMALLEST_NORMAL or (value == 0 and _nonzero(node.value)):
+            raise self._refused(
+                f"{node.value} is below {SMALLEST_NORMAL:.17g}, the smallest normal double "
+                "(SMALLEST_NORMAL); expected 0 or a number of at least that size",
+                node,
+                path,
+            )
+        return value
+
+    def _refused(self, message: str, node: yaml.Node, path: Path_) -> YamlSourceError:
+        """A refusal of the value at ``path``, placed at its field (the key) as every
+        field's problem is."""
+        line, column = self.source.locate(path) or (
+            node.start_mark.line + 1,
+            node.start_mark.column + 1,
+        )
+        return YamlSourceError(message, line, column, path)
 
     def _mapping(self, node: yaml.MappingNode, path: Path_) -> dict:
         self.constructor.flatten_mapping(node)  # resolves YAML merge keys (<<)
