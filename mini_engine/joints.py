@@ -7,12 +7,14 @@ with arms ``r_A``, ``r_B`` from the two centres of mass,
 
 A joint is that impulse with e = 0 along every direction it constrains (Box2D-Lite's
 ``Joint``, in 3-D): the relative velocity of the two anchor points along the constrained
-directions, and the relative spin about the constrained axes, are driven to zero. The rows of
-one joint share its two bodies, so they are solved as one block, ``λ = -K⁻¹ (J u + bias)``
-with ``K = J M⁻¹ Jᵀ``, whose diagonal entries are the articles' K along each direction (an
-angular row's is ``nᵀ (I_A⁻¹ + I_B⁻¹) n``); Box2D-Lite solves its point constraint as this
-block too. ``JOINT_ITERATIONS`` sweeps go over the joints each step, a colour at a time
-(joints of one colour share no moving body, so each colour is one batched solve).
+directions, and the relative spin about the constrained axes, are driven to zero. Rows that
+share a body are coupled (a chain's every joint moves its neighbours'), so all the rows of all
+the joints are solved at once, ``λ = -K⁻¹ (J u + bias)`` with ``K = J M⁻¹ Jᵀ``: each
+diagonal entry of K is the articles' K along its direction (an angular row's is
+``nᵀ (I_A⁻¹ + I_B⁻¹) n``), and λ is the limit that Box2D-Lite's sequential sweeps converge to
+(measured: 10 sweeps of per-joint blocks left a double pendulum 0.25 m off the joint-space
+reference after 1 s, 50 sweeps 0.04 m; the direct solve 1e-3 m, as MuJoCo's Euler). A tree of
+j joints is one dense (6j)² solve a step, small for the chains and robots this judges.
 
 Rows per joint (a row is a direction in the world frame):
 
@@ -29,8 +31,7 @@ rotation error about each spin row (a hinge's axes' misalignment ``u_A × u_B``;
 vector of B's orientation against the one the joint holds it at); so a joint's drift decays by
 1 - β per step instead of growing. Joint damping (``Joint.damping``) is an explicit impulse
 ``-d · rate · dt`` about a hinge's axis, a ball's spin or along a slider's axis, taken at the
-start of the joint phase. Limits are not modelled yet. Cost: one batched 6x6 solve per colour
-and sweep, about 10 sweeps x 2 colours for a chain.
+start of the joint phase. Limits are not modelled yet.
 """
 
 from __future__ import annotations
@@ -62,10 +63,6 @@ as it does quaternions)."""
 
 CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 """Signs that turn a quaternion w x y z into its conjugate (the inverse of a unit one)."""
-
-JOINT_ITERATIONS = 10
-"""Sweeps over the joints per step (Box2D-Lite's iterations); a chain of k links converges in
-about k sweeps from rest, and the warm velocities of the last step carry most of it."""
 
 JOINT_BAUMGARTE = 0.2
 """β of the position bias ``β C / dt`` (Box2D-Lite's ``Joint::biasFactor``, 0.2): the drift
@@ -106,7 +103,6 @@ class JointModel:
         rest_quat: (j, 4) w x y z, B's orientation relative to A's that the joint holds,
             ``q_A⁻¹ ⊗ q_B`` at the initial poses (``q_B`` with the world as A).
         damping: (j,).
-        colours: joint indices per colour (no two joints of a colour share a moving body).
     """
 
     name: tuple[str, ...]
@@ -119,7 +115,6 @@ class JointModel:
     axis_b: np.ndarray
     rest_quat: np.ndarray
     damping: np.ndarray
-    colours: tuple[np.ndarray, ...]
 
     @property
     def count(self) -> int:
@@ -173,7 +168,6 @@ def build_joints(
         axis_b=np.array(axis_b),
         rest_quat=np.array(rest),
         damping=np.array([j.damping for j in joints], dtype=float),
-        colours=_colours(body_a, body_b, fixed),
     )
     for value in vars(model).values():
         if isinstance(value, np.ndarray):
@@ -199,36 +193,17 @@ def _check(joints: list[Joint], n: int) -> None:
             raise ValueError(f"{label}.axis: expected a unit vector; got {joint.axis}")
 
 
-def _colours(body_a: np.ndarray, body_b: np.ndarray, fixed: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Joint indices per colour, greedily in joint order: a joint takes the first colour none
-    of whose joints shares one of its moving bodies (the world and fixed bodies are shared
-    freely: they never move)."""
-    colours: list[list[int]] = []
-    taken: list[set[int]] = []
-    for k, (a, b) in enumerate(zip(body_a, body_b, strict=True)):
-        moving = {int(x) for x in (a, b) if x != WORLD and not fixed[x]}
-        for members, used in zip(colours, taken, strict=True):
-            if not moving & used:
-                members.append(k)
-                used |= moving
-                break
-        else:
-            colours.append([k])
-            taken.append(set(moving))
-    return tuple(np.array(members, dtype=np.int64) for members in colours)
-
-
 # --- the solve -----------------------------------------------------------------------------
 
 
 class _Block(NamedTuple):
     """Every joint's rows at this step's poses: ``jacobian (j, 6, 12)`` against the twist
-    ``[v_A, ω_A, v_B, ω_B]``, ``response (j, 6, 12)`` = ``(M⁻¹ Jᵀ)ᵀ``, ``inverse_k (j, 6, 6)``
-    = ``(J M⁻¹ Jᵀ)⁻¹`` (padded rows: 1 on the diagonal), ``bias (j, 6)`` m/s or rad/s."""
+    ``[v_A, ω_A, v_B, ω_B]``, ``response (j, 6, 12)`` = ``(M⁻¹ Jᵀ)ᵀ``, ``unused (j, 6)`` the
+    padding rows of each type, ``bias (j, 6)`` m/s or rad/s."""
 
     jacobian: np.ndarray
     response: np.ndarray
-    inverse_k: np.ndarray
+    unused: np.ndarray
     bias: np.ndarray
 
 
@@ -244,7 +219,7 @@ def solve_joints(
     dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """New ``vel``, ``ang_vel`` (n, 3) after the joints' impulses (module docstring): damping,
-    then ``JOINT_ITERATIONS`` block sweeps, a colour at a time.
+    then every joint's rows solved at once.
 
     Args:
         pos, rot, quat: the start-of-step poses (n, 3), (n, 3, 3), (n, 4).
@@ -260,9 +235,7 @@ def solve_joints(
     inverse_inertia = np.concatenate([inv_inertia_world, np.zeros((1, 3, 3))])
     block = _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
     _damp(joints, rot, a_row, b_row, twist, inverse_mass, inverse_inertia, dt)
-    for _ in range(JOINT_ITERATIONS):
-        for colour in joints.colours:
-            _sweep(colour, block, a_row, b_row, twist)
+    _apply_impulses(block, a_row, b_row, twist)
     return twist[:n, :3].copy(), twist[:n, 3:].copy()
 
 
@@ -330,10 +303,7 @@ def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, 
     response[:, :, 3:6] = np.einsum("jik,jrk->jri", inverse_inertia[a_row], jacobian[:, :, 3:6])
     response[:, :, 6:9] = inverse_mass[b_row, None, None] * jacobian[:, :, 6:9]
     response[:, :, 9:12] = np.einsum("jik,jrk->jri", inverse_inertia[b_row], jacobian[:, :, 9:12])
-    k = np.einsum("jrc,jsc->jrs", jacobian, response)
     unused = ~np.any(jacobian != 0.0, axis=2)
-    k[unused] = 0.0
-    k += np.einsum("jr,rs->jrs", unused.astype(float), np.eye(ROWS))
 
     separation = point_b - point_a
     misalignment = cross(axis_a, axis_b)
@@ -346,18 +316,25 @@ def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, 
         ],
         axis=1,
     )
-    return _Block(jacobian, response, np.linalg.inv(k), JOINT_BAUMGARTE * error / dt)
+    return _Block(jacobian, response, unused, JOINT_BAUMGARTE * error / dt)
 
 
-def _sweep(colour: np.ndarray, block: _Block, a_row, b_row, twist: np.ndarray) -> None:
-    """One block solve of the joints of ``colour`` (they share no moving body), in place."""
-    a, b = a_row[colour], b_row[colour]
-    gathered = np.concatenate([twist[a], twist[b]], axis=1)  # (c, 12)
-    rate = np.einsum("jrc,jc->jr", block.jacobian[colour], gathered)
-    impulse = -np.einsum("jrs,js->jr", block.inverse_k[colour], rate + block.bias[colour])
-    change = np.einsum("jrc,jr->jc", block.response[colour], impulse)
-    twist[a] += change[:, :6]
-    twist[b] += change[:, 6:]
+def _apply_impulses(block: _Block, a_row, b_row, twist: np.ndarray) -> None:
+    """Every joint's impulses at once, in place: the rows scattered into one ``J (6j, 6(n+1))``
+    and ``M⁻¹Jᵀ`` over the bodies' twists (the world's last, never moved), ``K = J M⁻¹ Jᵀ``
+    with 1 on the padding rows' diagonal (their impulse is then 0), ``λ = -K⁻¹ (J u + bias)``."""
+    count, columns = block.jacobian.shape[0], twist.size
+    jacobian = np.zeros((count * ROWS, columns))
+    response = np.zeros((count * ROWS, columns))
+    rows = np.arange(count * ROWS).reshape(count, ROWS)
+    for side, rows_of in ((a_row, slice(0, 6)), (b_row, slice(6, 12))):
+        cols = side[:, None] * 6 + np.arange(6)  # (j, 6): each joint's body's twist entries
+        jacobian[rows[:, :, None], cols[:, None, :]] += block.jacobian[:, :, rows_of]
+        response[rows[:, :, None], cols[:, None, :]] += block.response[:, :, rows_of]
+    k = jacobian @ response.T + np.diag(block.unused.reshape(-1).astype(float))
+    rate = jacobian @ twist.reshape(-1)
+    impulse = np.linalg.solve(k, -(rate + block.bias.reshape(-1)))
+    twist += (response.T @ impulse).reshape(twist.shape)
     twist[-1] = 0.0  # the world never moves (its response is zero; round-off stays out)
 
 

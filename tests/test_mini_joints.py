@@ -5,7 +5,7 @@ A compound pendulum swings with the elliptic integral's period and its pivot dri
 than Baumgarte's steady state allows; a slider on a tilted rail accelerates at g·u along it;
 two welded boxes fall as one; a ball joint swinging in a plane moves as a hinge; a damped hinge
 decays exponentially; joints between free bodies exchange equal and opposite impulses, so the
-linear momentum is kept to round-off; a chain's joints take two colours.
+linear momentum is kept to round-off.
 """
 
 from __future__ import annotations
@@ -195,19 +195,6 @@ def test_a_damped_joint_decays_exponentially(joint_type, axis, spin):
     want = omega0 * math.exp(-damping * t / inertia) * np.array(spin)
     bound = omega0 * (damping / inertia) ** 2 * t * DT / 2
     assert np.abs(final.ang_vel[0] - want).max() < bound, (final.ang_vel[0], want, bound)
-
-
-def test_a_chains_joints_take_two_colours():
-    links = 6
-    bodies = [
-        Body(Sphere(0.05), mass=1.0, position=(0.2 * (k + 1), 0.0, 0.0)) for k in range(links)
-    ]
-    joints = [
-        Joint("hinge", k - 1 if k else WORLD, k, anchor=(0.2 * k, 0, 0), axis=Y_AXIS)
-        for k in range(links)
-    ]
-    model, _ = build_model(bodies, joints=joints)
-    assert len(model.joints.colours) == 2, model.joints.colours
 
 
 @pytest.mark.parametrize(

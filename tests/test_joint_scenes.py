@@ -1,0 +1,215 @@
+"""Scenes with joints through the harness: each engine that declares joints builds the scene's
+joint tree, its observed states keep the joints and follow the closed forms, and the metrics
+a jointed scene cannot define are left out.
+
+The closed forms: a compound pendulum's period (the complete elliptic integral) read back
+from each engine's observed poses (``articulated.joint_coordinates``), and a double pendulum
+against the reference side's own joint-space DOP853 integration.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from validation.engines.registry import create_adapter
+from validation.measure.runner import run_engine
+from validation.reference.articulated import (
+    Loads,
+    joint_coordinates,
+    joint_violations,
+    reference_motion,
+)
+from validation.reference.rotation import quat_to_matrix
+from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
+from validation.scenario.definability import defined_metrics, scene_traits
+from validation.scenario.engine_spec import parse_engine_spec
+
+G = 9.81
+DT = 1e-3
+AMPLITUDE = 2.0
+"""rad: the compound pendulum's release angle (its period 31 % above the small-angle one)."""
+
+PIVOT = (0.0, 0.0, 2.0)
+BAR_HALF = 0.5
+
+
+def compound_pendulum(engines: list[str], duration: float) -> Scenario:
+    """A 1 kg bar (1 m) hinged about y at its top end, released from rest at ``AMPLITUDE``."""
+    turn = [math.cos(AMPLITUDE / 2), 0.0, math.sin(AMPLITUDE / 2), 0.0]
+    centre = [-BAR_HALF * math.sin(AMPLITUDE), 0.0, PIVOT[2] - BAR_HALF * math.cos(AMPLITUDE)]
+    return Scenario.model_validate(
+        {
+            "name": "compound_pendulum",
+            "dt": DT,
+            "duration": duration,
+            "engines": engines,
+            "bodies": [
+                {
+                    "name": "bar",
+                    "shape": {"type": "box", "half_extents": [0.02, 0.02, BAR_HALF]},
+                    "mass": 1.0,
+                    "position": centre,
+                    "orientation": turn,
+                }
+            ],
+            "joints": [
+                {
+                    "name": "pivot",
+                    "type": "hinge",
+                    "parent": "world",
+                    "child": "bar",
+                    "anchor": list(PIVOT),
+                    "axis": [0.0, 1.0, 0.0],
+                }
+            ],
+        }
+    )
+
+
+PIVOT_INERTIA = (0.04**2 + 1.0**2) / 12 + BAR_HALF**2
+PERIOD = 4 * math.sqrt(PIVOT_INERTIA / (G * BAR_HALF)) * ellipk(math.sin(AMPLITUDE / 2) ** 2)
+"""s: T = 4 √(I_O / (m g d)) K(sin(θ0/2)), 2.177 s."""
+
+TURNING_ACCELERATION = G * BAR_HALF * math.sin(AMPLITUDE) / PIVOT_INERTIA
+"""rad/s²: α at the turning points (13.3), where the period's halves end."""
+
+SAMPLING = 0.5 * TURNING_ACCELERATION * (DT / 2) ** 2
+"""rad: the nearest step to T/2 or T is up to dt/2 away, where the rate is 0: ½ α (dt/2)² =
+1.7e-6 rad."""
+
+ANGLE_TOLERANCE = {"mini": 1e-3, "mujoco": 1e-3, "mujoco(integrator=RK4)": 2 * SAMPLING}
+"""rad at T/2 and T. First-order schemes add their phase error over the swing (measured 2.8e-5
+and 6e-5 rad in mini at dt = 1 ms; the energy error, 1e-3 of the scale, bounds the period's);
+RK4 adds O(dt⁴), far below the sampling."""
+
+
+def recorded(engine: str, scenario: Scenario):
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec(engine))
+    assert run.status == "ok", (engine, run.status, run.message)
+    return scene, run.recording.trajectory
+
+
+@pytest.mark.parametrize("engine", sorted(ANGLE_TOLERANCE))
+def test_a_large_swing_comes_back_at_the_elliptic_period(engine):
+    scenario = compound_pendulum([engine], duration=round(PERIOD / DT) * DT)
+    scene, trajectory = recorded(engine, scenario)
+    angle = joint_coordinates(scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat))
+    swing = angle["pivot"]
+    half = int(np.argmin(np.abs(trajectory.t - PERIOD / 2)))
+    # relative to the release: -2 θ0 at the far turning point, 0 back at the start
+    assert abs(swing[half] + 2 * AMPLITUDE) < ANGLE_TOLERANCE[engine], swing[half]
+    assert abs(swing[-1]) < ANGLE_TOLERANCE[engine], swing[-1]
+
+
+def test_mujocos_reduced_coordinates_keep_the_joint_exactly_and_minis_impulses_to_baumgartes_bound():
+    scenario = compound_pendulum(["mini", "mujoco"], duration=1.0)
+    scene = compile_scene(scenario)
+    for engine, bound in (("mujoco", 1e-12), ("mini", 1.04e-4)):
+        _, trajectory = recorded(engine, scenario)
+        separation, misalignment, _ = joint_violations(
+            scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+        )
+        # mini: the drift of one unconstrained step over β, ω²d dt²/β (tests/test_mini_joints.py)
+        assert separation.max() < bound, (engine, separation.max())
+        assert misalignment.max() < 1e-9, (engine, misalignment.max())
+
+
+def double_pendulum(engines: list[str]) -> Scenario:
+    """Two 1 kg balls on massless-looking links: a hinge about y at the world point (0, 0, 2)
+    and a hinge about x (crossed axes: a hinge inside a hinge) at the first ball's centre; the
+    first starts turning at 1.5 rad/s."""
+    arm = 0.6
+    return Scenario.model_validate(
+        {
+            "name": "double_pendulum",
+            "dt": DT,
+            "duration": 1.0,
+            "engines": engines,
+            "gravity": [0.0, 0.0, -G],
+            "bodies": [
+                {
+                    "name": "upper",
+                    "shape": {"type": "sphere", "radius": 0.05},
+                    "mass": 1.0,
+                    "position": [arm, 0.0, 2.0],
+                    "velocity": [0.0, 0.0, -1.5 * arm],
+                    "angular_velocity": [0.0, 1.5, 0.0],
+                },
+                {
+                    "name": "lower",
+                    "shape": {"type": "sphere", "radius": 0.05},
+                    "mass": 1.0,
+                    "position": [arm, arm, 2.0],
+                    "velocity": [0.0, 0.0, -1.5 * arm],
+                    "angular_velocity": [0.0, 1.5, 0.0],
+                },
+            ],
+            "joints": [
+                {"name": "shoulder", "type": "hinge", "parent": "world", "child": "upper",
+                 "anchor": [0.0, 0.0, 2.0], "axis": [0.0, 1.0, 0.0]},
+                {"name": "elbow", "type": "hinge", "parent": "upper", "child": "lower",
+                 "anchor": [arm, 0.0, 2.0], "axis": [1.0, 0.0, 0.0]},
+            ],
+        }
+    )  # fmt: skip
+
+
+POSITION_TOLERANCE = {"mujoco": 5e-3, "mujoco(integrator=RK4)": 1e-6, "mini": 5e-3}
+"""m over 1 s against the reference's DOP853: first-order schemes drift by O(dt)·|a|·t
+(~|g|·1 s·1 ms = 1e-2 at most; measured below 5e-3), RK4 by O(dt⁴)."""
+
+
+@pytest.mark.parametrize("engine", sorted(POSITION_TOLERANCE))
+def test_a_hinge_inside_a_hinge_follows_the_joint_space_reference(engine):
+    scenario = double_pendulum([engine])
+    scene, trajectory = recorded(engine, scenario)
+    tree = scene.joint_tree
+    from validation.reference.articulated import initial_velocities
+
+    stated = scenario.bodies
+    nu0, residual = initial_velocities(
+        tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
+    )
+    assert residual < 1e-12, residual
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
+    difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+    assert difference < POSITION_TOLERANCE[engine], (engine, difference)
+
+
+def test_a_jointed_scene_defines_the_joint_metrics_and_not_the_free_body_ones():
+    scene = compile_scene(double_pendulum(["mini"]))
+    defined = defined_metrics(scene_traits(scene))
+    assert "joint_violation" in defined and "energy_drift" in defined, defined
+    assert not {"linear_momentum_drift", "angular_momentum_drift", "position_error"} & defined
+    free = compile_scene(double_pendulum(["mini"]).model_copy(update={"joints": []}))
+    assert "joint_violation" not in defined_metrics(scene_traits(free))
+
+
+def test_jointed_bodies_never_touch_each_other():
+    """The bar's end and the ball overlap at the elbow by construction: no contact in mini,
+    none in the measurement."""
+    scenario = double_pendulum(["mini"])
+    bodies = [
+        {**b.model_dump(), "shape": {"type": "sphere", "radius": 0.4}} for b in scenario.bodies
+    ]
+    overlapping = scenario.model_copy(
+        update={"bodies": [type(scenario.bodies[0]).model_validate(b) for b in bodies]}
+    )
+    scene = compile_scene(overlapping)
+    found = scene.contacts(scene.start.pos, scene.start.quat, 1e-6)
+    assert found.depth.size == 0, found
+    adapter = create_adapter(parse_engine_spec("mini"))
+    adapter.load(scene)
+    from mini_engine.collision import detect_contacts
+    from mini_engine.rotation import quat_to_matrix as mini_matrix
+
+    state = adapter.state
+    contacts = detect_contacts(adapter.model, state.pos, mini_matrix(state.quat), 1e-6)
+    assert contacts.count == 0, contacts
