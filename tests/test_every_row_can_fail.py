@@ -211,6 +211,13 @@ bodies:
   - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0}
 """
 SECOND_BALL = "  - {name: other, shape: {type: sphere, radius: 0.1}, mass: 2.0, position: [5, 0, 0]"
+WORLD_HINGE = (
+    "joints: [{name: pin, type: hinge, parent: world, child: ball, anchor: [0, 0, 0.5], "
+    "axis: [0, 1, 0]}]\n"
+)
+BALL_JOINT = (
+    "joints: [{name: link, type: ball, parent: ball, child: other, anchor: [2.5, 0, 0]}]\n"
+)
 
 UNDEFINED = {
     "restitution where nothing can touch": (
@@ -237,18 +244,34 @@ UNDEFINED = {
     "linear momentum with a ground": (
         FREE_BALL + "ground: {}\n",
         "linear_momentum_drift",
-        "a ground, a fixed body or a spring to the world",
+        "a ground, a fixed body, a spring or a joint to the world",
     ),
     "linear momentum with a fixed body": (
         FREE_BALL + SECOND_BALL + ", fixed: true}\n",
         "linear_momentum_drift",
-        "a ground, a fixed body or a spring to the world",
+        "a ground, a fixed body, a spring or a joint to the world",
     ),
     "angular momentum with a world spring": (
         FREE_BALL + "springs: [{a: ball, b: world, stiffness: 10}]\n",
         "angular_momentum_drift",
-        "a ground, a fixed body or a spring to the world",
+        "a ground, a fixed body, a spring or a joint to the world",
     ),
+    "linear momentum with a joint to the world": (
+        FREE_BALL + WORLD_HINGE,
+        "linear_momentum_drift",
+        "a ground, a fixed body, a spring or a joint to the world",
+    ),
+    "position error where a joint acts": (
+        FREE_BALL + SECOND_BALL + "}\n" + BALL_JOINT,
+        "position_error",
+        "joints hold the bodies",
+    ),
+    "energy with a damped joint": (
+        FREE_BALL + WORLD_HINGE.replace("axis: [0, 1, 0]}", "axis: [0, 1, 0], damping: 0.1}"),
+        "energy_drift",
+        "a damped joint dissipates energy",
+    ),
+    "joint violation without joints": (FREE_BALL, "joint_violation", "the scene has no joints"),
     "angular momentum where g + F/m differs": (
         FREE_BALL + SECOND_BALL + ", force: [1, 0, 0]}\n",
         "angular_momentum_drift",
@@ -292,10 +315,12 @@ def test_the_same_checks_load_where_the_scene_defines_them(tmp_path):
         + "".join(
             f"  {m}: 0.01\n"
             for m in METRIC_NAMES
-            if m not in ("restitution_error", "penetration_max")
+            if m not in ("restitution_error", "penetration_max", "joint_violation")
         )
     )
     load_scenario(write(tmp_path, free))
+    jointed = FREE_BALL + SECOND_BALL + "}\n" + BALL_JOINT + "checks: {joint_violation: 0.01}\n"
+    load_scenario(write(tmp_path, jointed, "jointed.yaml"))
     touching = FREE_BALL + "ground: {}\nchecks: {restitution_error: 0.01, penetration_max: 0.01}\n"
     load_scenario(write(tmp_path, touching, "touching.yaml"))
 
@@ -338,7 +363,7 @@ def test_a_known_finding_on_an_undefined_metric_is_a_load_error(tmp_path, metric
         load_scenario(path)
     (problem,) = caught.value.problems
     assert problem.path == "known[0].metric" and problem.line == 9, problem
-    assert "a ground, a fixed body or a spring to the world" in problem.message, problem
+    assert "a ground, a fixed body, a spring or a joint to the world" in problem.message, problem
 
 
 # --- the library --------------------------------------------------------------------------

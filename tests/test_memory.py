@@ -58,7 +58,7 @@ def free_spheres(bodies: int, steps: int, engines=("mini",)) -> Scenario:
 def test_kept_positions_stay_within_their_budget_however_long_the_run(monkeypatch):
     """A run of N and of 4N steps keep at most ``MAX_KEPT_POSITIONS`` numbers of positions
     (plus the final state's), orientations and velocities none, and a series with no body
-    dimension: at most 20 numbers a sample (``memory.SERIES_NUMBERS``) whatever the bodies."""
+    dimension: at most 21 numbers a sample (``memory.SERIES_NUMBERS``) whatever the bodies."""
     monkeypatch.setattr(recording_module, "MAX_KEPT_POSITIONS", KEPT_POSITIONS)
     kept = {}
     for steps in (SHORT_STEPS, LONG_STEPS):

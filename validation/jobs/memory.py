@@ -63,9 +63,10 @@ IMPACT_BYTES = 2_000
 the command's process, and its impacts.csv row (a dict of 11 cells, about 1 KB) there,
 rounded up."""
 
-SERIES_NUMBERS = 20
-"""float64 numbers per kept sample of a series (t, energy, motion, the two momentum scales;
-momentum, angular momentum, centre of mass, the two ballistic offsets: 3 each)."""
+SERIES_NUMBERS = 21
+"""float64 numbers per kept sample of a series (t, energy, motion, the two momentum scales,
+the joint violation; momentum, angular momentum, centre of mass, the two ballistic offsets: 3
+each)."""
 
 
 EXPECTED_VALUE_BYTES = 2_200
