@@ -303,7 +303,7 @@ def _placed(stated: StatedJoint, pos: np.ndarray, rot: np.ndarray, q_at: int, v_
 def _free_position(tree: JointTree, joint: Joint) -> np.ndarray:
     """(7,) a floating root's position coordinates at t = 0: its centre and quaternion."""
     body = joint.child
-    return np.concatenate([tree.fixed_pos[body], matrix_to_quat(tree.fixed_rot[body])])
+    return np.concatenate([tree.fixed_pos[body], _matrix_to_quat(tree.fixed_rot[body])])
 
 
 # --- kinematics ----------------------------------------------------------------------------
@@ -646,7 +646,7 @@ def _rotation_vector(matrix: np.ndarray) -> np.ndarray:
     return skew * scale[:, None]
 
 
-def matrix_to_quat(matrix: np.ndarray) -> np.ndarray:
+def _matrix_to_quat(matrix: np.ndarray) -> np.ndarray:
     """(4,) w x y z of a rotation matrix (Shepperd's method: the largest diagonal term first)."""
     trace = np.trace(matrix)
     diagonal = np.diag(matrix)
@@ -716,5 +716,5 @@ def _body_states(tree: JointTree, times, q_samples, nu_samples) -> Motion:
         pose = forward_kinematics(tree, q_samples[s])
         motion = body_motion(tree, pose, nu_samples[s], still)
         pos[s], vel[s], ang_vel[s] = pose.pos, motion.vel, motion.ang_vel
-        quat[s] = np.array([matrix_to_quat(matrix) for matrix in pose.rot])
+        quat[s] = np.array([_matrix_to_quat(matrix) for matrix in pose.rot])
     return Motion(times, pos, quat, vel, ang_vel)

@@ -35,8 +35,8 @@ from itertools import combinations
 
 import numpy as np
 
+from validation.engines.frames import matrix_to_quat
 from validation.engines.mujoco.declaration import DECLARATION
-from validation.reference.articulated import matrix_to_quat
 from validation.scenario import BodySpec, Scenario
 from validation.scenario.physics import body_inertia, ground_pose, pair_rule, rest_length
 
