@@ -73,10 +73,10 @@ PER_BODY = ("mass", "com", "inertia_world")
 
 @dataclass(frozen=True)
 class Magnitudes:
-    """The physical size of each quantity of a ``ModelReport``, what its error is relative to
-    (``reference.magnitudes``; same order as the report's fields): the size of every term the quantity adds, none cancelling,
-    so a total that is zero in the scene (two bodies moving apart) is judged against what
-    its terms round off, not against zero.
+    """The physical size of each quantity of a ``ModelReport`` (its fields, in its order),
+    what its error is relative to (``reference.magnitudes``): the size of every term the
+    quantity adds, none cancelling, so a total that is zero in the scene (two bodies moving
+    apart) is judged against what its terms round off, not against zero.
 
     Attributes:
         mass: (d,) kg, each body's mass.

@@ -193,7 +193,10 @@ def judge_divergence(rows: list[dict], reference: str) -> list[dict]:
             verdict = f"not judged: {_named(reference, suspect)}; the divergence is charged to it"
             row = {**row, "passed": None, "status": "ok"}
         else:
-            verdict = f"the pair {row['engine']} and {reference} diverge; neither is off its own closed forms"
+            verdict = (
+                f"the pair {row['engine']} and {reference} diverge; neither is off its own "
+                "closed forms"
+            )
         message = "; ".join(part for part in (verdict, row["message"]) if part)
         judged.append({**row, "message": message})
     return judged
