@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 
 from validation.cli import BUNDLED_SCENARIOS, main
-from validation.contract import EXIT_FAILED
+from validation.contract import EXIT_FAILED, EXIT_OK
 from validation.engines.sabotage import SABOTAGE_VARIABLE
 from validation.measure.comparator import _row, judge_divergence
 from validation.measure.measurement import Measurement
@@ -109,19 +109,44 @@ def test_a_divergence_of_a_pair_on_its_closed_forms_fails_on_the_pair():
     assert "the pair mujoco and mini diverge" in row["message"]
 
 
+def run_projectile(out, baseline: str = "none") -> tuple[int, pd.DataFrame]:
+    """``physval run`` of the projectile (its divergence checked) in mini, MuJoCo, PyBullet."""
+    scene = BUNDLED_SCENARIOS / "formulas/projectile.yaml"
+    arguments = ["run", str(scene), "--engines", "mini,mujoco,pybullet", "--jobs", "1"]
+    code = main([*arguments, "--out", str(out), "--baseline", baseline, "--history", "none"])
+    return code, pd.read_csv(out / "results.csv", keep_default_na=False)
+
+
 def test_a_bug_in_the_reference_engine_fails_the_reference_alone(tmp_path, monkeypatch):
     """``PHYSVAL_SABOTAGE=gravity_low`` (mini's gravity 1 % low) on the projectile, whose
     divergence is checked: mini fails its closed forms; MuJoCo and PyBullet, 0.11 m from mini
     at 1.5 s, get no failing row for mini's bug."""
     monkeypatch.setenv(SABOTAGE_VARIABLE, "gravity_low")
-    out = tmp_path / "run"
-    scene = BUNDLED_SCENARIOS / "formulas/projectile.yaml"
-    arguments = ["run", str(scene), "--engines", "mini,mujoco,pybullet", "--jobs", "1"]
-    code = main([*arguments, "--out", str(out), "--baseline", "none", "--history", "none"])
-    results = pd.read_csv(out / "results.csv", keep_default_na=False)
+    code, results = run_projectile(tmp_path / "run")
     failing = results[results["outcome"].isin(FAILING)]
     assert code == EXIT_FAILED
     assert set(failing["engine"]) == {"mini"}, failing[["engine", "metric", "message"]]
     diverged = results[results["metric"] == "divergence"]
     assert len(diverged) == 2 and (diverged["error"] > diverged["tolerance"]).all()
     assert diverged["message"].str.startswith("not judged: mini is off").all()
+
+
+def test_against_a_baseline_the_reference_bug_moves_the_divergence_rows_with_it(
+    tmp_path, monkeypatch
+):
+    """The same bug against a clean baseline: mini's rows regress; MuJoCo's and PyBullet's
+    divergence rows (passed, now not judged) moved with their reference, ``reference_moved``,
+    and their engines have no news of their own."""
+    monkeypatch.delenv(SABOTAGE_VARIABLE, raising=False)
+    assert run_projectile(tmp_path / "clean")[0] == EXIT_OK
+    baseline = tmp_path / "baseline.csv"
+    assert main(["baseline", "save", str(tmp_path / "clean"), "--to", str(baseline)]) == EXIT_OK
+    monkeypatch.setenv(SABOTAGE_VARIABLE, "gravity_low")
+    code, results = run_projectile(tmp_path / "sabotaged", str(baseline))
+    assert code == EXIT_FAILED
+    others = results[results["engine"] != "mini"]
+    diverged = others[others["metric"] == "divergence"]
+    assert set(diverged["baseline"]) == {"reference_moved"}
+    assert set(others["baseline"]) <= {"unchanged", "reference_moved"}
+    assert not others["outcome"].isin(FAILING).any()  # no new failure of theirs
+    assert "regressed" in set(results[results["engine"] == "mini"]["baseline"])
