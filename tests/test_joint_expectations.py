@@ -377,3 +377,23 @@ def test_a_joints_reading_watches_the_contacts_of_every_body_joined_to_it():
     elbow, loose = trackers(compile_scene(Scenario.model_validate(stated)))
     assert sorted(elbow.watched.tolist()) == [0, 1], elbow.watched
     assert loose.watched.tolist() == [2], loose.watched
+
+
+def test_a_periods_memory_grows_with_the_run_and_the_estimate_counts_it():
+    """``period`` keeps the coordinate at every step: the worker's estimate adds its bytes per
+    step (``GROWING_BYTES_PER_STATE``); a ``joint_position_at`` keeps a bracket and adds none."""
+    from validation.jobs.memory import job_estimate
+    from validation.measure.expectations import GROWING_BYTES_PER_STATE
+
+    scenario = compound_pendulum(["mini"], duration=PENDULUM_STEPS * DT)
+    spec = parse_engine_spec("mini")
+
+    def worker(expect: list[dict]) -> int:
+        stated = {**scenario.model_dump(), "expect": expect}
+        return job_estimate(compile_scene(Scenario.model_validate(stated)), spec, 1).worker
+
+    bare = worker([])
+    at = worker([{"kind": "joint_position_at", "joint": "pivot", "time": 1.0, "value": 0.0}])
+    period = worker([{"kind": "period", "joint": "pivot", "value": PERIOD}])
+    assert at == bare
+    assert period - bare == PENDULUM_STEPS * GROWING_BYTES_PER_STATE["period"] > 0

@@ -4,9 +4,9 @@ Every expectation kind has a tracker in ``TRACKERS``. The recording feeds each t
 observed state of the run (a batch at a time, in order) and every impact event as it closes;
 the tracker keeps only what its answer needs (a bracketing pair of states, running sums, a
 sign), so memory does not grow with the run (but for ``period``, whose mean level is known
-only at the end: it keeps the joint's coordinate at every state, 16 bytes a step), and the
-answer does not depend on how many samples the trajectory keeps for plotting: a 6 s run and a
-2.9 s run measure the same first bounce alike.
+only at the end: it keeps the joint's coordinate at every state, ``GROWING_BYTES_PER_STATE``),
+and the answer does not depend on how many samples the trajectory keeps for plotting: a 6 s
+run and a 2.9 s run measure the same first bounce alike.
 
 A joint's expectations (``joint_position_at``, ``period``) read its coordinate from the
 observed poses of its two bodies (``validation.reference.articulated.joint_coordinates``).
@@ -40,6 +40,11 @@ TIME_MATCH = 1e-9
 """Relative. An observed time within this of a requested time is that time: engines add dt
 to their clock every step (MuJoCo, mini), so after 10^4 steps of 1e-3 s the clock reads
 9.999999999998 for 10 s (round-off about 1e-13 relative, far below a step)."""
+
+GROWING_BYTES_PER_STATE = {"period": 4 * 8}
+"""Bytes per counted state of the trackers whose memory grows with the run, by kind:
+``Period`` keeps two float64 a state (the time and the coordinate) and its answer holds two
+more at once (the two concatenated, then the coordinate less its mean)."""
 
 NOT_MEASURED = math.inf
 """Error of an expectation the run never reached (it stopped early, or had no impact)."""
@@ -501,6 +506,7 @@ class Period(_OfJoint, _Tracker):
     def result(self) -> Measurement:
         t = np.concatenate(self.t) if self.t else np.zeros(0)
         values = np.concatenate(self.values) if self.values else np.zeros(0)
+        self.t, self.values = [t], [values]  # the batches' arrays freed
         mean = float(values.mean()) if values.size else math.nan
         crossings = upward_crossings(t, values - mean)
         if crossings.size < 2:
