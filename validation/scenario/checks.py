@@ -266,10 +266,11 @@ def joint_expectations_fit_their_joint(scenario: Scenario) -> Found:
         elif kind == "joint_position_at":
             vector = isinstance(expectation.value, tuple)
             if vector != (joint_type == "ball"):
+                got = list(expectation.value) if vector else expectation.value
                 yield (
                     ("expect", i, "value"),
                     f"{expectation.joint!r} is a {joint_type} joint: expected "
-                    f"{JOINT_VALUE_SHAPES[joint_type]}; got {list(expectation.value) if vector else expectation.value}",
+                    f"{JOINT_VALUE_SHAPES[joint_type]}; got {got}",
                 )
 
 

@@ -398,6 +398,8 @@ class EnergyAt(_Expectation):
 
 
 class _JointExpectation(_Strict):
+    """An expectation whose subject is a joint (``JOINT_EXPECTATION_MODELS``), not a body."""
+
     name: Name | None = Field(default=None, description="metric name; default '<kind>.<joint>'")
     joint: Name = Field(description="a joint name (its subject is a joint, not a body)")
 
@@ -407,8 +409,9 @@ class _JointExpectation(_Strict):
 
 
 class JointPositionAt(_JointExpectation):
-    """The coordinate of ``joint`` at ``time``, relative to t = 0: a hinge's angle, a slider's
-    travel, a ball's rotation vector (in the parent's frame)."""
+    """The coordinate of ``joint`` at ``time``, relative to t = 0: a hinge's angle (continuous
+    over the run), a slider's travel, a ball's rotation vector (in the parent's frame, its angle
+    at most π)."""
 
     kind: Literal["joint_position_at"]
     time: NonNegative = Field(description="s")
