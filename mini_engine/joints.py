@@ -330,8 +330,9 @@ def _coordinates(joints: JointModel, quat, a_row, b_row, frames) -> np.ndarray:
     _, _, point_a, point_b, axis_a, _ = frames
     error = _error_quat(joints, quat, a_row, b_row)
     twist = 2.0 * np.arctan2(np.einsum("ji,ji->j", error[:, 1:], axis_a), error[:, 0])
-    bounds = joints.lower + joints.upper
-    middle = np.where(np.isfinite(bounds), 0.5 * bounds, 0.0)
+    limited = np.isfinite(joints.lower)  # limits come in pairs (``_check_limits``)
+    middle = np.zeros(joints.count)
+    middle[limited] = 0.5 * (joints.lower[limited] + joints.upper[limited])
     angle = middle + (twist - middle + np.pi) % (2.0 * np.pi) - np.pi
     slide = np.einsum("ji,ji->j", point_b - point_a, axis_a)
     kinds = np.array(JOINT_TYPES)[joints.kind]
