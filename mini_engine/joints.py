@@ -277,8 +277,9 @@ def solve_joints(
     b_row = joints.body_b
     inverse_mass = np.append(inv_mass, 0.0)
     inverse_inertia = np.concatenate([inv_inertia_world, np.zeros((1, 3, 3))])
-    block = _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
-    limits = _limit_rows(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
+    frames = _world_frames(joints, pos, rot, a_row, b_row)
+    block = _block(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
+    limits = _limit_rows(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
     _damp(joints, rot, a_row, b_row, twist, inverse_mass, inverse_inertia, dt)
     _apply_impulses(block, limits, a_row, b_row, twist)
     return twist[:n, :3].copy(), twist[:n, 3:].copy()
@@ -339,10 +340,10 @@ def _coordinates(joints: JointModel, quat, a_row, b_row, frames) -> np.ndarray:
     return np.select([kinds == "hinge", kinds == "slider"], [angle, slide], 0.0)
 
 
-def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt) -> _Block:
+def _block(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt) -> _Block:
     """Every joint's rows, their response, inverse block mass and Baumgarte bias."""
     count = joints.count
-    arm_a, arm_b, point_a, point_b, axis_a, axis_b = _world_frames(joints, pos, rot, a_row, b_row)
+    arm_a, arm_b, point_a, point_b, axis_a, axis_b = frames
     first, second = _perpendiculars(axis_a)
     eye = np.broadcast_to(np.eye(3), (count, 3, 3))
     point_dirs = np.zeros((count, 3, 3))
@@ -403,12 +404,13 @@ class _Limits(NamedTuple):
     joint: np.ndarray
 
 
-def _limit_rows(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt):
+def _limit_rows(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt):
     """A row per limit a joint's coordinate is at or past (module docstring), along the
     coordinate's increase at a lower limit and its decrease at an upper one: a hinge's spin
     about its axis, a slider's anchors' relative velocity along it; its bias ``β C / dt``,
     C <= 0 the coordinate past the limit."""
-    frames = _world_frames(joints, pos, rot, a_row, b_row)
+    if not np.isfinite(joints.lower).any():  # no limits: no rows (and no coordinates read)
+        return _Limits(np.zeros((0, 1, 12)), np.zeros((0, 1, 12)), np.zeros((0, 1)), a_row[:0])
     arm_a, arm_b, _, _, axis_a, _ = frames
     coordinate = _coordinates(joints, quat, a_row, b_row, frames)
     lower, upper = coordinate <= joints.lower, coordinate >= joints.upper
