@@ -82,13 +82,16 @@ FEATURES = (
     "springs",
     "loads",
     "friction",
+    "joints",
 )
-"""Every scene feature but ``restitution``: the ground is a ``HalfSpace`` on the world body at
+"""Every scene feature but ``restitution`` and ``joint_limits``: the ground is a ``HalfSpace`` on the world body at
 the scene's pose (tilted too), fixed bodies are collision geometry of the world body, springs
 are ``LinearSpringDamper`` force elements (a rest length of 0, which Drake's element refuses,
 is an isotropic ``LinearBushingRollPitchYaw`` when undamped), constant loads are
 ``ExternallyAppliedSpatialForce`` values fixed on the plant's applied spatial force port, and
-friction is ``CoulombFriction`` per geometry (Drake combines a pair by 2μ₁μ₂/(μ₁+μ₂))."""
+friction is ``CoulombFriction`` per geometry (Drake combines a pair by 2μ₁μ₂/(μ₁+μ₂)), and
+joints are Drake's ``RevoluteJoint``, ``PrismaticJoint``, ``BallRpyJoint`` and ``WeldJoint``
+(``validation.engines.drake.joints``)."""
 
 OPTIONS = (
     EngineOption(

@@ -1,0 +1,149 @@
+"""A scene's joints in Drake: the joint tree (``CompiledScene.joint_tree``) as Drake joints, the
+collision filters between each joint's two bodies, the initial joint velocities and the body
+states read back through Drake's own kinematics (docs/engines-drake.md 9).
+
+Each tree joint becomes one Drake joint between two ``FixedOffsetFrame`` s that coincide at
+t = 0, so every coordinate is 0 there: the parent's frame F at the anchor with the parent's
+axes (a fixed scene body's pose on the world body, for a joint to it), the child's frame M at
+the child's anchor ``-R0ᵀ offset`` with the axes ``R0ᵀ`` (F's axes seen from the child at
+q = 0). The axis is the tree's (parent frame), the same in F and M. A body that is no joint's
+child stays a free body (Drake's own floating joint, added at ``Finalize``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.tree import (
+    BallRpyJoint,
+    FixedOffsetFrame,
+    JacobianWrtVariable,
+    PrismaticJoint,
+    RevoluteJoint,
+    WeldJoint,
+)
+
+from validation.engines.base import Trajectory
+from validation.reference.articulated import WORLD
+
+DRAKE_JOINTS = {
+    "hinge": lambda name, f, m, joint: RevoluteJoint(name, f, m, joint.axis, joint.damping),
+    "slider": lambda name, f, m, joint: PrismaticJoint(
+        name, f, m, joint.axis, -np.inf, np.inf, joint.damping
+    ),
+    # Drake has no quaternion ball joint: roll-pitch-yaw coordinates, singular at pitch ±π/2
+    "ball": lambda name, f, m, joint: BallRpyJoint(name, f, m, joint.damping),
+    "fixed": lambda name, f, m, joint: WeldJoint(name, f, m, RigidTransform()),
+}
+"""Tree joint type -> its Drake joint between frames F (parent) and M (child); the axis in F
+(the parent's axes), damping in N·m·s/rad or N·s/m (Drake's viscous joint damping)."""
+
+
+def add_joints(plant, tree, bodies: list) -> list:
+    """Every stated joint of ``tree`` (parents first; the floating roots stay Drake's free
+    bodies) on ``plant`` between the scene bodies' ``bodies`` (None for a fixed scene body,
+    which is world geometry at its pose); the Drake joints in the tree's order."""
+    added = []
+    for joint in tree.joints:
+        if joint.type == "free":
+            continue
+        parent_body, parent_pose = _parent(plant, tree, bodies, joint.parent)
+        on_parent = plant.AddFrame(
+            FixedOffsetFrame(
+                f"{joint.name}/parent",
+                parent_body.body_frame(),
+                parent_pose.multiply(RigidTransform(np.asarray(joint.anchor, dtype=float))),
+            )
+        )
+        back = np.asarray(joint.rotation, dtype=float).T
+        on_child = plant.AddFrame(
+            FixedOffsetFrame(
+                f"{joint.name}/child",
+                bodies[joint.child].body_frame(),
+                RigidTransform(
+                    RotationMatrix.ProjectToRotationMatrix(back),
+                    -back @ np.asarray(joint.offset, dtype=float),
+                ),
+            )
+        )
+        added.append(
+            plant.AddJoint(DRAKE_JOINTS[joint.type](joint.name, on_parent, on_child, joint))
+        )
+    return added
+
+
+def _parent(plant, tree, bodies: list, parent: int) -> tuple[object, RigidTransform]:
+    """(Drake body, the parent's frame in it): the world's own frame, a fixed scene body's
+    pose on the world body, a moving body's own frame."""
+    if parent == WORLD:
+        return plant.world_body(), RigidTransform()
+    if bodies[parent] is None:
+        rotation = RotationMatrix.ProjectToRotationMatrix(np.asarray(tree.fixed_rot[parent]))
+        return plant.world_body(), RigidTransform(rotation, np.asarray(tree.fixed_pos[parent]))
+    return bodies[parent], RigidTransform()
+
+
+def filter_jointed_pairs(scene_graph, tree, geometry: dict[int, tuple]) -> int:
+    """Exclude contact between each joint's parent and child body (``geometry``: scene object
+    -> (Drake body, pose, shape, geometry id), as the adapter registered them): their shapes
+    meet at the anchor by construction. Drake's own adjacency filter misses a joint to a fixed
+    scene body (world geometry to Drake). The number of pairs filtered."""
+    declaration = CollisionFilterDeclaration()
+    pairs = 0
+    for joint in tree.joints:
+        if joint.type == "free" or joint.parent == WORLD:
+            continue
+        declaration.ExcludeBetween(
+            GeometrySet([geometry[joint.parent][3]]), GeometrySet([geometry[joint.child][3]])
+        )
+        pairs += 1
+    scene_graph.collision_filter_manager().Apply(declaration)
+    return pairs
+
+
+def joint_velocities(plant, context, bodies: list, moving, stated_velocities) -> np.ndarray:
+    """(nv,) the plant's generalized velocities from each moving body's stated ``(v, ω)``:
+    the least-squares v of ``J v = (ω, v)`` stacked over the moving bodies, ``J`` Drake's own
+    ``CalcJacobianSpatialVelocity`` of each body's frame origin (its centre of mass), world
+    frame, at the current configuration; exact for velocities the joints allow (the scene's
+    checks refuse others)."""
+    world = plant.world_frame()
+    rows, targets = [], []
+    for k in moving:
+        rows.append(
+            plant.CalcJacobianSpatialVelocity(
+                context,
+                JacobianWrtVariable.kV,
+                bodies[k].body_frame(),
+                np.zeros(3),
+                world,
+                world,
+            )
+        )
+        velocity, angular = stated_velocities[k]
+        targets += [np.asarray(angular, dtype=float), np.asarray(velocity, dtype=float)]
+    if not rows:
+        return np.zeros(plant.num_velocities())
+    return np.linalg.lstsq(np.concatenate(rows), np.concatenate(targets), rcond=None)[0]
+
+
+def kinematic_states(plant, bodies: list, moving, times, raw, fixed_pose) -> Trajectory:
+    """Every scene body's state for the raw plant states ``raw (s, nq + nv)`` through Drake's
+    own kinematics on a scratch context (``EvalBodyPoseInWorld``,
+    ``EvalBodySpatialVelocityInWorld`` of each body frame: its centre of mass); fixed bodies at
+    their ``fixed_pose`` (positions (n, 3), quaternions (n, 4)) and at rest."""
+    samples, n = raw.shape[0], fixed_pose[0].shape[0]
+    pos = np.repeat(fixed_pose[0][None], samples, axis=0)
+    quat = np.repeat(fixed_pose[1][None], samples, axis=0)
+    vel, ang_vel = np.zeros((samples, n, 3)), np.zeros((samples, n, 3))
+    scratch = plant.CreateDefaultContext()
+    for s in range(samples):
+        plant.SetPositionsAndVelocities(scratch, raw[s])
+        for k in moving:
+            where = plant.EvalBodyPoseInWorld(scratch, bodies[k])
+            motion = plant.EvalBodySpatialVelocityInWorld(scratch, bodies[k])
+            pos[s, k] = where.translation()
+            quat[s, k] = where.rotation().ToQuaternion().wxyz()
+            vel[s, k], ang_vel[s, k] = motion.translational(), motion.rotational()
+    return Trajectory(np.asarray(times, dtype=float), pos, quat, vel, ang_vel)
