@@ -1,0 +1,210 @@
+"""Joints in Drake, measured (docs/engines-drake.md 9): every joint type against the reference
+side's joint-space motion, the joints kept exactly (reduced coordinates), the stated state read
+back at t = 0, a joint's two bodies never colliding while other pairs still do, and the
+capabilities each profile declares. The compound and double pendulums of
+``tests/test_joint_scenes.py`` run in Drake too. pydrake is a test dependency (as in
+``tests/test_engine_drake.py``): without it these tests fail rather than skip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_joint_scenes import double_pendulum
+
+from validation.engines.registry import create_adapter
+from validation.measure.runner import run_engine
+from validation.reference.articulated import (
+    Loads,
+    initial_velocities,
+    joint_violations,
+    reference_motion,
+)
+from validation.reference.rotation import quat_to_matrix
+from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import parse_engine_spec
+
+DISCRETE = "drake"
+CONTINUOUS = "drake(profile=continuous)"
+PROFILES = (DISCRETE, CONTINUOUS)
+
+DT = 1e-3
+G = 9.81
+
+ROUND_OFF = 1e-12
+"""m, m/s, rad/s: a state read back straight after it was set (a pose through Drake's frames
+and a Jacobian's least squares: a few double epsilons of unit-sized numbers)."""
+
+REDUCED_COORDINATES = 1e-12
+"""m and rad: Drake's joints are coordinates of a tree, so the joints hold to round-off
+(measured 5e-16 m on the compound pendulum and below 1e-15 on the chain here, both profiles)."""
+
+CHAIN_TOLERANCE = {DISCRETE: G * 1.0 * DT, CONTINUOUS: 1e-4 * 0.6}
+"""m over 1 s against the reference's DOP853. Discrete: semi-implicit Euler is first order,
+O(dt)·|a|·t ≈ |g|·1 s·1 ms = 9.8e-3 (measured 5.0e-3, the ball; the carriage 2.7e-3, about
+a·t·dt/2 of its damped slide). Continuous: RK3 holds its local error to Drake's default
+accuracy 1e-4, relative to the motion's scale (the 0.6 m arm): 6e-5 (measured 4.7e-7)."""
+
+
+ARM_TILT = [float(np.cos(0.15)), float(np.sin(0.15)), 0.0, 0.0]
+"""The arm turned 0.3 rad about its hinge's axis x, and the welded box turned about a skew
+axis: the joints' child frames carry rotations R0 other than the identity."""
+TIP_TILT = (np.array([0.9, 0.2, -0.3, 0.25]) / np.linalg.norm([0.9, 0.2, -0.3, 0.25])).tolist()
+
+
+def chain_scene(engines: list[str]) -> Scenario:
+    """Every joint type with damping: an arm hinged to the world about x (damped), a ball on a
+    ball joint at its far end (hanging off the arm's plane, so the motion is 3-D), a box welded
+    to the ball, and a carriage on a damped slider along a tilted axis, moving along it."""
+    slope = [0.6, 0.0, -0.8]
+    return Scenario.model_validate(
+        {
+            "name": "drake_joint_chain",
+            "dt": DT,
+            "duration": 1.0,
+            "engines": engines,
+            "gravity": [0.0, 0.0, -G],
+            "bodies": [
+                {"name": "arm", "shape": {"type": "box", "half_extents": [0.02, 0.3, 0.02]},
+                 "mass": 1.0, "position": [0.0, 0.3, 2.0], "orientation": ARM_TILT},
+                {"name": "ball", "shape": {"type": "sphere", "radius": 0.05},
+                 "mass": 0.5, "position": [0.1, 0.6, 1.72]},
+                {"name": "tip", "shape": {"type": "box", "half_extents": [0.03, 0.03, 0.03]},
+                 "mass": 0.2, "position": [0.1, 0.7, 1.62], "orientation": TIP_TILT},
+                {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05},
+                 "mass": 2.0, "position": [-1.0, 0.0, 1.0],
+                 "velocity": [0.5 * s for s in slope]},
+            ],
+            "joints": [
+                {"name": "shoulder", "type": "hinge", "parent": "world", "child": "arm",
+                 "anchor": [0.0, 0.0, 2.0], "axis": [1.0, 0.0, 0.0], "damping": 0.05},
+                {"name": "wrist", "type": "ball", "parent": "arm", "child": "ball",
+                 "anchor": [0.0, 0.6, 2.0], "damping": 0.01},
+                {"name": "weld", "type": "fixed", "parent": "ball", "child": "tip",
+                 "anchor": [0.1, 0.6, 1.72]},
+                {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
+                 "anchor": [-1.0, 0.0, 1.0], "axis": slope, "damping": 0.3},
+            ],
+        }
+    )  # fmt: skip
+
+
+def recorded(engine: str, scenario: Scenario):
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec(engine))
+    assert run.status == "ok", (engine, run.status, run.message)
+    return scene, run.recording.trajectory
+
+
+@pytest.mark.parametrize("engine", PROFILES)
+def test_every_joint_type_follows_the_joint_space_reference_and_holds_exactly(engine):
+    scenario = chain_scene([engine])
+    scene, trajectory = recorded(engine, scenario)
+    tree = scene.joint_tree
+    stated = scenario.bodies
+    nu0, _ = initial_velocities(
+        tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
+    )
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
+    difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+    assert difference < CHAIN_TOLERANCE[engine], (engine, difference)
+    separation, misalignment, _ = joint_violations(
+        tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+    )
+    assert separation.max() < REDUCED_COORDINATES, separation.max()
+    assert misalignment.max() < REDUCED_COORDINATES, misalignment.max()
+
+
+def loaded(engine: str, scenario: Scenario):
+    adapter = create_adapter(parse_engine_spec(engine))
+    adapter.load(compile_scene(scenario))
+    return adapter
+
+
+@pytest.mark.parametrize("engine", PROFILES)
+def test_the_stated_poses_and_velocities_read_back_at_the_start(engine):
+    """Each joint's zero is the stated configuration and the joint velocities come from the
+    stated body velocities: a double pendulum turning at 1.5 rad/s reads back as stated."""
+    scenario = double_pendulum([engine])
+    adapter = loaded(engine, scenario)
+    try:
+        start = adapter.observe()
+    finally:
+        adapter.close()
+    for k, body in enumerate(scenario.bodies):
+        errors = {
+            "pos": np.abs(start.pos[k] - body.position).max(),
+            "quat": np.abs(start.quat[k] - body.orientation).max(),
+            "vel": np.abs(start.vel[k] - body.velocity).max(),
+            "ang_vel": np.abs(start.ang_vel[k] - body.angular_velocity).max(),
+        }
+        assert max(errors.values()) < ROUND_OFF, (body.name, errors)
+
+
+OVERLAP_RADIUS = 0.3
+"""m: every shape of the contact scene, so that each jointed pair overlaps at its anchor."""
+
+
+def overlapping_scene(engines: list[str]) -> Scenario:
+    """A fixed post with a bar hinged to it (Drake's parent is then its world body, which its
+    own adjacency filter leaves out), a ball hinged to the bar, and a loose ball overlapping
+    the hinged ball but jointed to nothing; no gravity, all at rest."""
+
+    def ball(name, position, **fields):
+        shape = {"type": "sphere", "radius": OVERLAP_RADIUS}
+        return {"name": name, "shape": shape, "mass": 1.0, "position": position, **fields}
+
+    return Scenario.model_validate(
+        {
+            "name": "drake_joint_contacts",
+            "dt": DT,
+            "duration": 0.01,
+            "engines": engines,
+            "gravity": [0.0, 0.0, 0.0],
+            "bodies": [
+                ball("post", [0.0, 0.0, 1.0], fixed=True),
+                ball("bar", [0.4, 0.0, 1.0]),
+                ball("hanging", [0.8, 0.0, 1.0]),
+                ball("loose", [0.8, 0.4, 1.0]),
+            ],
+            "joints": [
+                {"name": "base", "type": "hinge", "parent": "post", "child": "bar",
+                 "anchor": [0.2, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
+                {"name": "elbow", "type": "hinge", "parent": "bar", "child": "hanging",
+                 "anchor": [0.6, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
+            ],
+        }
+    )  # fmt: skip
+
+
+def touching_pairs(adapter) -> set[tuple[str, str]]:
+    """The scene-body pairs Drake's own geometry query finds in contact now (its point-pair
+    penetration, after its collision filters)."""
+    names = {entry[3]: adapter.scenario.bodies[k].name for k, entry in adapter.geometry.items()}
+    query = adapter.plant.get_geometry_query_input_port().Eval(adapter.context)
+    return {
+        tuple(sorted((names[pair.id_A], names[pair.id_B])))
+        for pair in query.ComputePointPairPenetration()
+    }
+
+
+@pytest.mark.parametrize("engine", PROFILES)
+def test_a_joints_two_bodies_never_collide_while_other_pairs_do(engine):
+    """Every neighbour overlaps by 0.2 m: the jointed pairs (post-bar, bar-hanging) are
+    filtered, the loose ball still touches the hanging one and the bar (not jointed to it)."""
+    adapter = loaded(engine, overlapping_scene([engine]))
+    try:
+        found = touching_pairs(adapter)
+    finally:
+        adapter.close()
+    assert not {("bar", "post"), ("bar", "hanging")} & found, found
+    assert {("hanging", "loose"), ("bar", "loose")} <= found, found
+
+
+def test_both_profiles_declare_joints_and_not_their_limits():
+    from validation.engines.drake.declaration import capabilities_for
+
+    for settings in ({}, {"profile": "continuous"}):
+        features = capabilities_for(settings).features
+        assert "joints" in features and "joint_limits" not in features, (settings, features)
