@@ -219,7 +219,9 @@ class DrakeAdapter:
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scenario.gravity, dtype=float))
         self.bodies = [self._create_body(k, b) for k, b in enumerate(scenario.bodies)]
         self.tree = scene.joint_tree
-        self.joints = [] if self.tree is None else add_joints(plant, self.tree, self.bodies)
+        self.joints = (
+            [] if self.tree is None else add_joints(plant, self.tree, self.bodies, scenario.gravity)
+        )
         if scenario.ground is not None:
             self._create_ground()
         self._create_springs()

@@ -3,10 +3,11 @@ collision filters between each joint's two bodies, the initial joint velocities 
 states read back through Drake's own kinematics (docs/engines-drake.md 9).
 
 Each tree joint becomes one Drake joint between two ``FixedOffsetFrame`` s that coincide at
-t = 0, so every coordinate is 0 there: the parent's frame F at the anchor with the parent's
-axes (a fixed scene body's pose on the world body, for a joint to it), the child's frame M at
-the child's anchor ``-R0ᵀ offset`` with the axes ``R0ᵀ`` (F's axes seen from the child at
-q = 0). The axis is the tree's (parent frame), the same in F and M. A body that is no joint's
+t = 0, so every coordinate is 0 there: the parent's frame F at the anchor with axes A in the
+parent's frame (``frame_axes``; on the world body at a fixed scene
+body's pose, for a joint to it), the child's frame M at the child's anchor ``-R0ᵀ offset``
+with the axes ``R0ᵀ A`` (F's axes seen from the child at q = 0). A hinge's or slider's axis is
+the tree's (parent frame) seen in F, ``Aᵀ axis``. A body that is no joint's
 child stays a free body (Drake's own floating joint, added at ``Finalize``).
 """
 
@@ -28,32 +29,82 @@ from validation.engines.base import Trajectory
 from validation.reference.articulated import WORLD
 
 DRAKE_JOINTS = {
-    "hinge": lambda name, f, m, joint: RevoluteJoint(name, f, m, joint.axis, joint.damping),
-    "slider": lambda name, f, m, joint: PrismaticJoint(
-        name, f, m, joint.axis, -np.inf, np.inf, joint.damping
+    "hinge": lambda name, f, m, axis, damping: RevoluteJoint(name, f, m, axis, damping),
+    "slider": lambda name, f, m, axis, damping: PrismaticJoint(
+        name, f, m, axis, -np.inf, np.inf, damping
     ),
     # Drake has no quaternion ball joint: roll-pitch-yaw coordinates, singular at pitch ±π/2
-    "ball": lambda name, f, m, joint: BallRpyJoint(name, f, m, joint.damping),
-    "fixed": lambda name, f, m, joint: WeldJoint(name, f, m, RigidTransform()),
+    "ball": lambda name, f, m, axis, damping: BallRpyJoint(name, f, m, damping),
+    "fixed": lambda name, f, m, axis, damping: WeldJoint(name, f, m, RigidTransform()),
 }
-"""Tree joint type -> its Drake joint between frames F (parent) and M (child); the axis in F
-(the parent's axes), damping in N·m·s/rad or N·s/m (Drake's viscous joint damping)."""
+"""Tree joint type -> its Drake joint between frames F (parent) and M (child); the axis in F,
+damping in N·m·s/rad or N·s/m (Drake's viscous joint damping)."""
+
+SHORT = 1e-9
+"""Relative: a vector shorter than this (an anchor at the child's centre, no gravity, a
+direction along gravity's) sets no axis of a ball's frame."""
 
 
-def add_joints(plant, tree, bodies: list) -> list:
+def ball_axes(joint, gravity: np.ndarray) -> np.ndarray:
+    """(3, 3) the axes of a ball joint's frame F in its parent's frame (columns x, y, z): x
+    along gravity, z normal to gravity and the child's centre seen from the anchor (in the
+    parent's axes at t = 0; without gravity x towards the child's centre). A ``BallRpyJoint``
+    is singular at pitch ±π/2, where M's x axis turns onto F's z: a spin about gravity leaves
+    x where it is, and a swing in the vertical plane through the anchor and the child's centre
+    (from rest under gravity) turns it about z, its yaw, so neither meets the singularity
+    (engines-drake.md 9)."""
+    offset = np.asarray(joint.offset, dtype=float)
+    x = _unit(gravity, _unit(offset, np.array([1.0, 0.0, 0.0])))
+    z = _unit(np.cross(x, offset), _normal_to(x))
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _unit(vector: np.ndarray, otherwise: np.ndarray) -> np.ndarray:
+    """``vector`` made unit, or ``otherwise`` when it is (relatively) too short."""
+    length = float(np.linalg.norm(vector))
+    return vector / length if length > SHORT else otherwise
+
+
+def _normal_to(vector: np.ndarray) -> np.ndarray:
+    """A unit vector normal to the unit ``vector``."""
+    trial = np.eye(3)[int(np.argmin(np.abs(vector)))]
+    return _unit(np.cross(vector, trial), np.array([1.0, 0.0, 0.0]))
+
+
+def frame_axes(joint, gravity: np.ndarray, parent_moves: bool) -> np.ndarray:
+    """(3, 3) the axes of a joint's frame F in its parent's frame: ``ball_axes`` for a ball
+    on the world or a fixed body (whose frame keeps gravity's direction), the parent's own
+    otherwise. A ball on a moving parent turns relative to it mostly as the parent turns, not
+    as gravity says: the chain of tests/test_drake_joints.py reaches pitch 1.557 rad with
+    gravity's axes on its swinging arm and 0.54 rad with the arm's own (engines-drake.md 9)."""
+    if joint.type == "ball" and not parent_moves:
+        return ball_axes(joint, gravity)
+    return np.eye(3)
+
+
+def add_joints(plant, tree, bodies: list, gravity) -> list:
     """Every stated joint of ``tree`` (parents first; the floating roots stay Drake's free
     bodies) on ``plant`` between the scene bodies' ``bodies`` (None for a fixed scene body,
-    which is world geometry at its pose); the Drake joints in the tree's order."""
+    which is world geometry at its pose); the Drake joints in the tree's order. ``gravity``
+    (3,) m/s², world frame, sets a ball's axes (``ball_axes``)."""
     added = []
     for joint in tree.joints:
         if joint.type == "free":
             continue
         parent_body, parent_pose = _parent(plant, tree, bodies, joint.parent)
+        parent_moves = joint.parent != WORLD and bodies[joint.parent] is not None
+        parent_rotation = np.eye(3) if joint.parent == WORLD else tree.fixed_rot[joint.parent]
+        axes = frame_axes(joint, parent_rotation.T @ np.asarray(gravity, dtype=float), parent_moves)
         on_parent = plant.AddFrame(
             FixedOffsetFrame(
                 f"{joint.name}/parent",
                 parent_body.body_frame(),
-                parent_pose.multiply(RigidTransform(np.asarray(joint.anchor, dtype=float))),
+                parent_pose.multiply(
+                    RigidTransform(
+                        RotationMatrix.ProjectToRotationMatrix(axes),
+                        np.asarray(joint.anchor, dtype=float),
+                    )
+                ),
             )
         )
         back = np.asarray(joint.rotation, dtype=float).T
@@ -62,14 +113,15 @@ def add_joints(plant, tree, bodies: list) -> list:
                 f"{joint.name}/child",
                 bodies[joint.child].body_frame(),
                 RigidTransform(
-                    RotationMatrix.ProjectToRotationMatrix(back),
+                    RotationMatrix.ProjectToRotationMatrix(back @ axes),
                     -back @ np.asarray(joint.offset, dtype=float),
                 ),
             )
         )
-        added.append(
-            plant.AddJoint(DRAKE_JOINTS[joint.type](joint.name, on_parent, on_child, joint))
+        drake_joint = DRAKE_JOINTS[joint.type](
+            joint.name, on_parent, on_child, axes.T @ joint.axis, joint.damping
         )
+        added.append(plant.AddJoint(drake_joint))
     return added
 
 
