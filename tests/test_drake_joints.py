@@ -16,6 +16,7 @@ from validation.measure.runner import run_engine
 from validation.reference.articulated import (
     Loads,
     initial_velocities,
+    joint_coordinates,
     joint_violations,
     reference_motion,
 )
@@ -202,12 +203,74 @@ def test_a_joints_two_bodies_never_collide_while_other_pairs_do(engine):
     assert {("hanging", "loose"), ("bar", "loose")} <= found, found
 
 
-def test_both_profiles_declare_joints_and_not_their_limits():
+def test_both_profiles_declare_joints_and_only_the_discrete_one_their_limits():
     from validation.engines.drake.declaration import capabilities_for
 
-    for settings in ({}, {"profile": "continuous"}):
-        features = capabilities_for(settings).features
-        assert "joints" in features and "joint_limits" not in features, (settings, features)
+    discrete = capabilities_for({}).features
+    continuous = capabilities_for({"profile": "continuous"}).features
+    assert {"joints", "joint_limits"} <= discrete, discrete
+    assert "joints" in continuous and "joint_limits" not in continuous, continuous
+
+
+LEVER = 0.3
+"""m: the limited pendulum's bob from its hinge."""
+
+LIMIT_SAG = 0.5 * G * DT**2
+"""m: a position constraint solved once per step lets its body go on unconstrained for at most
+one step before it acts, ½ g dt² = 4.9e-6 m under gravity (LIMIT_SAG / LEVER rad at the bob).
+Measured: SAP holds the hinge 1.6e-8 rad and the slider 5.0e-9 m past their limits."""
+
+
+def limited_scene(engines: list[str]) -> Scenario:
+    """A pendulum released level (its hinge about y: it falls to positive angles) limited to
+    [-0.5, 0.2] rad, and a carriage on a vertical slider limited to [-0.1, 0.3] m, falling (uneven
+    limits: a coordinate of the wrong sign meets the other one)."""
+    return Scenario.model_validate(
+        {
+            "name": "drake_joint_limits",
+            "dt": DT,
+            "duration": 0.5,
+            "engines": engines,
+            "gravity": [0.0, 0.0, -G],
+            "bodies": [
+                {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+                 "position": [LEVER, 0.0, 0.0]},
+                {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+                 "position": [5.0, 0.0, 0.0]},
+            ],
+            "joints": [
+                {"name": "pivot", "type": "hinge", "parent": "world", "child": "bob",
+                 "anchor": [0.0, 0.0, 0.0], "axis": [0.0, 1.0, 0.0], "limits": [-0.5, 0.2]},
+                {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
+                 "anchor": [5.0, 0.0, 0.0], "axis": [0.0, 0.0, 1.0], "limits": [-0.1, 0.3]},
+            ],
+        }
+    )  # fmt: skip
+
+
+def test_the_discrete_plant_holds_a_hinge_and_a_slider_at_their_limits():
+    """The pendulum reaches its upper limit and the carriage its lower one within 0.5 s (free,
+    they would be at 1.2 rad and -1.2 m); neither passes its limit by more than one step's
+    free fall, and both rest there at the end."""
+    scene, trajectory = recorded(DISCRETE, limited_scene([DISCRETE]))
+    coordinates = joint_coordinates(
+        scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+    )
+    swing, slide = coordinates["pivot"], coordinates["rail"]
+    assert swing.max() < 0.2 + LIMIT_SAG / LEVER, swing.max()
+    assert slide.min() > -0.1 - LIMIT_SAG, slide.min()
+    assert abs(swing[-1] - 0.2) < LIMIT_SAG / LEVER, swing[-1]
+    assert abs(slide[-1] + 0.1) < LIMIT_SAG, slide[-1]
+
+
+def test_a_scene_with_limits_is_unsupported_in_the_continuous_plant():
+    """Drake's continuous plant ignores joint limits (the pendulum above swings to 3.14 rad),
+    so that profile refuses the scene rather than run it without them."""
+    run = run_engine(compile_scene(limited_scene([CONTINUOUS])), parse_engine_spec(CONTINUOUS))
+    assert run.status == "unsupported" and "joint_limits" in run.message, (
+        run.status,
+        run.message,
+    )
 
 
 def ball_rod(engines: list[str], position, half_extents, velocity, angular_velocity) -> Scenario:

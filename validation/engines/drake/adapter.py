@@ -219,9 +219,7 @@ class DrakeAdapter:
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scenario.gravity, dtype=float))
         self.bodies = [self._create_body(k, b) for k, b in enumerate(scenario.bodies)]
         self.tree = scene.joint_tree
-        self.joints = (
-            [] if self.tree is None else add_joints(plant, self.tree, self.bodies, scenario.gravity)
-        )
+        self.joints = [] if self.tree is None else self._create_joints(scenario)
         if scenario.ground is not None:
             self._create_ground()
         self._create_springs()
@@ -266,6 +264,11 @@ class DrakeAdapter:
         found = plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
         self.geometry[index] = (body, RigidTransform(), shape, found)
         return body
+
+    def _create_joints(self, scenario: Scenario) -> list:
+        """The joint tree's joints (``joints.add_joints``) with the stated limits."""
+        limits = {j.name: tuple(j.limits) for j in scenario.joints if j.limits is not None}
+        return add_joints(self.plant, self.tree, self.bodies, scenario.gravity, limits)
 
     def _inertia(self, index: int) -> np.ndarray:
         """(3, 3) kg·m², body frame, about the centre of mass: the compiled scene's."""

@@ -29,16 +29,23 @@ from validation.engines.base import Trajectory
 from validation.reference.articulated import WORLD
 
 DRAKE_JOINTS = {
-    "hinge": lambda name, f, m, axis, damping: RevoluteJoint(name, f, m, axis, damping),
-    "slider": lambda name, f, m, axis, damping: PrismaticJoint(
-        name, f, m, axis, -np.inf, np.inf, damping
+    "hinge": lambda name, f, m, axis, limits, damping: RevoluteJoint(
+        name, f, m, axis, *limits, damping
+    ),
+    "slider": lambda name, f, m, axis, limits, damping: PrismaticJoint(
+        name, f, m, axis, *limits, damping
     ),
     # Drake has no quaternion ball joint: roll-pitch-yaw coordinates, singular at pitch ±π/2
-    "ball": lambda name, f, m, axis, damping: BallRpyJoint(name, f, m, damping),
-    "fixed": lambda name, f, m, axis, damping: WeldJoint(name, f, m, RigidTransform()),
+    "ball": lambda name, f, m, axis, limits, damping: BallRpyJoint(name, f, m, damping),
+    "fixed": lambda name, f, m, axis, limits, damping: WeldJoint(name, f, m, RigidTransform()),
 }
 """Tree joint type -> its Drake joint between frames F (parent) and M (child); the axis in F,
-damping in N·m·s/rad or N·s/m (Drake's viscous joint damping)."""
+the position limits (rad or m from t = 0, where the coordinate is 0), damping in N·m·s/rad or
+N·s/m (Drake's viscous joint damping). Only the discrete plant enforces the limits (its SAP
+solver, as constraints); the continuous plant ignores them (engines-drake.md 9)."""
+
+UNLIMITED = (-np.inf, np.inf)
+"""The limits of a joint that states none (Drake's own default)."""
 
 SHORT = 1e-9
 """Relative: a vector shorter than this (an anchor at the child's centre, no gravity, a
@@ -82,11 +89,12 @@ def frame_axes(joint, gravity: np.ndarray, parent_moves: bool) -> np.ndarray:
     return np.eye(3)
 
 
-def add_joints(plant, tree, bodies: list, gravity) -> list:
+def add_joints(plant, tree, bodies: list, gravity, limits: dict[str, tuple]) -> list:
     """Every stated joint of ``tree`` (parents first; the floating roots stay Drake's free
     bodies) on ``plant`` between the scene bodies' ``bodies`` (None for a fixed scene body,
     which is world geometry at its pose); the Drake joints in the tree's order. ``gravity``
-    (3,) m/s², world frame, sets a ball's axes (``ball_axes``)."""
+    (3,) m/s², world frame, sets a ball's axes (``ball_axes``); ``limits`` are the stated
+    ones by joint name (hinge and slider)."""
     added = []
     for joint in tree.joints:
         if joint.type == "free":
@@ -119,7 +127,12 @@ def add_joints(plant, tree, bodies: list, gravity) -> list:
             )
         )
         drake_joint = DRAKE_JOINTS[joint.type](
-            joint.name, on_parent, on_child, axes.T @ joint.axis, joint.damping
+            joint.name,
+            on_parent,
+            on_child,
+            axes.T @ joint.axis,
+            limits.get(joint.name, UNLIMITED),
+            joint.damping,
         )
         added.append(plant.AddJoint(drake_joint))
     return added
