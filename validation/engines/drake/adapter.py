@@ -20,6 +20,11 @@ Profiles (``declaration.PROFILES``):
 - ``continuous``: ``MultibodyPlant(time_step=0)`` under ``ResetIntegratorFromFlags(integrator,
   MAX_STEP_SIZE)`` with the target accuracy; dt is the observation interval.
 
+Joints (``joints``, engines-drake.md 9): a scene with joints has Drake's joints between frames
+that coincide at t = 0 (every coordinate 0 at the stated poses), its bodies' velocities set
+through Drake's Jacobians and its body states read through Drake's kinematics; a scene without
+joints takes the free-body path above, unchanged.
+
 Loads: springs are ``LinearSpringDamper`` force elements (a rest length of 0, which that
 element refuses, an isotropic ``LinearBushingRollPitchYaw`` when undamped); constant forces
 and torques are ``ExternallyAppliedSpatialForce`` values at each centre of mass, fixed on the
@@ -185,8 +190,10 @@ class DrakeAdapter:
     Attributes (after ``load``):
         plant: the ``MultibodyPlant``. simulator: its ``Simulator``.
         bodies: (n,) the ``RigidBody`` of each scene body, None for a fixed one, scenario order.
-        position_index: (d, 7) int, each moving body's q (qw qx qy qz x y z) in the plant state.
-        velocity_index: (d, 6) int, its v (wx wy wz vx vy vz), offset by the plant's positions.
+        tree: the scene's ``JointTree`` (None without joints). joints: the Drake joints.
+        free: the free moving bodies (every moving one without joints).
+        position_index: (f, 7) int, each free body's q (qw qx qy qz x y z) in the plant state.
+        velocity_index: (f, 6) int, its v (wx wy wz vx vy vz), offset by the plant's positions.
     """
 
     precision = "float64"

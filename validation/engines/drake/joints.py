@@ -197,13 +197,18 @@ def kinematic_states(plant, bodies: list, moving, times, raw, fixed_pose) -> Tra
     """Every scene body's state for the raw plant states ``raw (s, nq + nv)`` through Drake's
     own kinematics on a scratch context (``EvalBodyPoseInWorld``,
     ``EvalBodySpatialVelocityInWorld`` of each body frame: its centre of mass); fixed bodies at
-    their ``fixed_pose`` (positions (n, 3), quaternions (n, 4)) and at rest."""
+    their ``fixed_pose`` (positions (n, 3), quaternions (n, 4)) and at rest. A non-finite raw
+    state (an explosion; Drake refuses to take it) gives non-finite moving bodies' states."""
     samples, n = raw.shape[0], fixed_pose[0].shape[0]
     pos = np.repeat(fixed_pose[0][None], samples, axis=0)
     quat = np.repeat(fixed_pose[1][None], samples, axis=0)
     vel, ang_vel = np.zeros((samples, n, 3)), np.zeros((samples, n, 3))
     scratch = plant.CreateDefaultContext()
     for s in range(samples):
+        if not np.isfinite(raw[s]).all():
+            for array in (pos, quat, vel, ang_vel):
+                array[s, moving] = np.nan
+            continue
         plant.SetPositionsAndVelocities(scratch, raw[s])
         for k in moving:
             where = plant.EvalBodyPoseInWorld(scratch, bodies[k])
