@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_engine_drake import start_errors
 from test_joint_scenes import double_pendulum
 
 from validation.engines.registry import create_adapter
@@ -49,6 +50,14 @@ local error to Drake's default accuracy 1e-4, relative to the motion's scale (th
 6e-5 (measured 4.6e-7)."""
 
 
+def jointed(name: str, engines: list[str], bodies: list, joints: list, **fields) -> Scenario:
+    """A scene at ``DT`` under gravity -g z (1 s unless ``fields`` say otherwise)."""
+    scene = {"dt": DT, "duration": 1.0, "gravity": [0.0, 0.0, -G], **fields}
+    return Scenario.model_validate(
+        {"name": name, "engines": engines, "bodies": bodies, "joints": joints, **scene}
+    )
+
+
 ARM_TILT = [float(np.cos(0.15)), float(np.sin(0.15)), 0.0, 0.0]
 """The arm turned 0.3 rad about its hinge's axis x, and the welded box turned about a skew
 axis: the joints' child frames carry rotations R0 other than the identity."""
@@ -60,35 +69,30 @@ def chain_scene(engines: list[str]) -> Scenario:
     ball joint at its far end (hanging off the arm's plane, so the motion is 3-D), a box welded
     to the ball, and a carriage on a damped slider along a tilted axis, moving along it."""
     slope = [0.6, 0.0, -0.8]
-    return Scenario.model_validate(
-        {
-            "name": "drake_joint_chain",
-            "dt": DT,
-            "duration": 1.0,
-            "engines": engines,
-            "gravity": [0.0, 0.0, -G],
-            "bodies": [
-                {"name": "arm", "shape": {"type": "box", "half_extents": [0.02, 0.3, 0.02]},
-                 "mass": 1.0, "position": [0.0, 0.3, 2.0], "orientation": ARM_TILT},
-                {"name": "ball", "shape": {"type": "sphere", "radius": 0.05},
-                 "mass": 0.5, "position": [0.1, 0.6, 1.72]},
-                {"name": "tip", "shape": {"type": "box", "half_extents": [0.03, 0.03, 0.03]},
-                 "mass": 0.2, "position": [0.1, 0.7, 1.62], "orientation": TIP_TILT},
-                {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05},
-                 "mass": 2.0, "position": [-1.0, 0.0, 1.0],
-                 "velocity": [0.5 * s for s in slope]},
-            ],
-            "joints": [
-                {"name": "shoulder", "type": "hinge", "parent": "world", "child": "arm",
-                 "anchor": [0.0, 0.0, 2.0], "axis": [1.0, 0.0, 0.0], "damping": 0.05},
-                {"name": "wrist", "type": "ball", "parent": "arm", "child": "ball",
-                 "anchor": [0.0, 0.6, 2.0], "damping": 0.01},
-                {"name": "weld", "type": "fixed", "parent": "ball", "child": "tip",
-                 "anchor": [0.1, 0.6, 1.72]},
-                {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
-                 "anchor": [-1.0, 0.0, 1.0], "axis": slope, "damping": 0.3},
-            ],
-        }
+    return jointed(
+        "drake_joint_chain",
+        engines,
+        [
+            {"name": "arm", "shape": {"type": "box", "half_extents": [0.02, 0.3, 0.02]},
+             "mass": 1.0, "position": [0.0, 0.3, 2.0], "orientation": ARM_TILT},
+            {"name": "ball", "shape": {"type": "sphere", "radius": 0.05},
+             "mass": 0.5, "position": [0.1, 0.6, 1.72]},
+            {"name": "tip", "shape": {"type": "box", "half_extents": [0.03, 0.03, 0.03]},
+             "mass": 0.2, "position": [0.1, 0.7, 1.62], "orientation": TIP_TILT},
+            {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05},
+             "mass": 2.0, "position": [-1.0, 0.0, 1.0],
+             "velocity": [0.5 * s for s in slope]},
+        ],
+        [
+            {"name": "shoulder", "type": "hinge", "parent": "world", "child": "arm",
+             "anchor": [0.0, 0.0, 2.0], "axis": [1.0, 0.0, 0.0], "damping": 0.05},
+            {"name": "wrist", "type": "ball", "parent": "arm", "child": "ball",
+             "anchor": [0.0, 0.6, 2.0], "damping": 0.01},
+            {"name": "weld", "type": "fixed", "parent": "ball", "child": "tip",
+             "anchor": [0.1, 0.6, 1.72]},
+            {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
+             "anchor": [-1.0, 0.0, 1.0], "axis": slope, "damping": 0.3},
+        ],
     )  # fmt: skip
 
 
@@ -99,21 +103,26 @@ def recorded(engine: str, scenario: Scenario):
     return scene, run.recording.trajectory
 
 
-@pytest.mark.parametrize("engine", PROFILES)
-def test_every_joint_type_follows_the_joint_space_reference_and_holds_exactly(engine):
-    scenario = chain_scene([engine])
-    scene, trajectory = recorded(engine, scenario)
-    tree = scene.joint_tree
-    stated = scenario.bodies
+def off_reference(scenario: Scenario, scene, trajectory) -> float:
+    """m: the largest distance of any body from the reference's joint-space DOP853 motion
+    (``articulated.reference_motion`` from the stated velocities) over the recorded run."""
+    tree, stated = scene.joint_tree, scenario.bodies
     nu0, _ = initial_velocities(
         tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
     )
     loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
     motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
-    difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+    return float(np.abs(trajectory.pos[1:] - motion.pos).max())
+
+
+@pytest.mark.parametrize("engine", PROFILES)
+def test_every_joint_type_follows_the_joint_space_reference_and_holds_exactly(engine):
+    scenario = chain_scene([engine])
+    scene, trajectory = recorded(engine, scenario)
+    difference = off_reference(scenario, scene, trajectory)
     assert difference < CHAIN_TOLERANCE[engine], (engine, difference)
     separation, misalignment, _ = joint_violations(
-        tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+        scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
     )
     assert separation.max() < REDUCED_COORDINATES, separation.max()
     assert misalignment.max() < REDUCED_COORDINATES, misalignment.max()
@@ -129,20 +138,8 @@ def loaded(engine: str, scenario: Scenario):
 def test_the_stated_poses_and_velocities_read_back_at_the_start(engine):
     """Each joint's zero is the stated configuration and the joint velocities come from the
     stated body velocities: a double pendulum turning at 1.5 rad/s reads back as stated."""
-    scenario = double_pendulum([engine])
-    adapter = loaded(engine, scenario)
-    try:
-        start = adapter.observe()
-    finally:
-        adapter.close()
-    for k, body in enumerate(scenario.bodies):
-        errors = {
-            "pos": np.abs(start.pos[k] - body.position).max(),
-            "quat": np.abs(start.quat[k] - body.orientation).max(),
-            "vel": np.abs(start.vel[k] - body.velocity).max(),
-            "ang_vel": np.abs(start.ang_vel[k] - body.angular_velocity).max(),
-        }
-        assert max(errors.values()) < ROUND_OFF, (body.name, errors)
+    for name, errors in start_errors(engine, double_pendulum([engine])).items():
+        assert max(errors.values()) < ROUND_OFF, (name, errors)
 
 
 OVERLAP_RADIUS = 0.3
@@ -158,26 +155,23 @@ def overlapping_scene(engines: list[str]) -> Scenario:
         shape = {"type": "sphere", "radius": OVERLAP_RADIUS}
         return {"name": name, "shape": shape, "mass": 1.0, "position": position, **fields}
 
-    return Scenario.model_validate(
-        {
-            "name": "drake_joint_contacts",
-            "dt": DT,
-            "duration": 0.01,
-            "engines": engines,
-            "gravity": [0.0, 0.0, 0.0],
-            "bodies": [
-                ball("post", [0.0, 0.0, 1.0], fixed=True),
-                ball("bar", [0.4, 0.0, 1.0]),
-                ball("hanging", [0.8, 0.0, 1.0]),
-                ball("loose", [0.8, 0.4, 1.0]),
-            ],
-            "joints": [
-                {"name": "base", "type": "hinge", "parent": "post", "child": "bar",
-                 "anchor": [0.2, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
-                {"name": "elbow", "type": "hinge", "parent": "bar", "child": "hanging",
-                 "anchor": [0.6, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
-            ],
-        }
+    return jointed(
+        "drake_joint_contacts",
+        engines,
+        [
+            ball("post", [0.0, 0.0, 1.0], fixed=True),
+            ball("bar", [0.4, 0.0, 1.0]),
+            ball("hanging", [0.8, 0.0, 1.0]),
+            ball("loose", [0.8, 0.4, 1.0]),
+        ],
+        [
+            {"name": "base", "type": "hinge", "parent": "post", "child": "bar",
+             "anchor": [0.2, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
+            {"name": "elbow", "type": "hinge", "parent": "bar", "child": "hanging",
+             "anchor": [0.6, 0.0, 1.0], "axis": [0.0, 0.0, 1.0]},
+        ],
+        duration=0.01,
+        gravity=[0.0, 0.0, 0.0],
     )  # fmt: skip
 
 
@@ -227,26 +221,22 @@ def limited_scene(engines: list[str]) -> Scenario:
     """A pendulum released level (its hinge about y: it falls to positive angles) limited to
     [-0.5, 0.2] rad, and a carriage on a vertical slider limited to [-0.1, 0.3] m, falling (uneven
     limits: a coordinate of the wrong sign meets the other one)."""
-    return Scenario.model_validate(
-        {
-            "name": "drake_joint_limits",
-            "dt": DT,
-            "duration": 0.5,
-            "engines": engines,
-            "gravity": [0.0, 0.0, -G],
-            "bodies": [
-                {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
-                 "position": [LEVER, 0.0, 0.0]},
-                {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
-                 "position": [5.0, 0.0, 0.0]},
-            ],
-            "joints": [
-                {"name": "pivot", "type": "hinge", "parent": "world", "child": "bob",
-                 "anchor": [0.0, 0.0, 0.0], "axis": [0.0, 1.0, 0.0], "limits": [-0.5, 0.2]},
-                {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
-                 "anchor": [5.0, 0.0, 0.0], "axis": [0.0, 0.0, 1.0], "limits": [-0.1, 0.3]},
-            ],
-        }
+    return jointed(
+        "drake_joint_limits",
+        engines,
+        [
+            {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+             "position": [LEVER, 0.0, 0.0]},
+            {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+             "position": [5.0, 0.0, 0.0]},
+        ],
+        [
+            {"name": "pivot", "type": "hinge", "parent": "world", "child": "bob",
+             "anchor": [0.0, 0.0, 0.0], "axis": [0.0, 1.0, 0.0], "limits": [-0.5, 0.2]},
+            {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
+             "anchor": [5.0, 0.0, 0.0], "axis": [0.0, 0.0, 1.0], "limits": [-0.1, 0.3]},
+        ],
+        duration=0.5,
     )  # fmt: skip
 
 
@@ -277,21 +267,16 @@ def test_a_scene_with_limits_is_unsupported_in_the_continuous_plant():
 
 def ball_rod(engines: list[str], position, half_extents, velocity, angular_velocity) -> Scenario:
     """A 1 m rod hanging from the world point (0, 0, 2) by a ball joint at its end."""
-    return Scenario.model_validate(
-        {
-            "name": "drake_ball_rod",
-            "dt": DT,
-            "duration": 1.0,
-            "engines": engines,
-            "gravity": [0.0, 0.0, -G],
-            "bodies": [
-                {"name": "rod", "shape": {"type": "box", "half_extents": half_extents},
-                 "mass": 1.0, "position": position, "velocity": velocity,
-                 "angular_velocity": angular_velocity},
-            ],
-            "joints": [{"name": "socket", "type": "ball", "parent": "world", "child": "rod",
-                        "anchor": [0.0, 0.0, 2.0]}],
-        }
+    return jointed(
+        "drake_ball_rod",
+        engines,
+        [
+            {"name": "rod", "shape": {"type": "box", "half_extents": half_extents},
+             "mass": 1.0, "position": position, "velocity": velocity,
+             "angular_velocity": angular_velocity},
+        ],
+        [{"name": "socket", "type": "ball", "parent": "world", "child": "rod",
+          "anchor": [0.0, 0.0, 2.0]}],
     )  # fmt: skip
 
 
@@ -303,11 +288,7 @@ def test_a_ball_joint_falls_through_a_quarter_turn_and_spins_about_gravity(engin
     for velocity, spin in (([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]), ([0.0, 1.5, 0.0], [0.0, 0.0, 3.0])):
         scenario = ball_rod([engine], [0.5, 0.0, 2.0], [0.5, 0.02, 0.02], velocity, spin)
         scene, trajectory = recorded(engine, scenario)
-        tree = scene.joint_tree
-        nu0, _ = initial_velocities(tree, np.array([velocity]), np.array([spin]))
-        loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
-        motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
-        difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+        difference = off_reference(scenario, scene, trajectory)
         assert difference < CHAIN_TOLERANCE[engine], (engine, spin, difference)
 
 
