@@ -52,18 +52,28 @@ SHORT = 1e-9
 direction along gravity's) sets no axis of a ball's frame."""
 
 
-def ball_axes(joint, gravity: np.ndarray) -> np.ndarray:
-    """(3, 3) the axes of a ball joint's frame F in its parent's frame (columns x, y, z): x
-    along gravity, z normal to gravity and the child's centre seen from the anchor (in the
-    parent's axes at t = 0; without gravity x towards the child's centre). A ``BallRpyJoint``
-    is singular at pitch ±π/2, where M's x axis turns onto F's z: a spin about gravity leaves
-    x where it is, and a swing in the vertical plane through the anchor and the child's centre
-    (from rest under gravity) turns it about z, its yaw, so neither meets the singularity
-    (engines-drake.md 9)."""
+def ball_axes(joint, gravity: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """(3, 3) the axes of a ball joint's frame F in its parent's frame (columns x, y, z), from
+    ``gravity`` and the axis ``turn`` about which the parent turns (its hinge's; zeros if none),
+    both in the parent's axes at t = 0. A ``BallRpyJoint`` is singular at pitch ±π/2, where
+    M's x axis turns onto F's z; rotations about F's x (roll) or z (yaw) alone never get there.
+    So z is the parent's hinge axis (the child turns relative to a hinged parent mostly about
+    it), or else normal to gravity and the child's centre seen from the anchor (a swing from
+    rest in that vertical plane); x is along gravity (normal to z), so that a spin of the child
+    about the vertical is a roll (engines-drake.md 9)."""
     offset = np.asarray(joint.offset, dtype=float)
-    x = _unit(gravity, _unit(offset, np.array([1.0, 0.0, 0.0])))
-    z = _unit(np.cross(x, offset), _normal_to(x))
+    if np.any(turn):
+        z = turn
+        x = _unit(_normal_part(gravity, z), _unit(_normal_part(offset, z), _normal_to(z)))
+    else:
+        x = _unit(gravity, _unit(offset, np.array([1.0, 0.0, 0.0])))
+        z = _unit(np.cross(x, offset), _normal_to(x))
     return np.column_stack([x, np.cross(z, x), z])
+
+
+def _normal_part(vector: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """``vector`` less its component along ``unit``."""
+    return vector - float(vector @ unit) * unit
 
 
 def _unit(vector: np.ndarray, otherwise: np.ndarray) -> np.ndarray:
@@ -78,15 +88,21 @@ def _normal_to(vector: np.ndarray) -> np.ndarray:
     return _unit(np.cross(vector, trial), np.array([1.0, 0.0, 0.0]))
 
 
-def frame_axes(joint, gravity: np.ndarray, parent_moves: bool) -> np.ndarray:
-    """(3, 3) the axes of a joint's frame F in its parent's frame: ``ball_axes`` for a ball
-    on the world or a fixed body (whose frame keeps gravity's direction), the parent's own
-    otherwise. A ball on a moving parent turns relative to it mostly as the parent turns, not
-    as gravity says: the chain of tests/test_drake_joints.py reaches pitch 1.557 rad with
-    gravity's axes on its swinging arm and 0.54 rad with the arm's own (engines-drake.md 9)."""
-    if joint.type == "ball" and not parent_moves:
-        return ball_axes(joint, gravity)
-    return np.eye(3)
+def frame_axes(joint, tree, gravity: np.ndarray) -> np.ndarray:
+    """(3, 3) the axes of a joint's frame F in its parent's frame: a ball's ``ball_axes``
+    (gravity, world frame, seen in the parent's axes at t = 0; the parent's hinge axis in its
+    own frame, R0ᵀ u, when a hinge holds the parent), the parent's own for every other joint."""
+    if joint.type != "ball":
+        return np.eye(3)
+    turn = np.zeros(3)
+    if joint.parent == WORLD:
+        rotation = np.eye(3)
+    else:
+        rotation = tree.fixed_rot[joint.parent]
+        held_by = next((j for j in tree.joints if j.child == joint.parent), None)
+        if held_by is not None and held_by.type == "hinge":
+            turn = np.asarray(held_by.rotation).T @ np.asarray(held_by.axis, dtype=float)
+    return ball_axes(joint, rotation.T @ np.asarray(gravity, dtype=float), turn)
 
 
 def add_joints(plant, tree, bodies: list, gravity, limits: dict[str, tuple]) -> list:
@@ -100,9 +116,7 @@ def add_joints(plant, tree, bodies: list, gravity, limits: dict[str, tuple]) -> 
         if joint.type == "free":
             continue
         parent_body, parent_pose = _parent(plant, tree, bodies, joint.parent)
-        parent_moves = joint.parent != WORLD and bodies[joint.parent] is not None
-        parent_rotation = np.eye(3) if joint.parent == WORLD else tree.fixed_rot[joint.parent]
-        axes = frame_axes(joint, parent_rotation.T @ np.asarray(gravity, dtype=float), parent_moves)
+        axes = frame_axes(joint, tree, gravity)
         on_parent = plant.AddFrame(
             FixedOffsetFrame(
                 f"{joint.name}/parent",
