@@ -67,7 +67,8 @@ TIP_TILT = (np.array([0.9, 0.2, -0.3, 0.25]) / np.linalg.norm([0.9, 0.2, -0.3, 0
 def chain_scene(engines: list[str]) -> Scenario:
     """Every joint type with damping: an arm hinged to the world about x (damped), a ball on a
     ball joint at its far end (hanging off the arm's plane, so the motion is 3-D), a box welded
-    to the ball, and a carriage on a damped slider along a tilted axis, moving along it."""
+    to the ball, a carriage on a damped slider along a tilted axis, moving along it, and a box
+    jointed to nothing, thrown tumbling (a free body of a jointed scene)."""
     slope = [0.6, 0.0, -0.8]
     return jointed(
         "drake_joint_chain",
@@ -82,6 +83,9 @@ def chain_scene(engines: list[str]) -> Scenario:
             {"name": "carriage", "shape": {"type": "sphere", "radius": 0.05},
              "mass": 2.0, "position": [-1.0, 0.0, 1.0],
              "velocity": [0.5 * s for s in slope]},
+            {"name": "loose", "shape": {"type": "box", "half_extents": [0.1, 0.2, 0.3]},
+             "mass": 2.0, "position": [3.0, 0.0, 2.0], "orientation": TIP_TILT,
+             "velocity": [1.0, 0.0, 2.0], "angular_velocity": [0.3, -0.2, 0.5]},
         ],
         [
             {"name": "shoulder", "type": "hinge", "parent": "world", "child": "arm",
@@ -316,6 +320,10 @@ def test_a_non_finite_plant_state_reads_as_non_finite_body_states():
     assert np.isfinite(states.pos[0]).all() and np.isnan(states.pos[1]).all(), states.pos
 
 
+POST_TURN = [float(np.cos(0.2)), 0.0, 0.0, float(np.sin(0.2))]
+"""The limited arm's fixed post, turned 0.4 rad about z."""
+
+
 def test_a_ball_on_a_hinged_arm_stopped_by_its_limit_keeps_off_the_singularity():
     """A bar hinged to a fixed post swings down onto its 1 rad limit, and the ball hanging
     from its end by a ball joint whips round it, relative to the bar, about the hinge's axis.
@@ -323,12 +331,14 @@ def test_a_ball_on_a_hinged_arm_stopped_by_its_limit_keeps_off_the_singularity()
     Drake raised its singularity at 0.985 s; with z along the bar's hinge axis it is a yaw, and
     the run is ``ok`` with the joints held."""
     half_turn = [float(np.cos(np.pi / 4)), 0.0, float(np.sin(np.pi / 4)), 0.0]
+    # the post turned about z: the hinge's axis is y in the world, not along the post's axes
+    # (the parity gate then checks that Drake's axis is read back into the world)
     scenario = jointed(
         "drake_ball_on_a_limited_arm",
         [DISCRETE],
         [
             {"name": "post", "shape": {"type": "box", "half_extents": [0.05, 0.05, 0.05]},
-             "mass": 1.0, "position": [0.0, 0.0, 2.0], "fixed": True},
+             "mass": 1.0, "position": [0.0, 0.0, 2.0], "fixed": True, "orientation": POST_TURN},
             {"name": "bar", "shape": {"type": "box", "half_extents": [0.02, 0.02, 0.25]},
              "mass": 1.0, "position": [0.25, 0.0, 2.0], "orientation": half_turn},
             {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 0.5,

@@ -65,7 +65,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.drake.declaration import (
     CONTINUOUS,
     DEFAULT_INTEGRATOR,
@@ -76,6 +76,7 @@ from validation.engines.drake.declaration import (
 from validation.engines.drake.joints import (
     add_joints,
     filter_jointed_pairs,
+    joint_report,
     joint_velocities,
     kinematic_states,
 )
@@ -585,6 +586,11 @@ class DrakeAdapter:
             linear_momentum=np.asarray(linear, dtype=float),
             angular_momentum=np.asarray(angular, dtype=float),
         )
+
+    def joint_report(self) -> JointReport:
+        """The joints Drake built, at the current state (``joints.joint_report``; the parity
+        gate calls it at t = 0)."""
+        return joint_report(self.plant, self.context, self.scenario, self.tree, self.bodies)
 
     # -- provenance ------------------------------------------------------------------------
 

@@ -25,8 +25,8 @@ from pydrake.multibody.tree import (
     WeldJoint,
 )
 
-from validation.engines.base import Trajectory
-from validation.reference.articulated import WORLD
+from validation.engines.base import JointReport, Trajectory
+from validation.reference.articulated import AXIS_TYPES, WORLD
 
 DRAKE_JOINTS = {
     "hinge": lambda name, f, m, axis, limits, damping: RevoluteJoint(
@@ -43,6 +43,15 @@ DRAKE_JOINTS = {
 the position limits (rad or m from t = 0, where the coordinate is 0), damping in N·m·s/rad or
 N·s/m (Drake's viscous joint damping). Only the discrete plant enforces the limits (its SAP
 solver, as constraints); the continuous plant ignores them (engines-drake.md 9)."""
+
+SCENE_WORDS = {"revolute": "hinge", "prismatic": "slider", "ball_rpy": "ball", "weld": "fixed"}
+"""Drake's ``Joint.type_name()`` -> the scene's joint type."""
+
+AXIS_READERS = {
+    "revolute": lambda joint: joint.revolute_axis(),
+    "prismatic": lambda joint: joint.translation_axis(),
+}
+"""Drake joint type -> its axis in its frame F (the joints with an axis)."""
 
 UNLIMITED = (-np.inf, np.inf)
 """The limits of a joint that states none (Drake's own default)."""
@@ -231,3 +240,53 @@ def kinematic_states(plant, bodies: list, moving, times, raw, fixed_pose) -> Tra
             quat[s, k] = where.rotation().ToQuaternion().wxyz()
             vel[s, k], ang_vel[s, k] = motion.translational(), motion.rotational()
     return Trajectory(np.asarray(times, dtype=float), pos, quat, vel, ang_vel)
+
+
+def joint_report(plant, context, scenario, tree, bodies: list) -> JointReport:
+    """The joints Drake holds, at the state of ``context`` (t = 0 after loading), in the
+    scene's order: each one's type (``type_name``), anchor (the origin of its frame F in the
+    world, ``CalcPoseInWorld``) and axis (``revolute_axis`` or ``translation_axis``, F's, in
+    the world); and Drake's ``CalcMassMatrix`` carried into the joint tree's coordinates,
+    ``Tᵀ M T`` with T mapping the tree's ν to Drake's v (``tree_velocities``)."""
+    types, anchors, axes = [], [], []
+    for stated in scenario.joints:
+        joint = plant.GetJointByName(stated.name)
+        where = joint.frame_on_parent().CalcPoseInWorld(context)
+        types.append(SCENE_WORDS[joint.type_name()])
+        anchors.append(where.translation())
+        reader = AXIS_READERS.get(joint.type_name())
+        axes.append(np.zeros(3) if reader is None else where.rotation().multiply(reader(joint)))
+    change = tree_velocities(plant, tree, bodies)
+    return JointReport(
+        tuple(types),
+        np.array(anchors, dtype=float).reshape(-1, 3),
+        np.array(axes, dtype=float).reshape(-1, 3),
+        change.T @ plant.CalcMassMatrix(context) @ change,
+    )
+
+
+def tree_velocities(plant, tree, bodies: list) -> np.ndarray:
+    """(nv Drake, nv tree) T: Drake's v of the joint tree's ν. A hinge's or slider's rate is
+    Drake's as it is; a ball's spin relative to its parent in the parent's frame is Drake's
+    ``w_FM`` in F after R_PFᵀ (F's axes are fixed in the parent: ``frame_axes``); a floating
+    root's (v, ω), world frame, is Drake's (ω, v)."""
+    change = np.zeros((plant.num_velocities(), tree.nv))
+    for joint in tree.joints:
+        start, column = None, joint.v_slice.start
+        if joint.type == "free":
+            start = bodies[joint.child].floating_velocities_start_in_v()
+            change[start : start + 3, column + 3 : column + 6] = np.eye(3)
+            change[start + 3 : start + 6, column : column + 3] = np.eye(3)
+        elif joint.type in AXIS_TYPES:
+            change[plant.GetJointByName(joint.name).velocity_start(), column] = 1.0
+        elif joint.type == "ball":
+            drake_joint = plant.GetJointByName(joint.name)
+            in_body = drake_joint.frame_on_parent().GetFixedPoseInBodyFrame().rotation().matrix()
+            parent_in_body = (
+                tree.fixed_rot[joint.parent]
+                if joint.parent != WORLD and bodies[joint.parent] is None
+                else np.eye(3)
+            )
+            start = drake_joint.velocity_start()
+            change[start : start + 3, column : column + 3] = (parent_in_body.T @ in_body).T
+    return change
