@@ -197,8 +197,10 @@ def test_a_joints_two_bodies_never_collide_while_other_pairs_do(engine):
     adapter = loaded(engine, overlapping_scene([engine]))
     try:
         found = touching_pairs(adapter)
+        recorded_filters = adapter.provenance().settings["jointed_pairs_filtered"]
     finally:
         adapter.close()
+    assert recorded_filters == 2, recorded_filters
     assert not {("bar", "post"), ("bar", "hanging")} & found, found
     assert {("hanging", "loose"), ("bar", "loose")} <= found, found
 

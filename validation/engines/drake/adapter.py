@@ -235,8 +235,11 @@ class DrakeAdapter:
         with quiet_drake():
             plant.Finalize()
             self._filter_pairs(scene_graph, pair_geometry)
-            if self.tree is not None:
-                filter_jointed_pairs(scene_graph, self.tree, self.geometry)
+            self.filtered_pairs = (
+                0
+                if self.tree is None
+                else filter_jointed_pairs(scene_graph, self.tree, self.geometry)
+            )
             self.diagram = builder.Build()
             self.simulator = Simulator(self.diagram)
         self.context = self.plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
@@ -605,7 +608,8 @@ class DrakeAdapter:
         }
 
     def provenance(self) -> Provenance:
-        """drake's version, the plant's contact settings, the profile and what it set."""
+        """drake's version, the plant's contact settings, the profile and what it set; with
+        joints, Drake's joint types by name and the parent/child pairs collision-filtered."""
         plant = self.plant
         s = self.settings
         settings: dict[str, object] = {
@@ -621,6 +625,9 @@ class DrakeAdapter:
             "applied_spatial_forces": self.loads,
             "force_elements": plant.num_force_elements(),
         }
+        if self.joints:
+            settings["joints"] = {joint.name(): joint.type_name() for joint in self.joints}
+            settings["jointed_pairs_filtered"] = self.filtered_pairs
         if s.profile == CONTINUOUS:
             settings["integration"] = self._integrator_settings()
         return Provenance(
