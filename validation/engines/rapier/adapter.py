@@ -35,7 +35,8 @@ import rapier3d
 
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.frames import principal_axes
-from validation.engines.rapier.declaration import PRECISION, PROFILES, Profile
+from validation.engines.rapier.declaration import DEFAULT_JOINTS, PRECISION, PROFILES, Profile
+from validation.engines.rapier.joints import JointBuilder
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_to_matrix
@@ -138,6 +139,7 @@ class Settings:
     sleeping: bool
     prediction_distance: float | None
     solver_iterations: int | None
+    joints: str
 
     @staticmethod
     def of(spec: EngineSpec) -> Settings:
@@ -154,6 +156,7 @@ class Settings:
             sleeping=profile.sleeping,
             prediction_distance=profile.prediction_distance,
             solver_iterations=None if iterations is None else int(iterations),
+            joints=str(options.get("joints", DEFAULT_JOINTS)),
         )
 
 
@@ -211,6 +214,8 @@ class RapierAdapter:
         if self.hook_pairs:
             self.world.physics_hooks = PairHooks(self.hook_pairs)
         self._set_up_loads(scenario)
+        if scene.joint_tree is not None:
+            self._create_joints(scene)
         self._fixed_pose = (
             np.array([b.position for b in scenario.bodies], dtype=float),
             np.array([b.orientation for b in scenario.bodies], dtype=float),
@@ -303,6 +308,26 @@ class RapierAdapter:
         )
         pose = rapier3d.Isometry3(tuple(float(p) for p in point), rotation(quat))
         return self.world.add_body(rapier3d.RigidBody.fixed().position(pose), [collider])
+
+    def _create_joints(self, scene: CompiledScene) -> None:
+        """The scene's joint tree as Rapier joints of the ``joints`` kind (multibody or
+        impulse, ``validation.engines.rapier.joints``); the bodies keep their stated states."""
+        scenario = scene.scenario
+        self.joint_builder = JointBuilder(self.world, self.settings.joints)
+        self.joint_builder.build(
+            scene.joint_tree,
+            self.handles,
+            {j.name: j.limits for j in scenario.joints},
+            (
+                np.array([b.velocity for b in scenario.bodies], dtype=float),
+                np.array([b.angular_velocity for b in scenario.bodies], dtype=float),
+            ),
+        )
+        self.notes.append(
+            f"joints: {len(scenario.joints)} Rapier {self.settings.joints} joint(s) "
+            "(GenericJoint, frames placing each child at its stated pose, no contact between "
+            "a joint's two bodies)"
+        )
 
     def _set_up_loads(self, scenario: Scenario) -> None:
         """Constant loads are Rapier's persistent user force and torque (set once, kept over
@@ -481,6 +506,8 @@ class RapierAdapter:
             "worker_threads": WORKER_THREADS,
             "build_features": str(rapier3d.build_features()),
         }
+        if self.scene.joint_tree is not None:
+            settings["joints"] = s.joints
         dt = self.world.integration_parameters.dt
         notes = [
             f"float32 engine: Rapier stores every state, mass and dt in 32-bit floats "

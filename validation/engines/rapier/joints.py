@@ -1,0 +1,205 @@
+"""The scene's joints in Rapier: the joint tree (``CompiledScene.joint_tree``) as multibody
+joints (reduced coordinates, the default) or impulse joints (constraints between free rigid
+bodies, ``joints=impulse``).
+
+Every joint is a ``GenericJoint`` whose locked axes make it a hinge, slider, ball or weld, placed
+by two full frames so that the child's pose at joint coordinate 0 is its stated pose (Rapier's
+multibody places a link by its frames alone, engines-rapier.md 9):
+
+    frame1 = (a_P, F)            in the parent's body frame (the world's for ``WORLD``)
+    frame2 = (-R0ᵀ r0, R0ᵀ F)    in the child's body frame
+
+with ``F`` a rotation taking Rapier's joint x axis to the scene's axis ``u_P`` (identity for a
+ball or a weld). Then ``R_C = R_P F Rot_x(θ) Fᵀ R0 = R_P Rot(u_P, θ) R0`` and the child's
+anchor meets the parent's, the reference's kinematics (``validation.reference.articulated``)
+with the same sign of θ and s: a scene's limits go to Rapier as they are.
+
+A joint to the world hangs from one fixed body at the world origin, without a collider
+(``WORLD_BODY``), never observed. The parent and the child of a joint never collide
+(``contacts_enabled(False)``); every other pair, in one multibody or not, keeps its contacts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import rapier3d
+
+from validation.engines.frames import matrix_to_quat
+from validation.reference.articulated import WORLD, Joint, JointTree
+
+X = np.array([1.0, 0.0, 0.0])
+
+
+@dataclass(frozen=True)
+class JointType:
+    """How a scene joint type is a ``GenericJoint``: its locked axes and its free axes (where
+    damping and limits act)."""
+
+    locked: rapier3d.JointAxesMask
+    free: tuple[rapier3d.JointAxis, ...]
+
+
+JOINT_TYPES: dict[str, JointType] = {
+    "hinge": JointType(rapier3d.JointAxesMask.LOCKED_REVOLUTE_AXES, (rapier3d.JointAxis.ANG_X,)),
+    "slider": JointType(rapier3d.JointAxesMask.LOCKED_PRISMATIC_AXES, (rapier3d.JointAxis.LIN_X,)),
+    "ball": JointType(
+        rapier3d.JointAxesMask.LOCKED_SPHERICAL_AXES,
+        (rapier3d.JointAxis.ANG_X, rapier3d.JointAxis.ANG_Y, rapier3d.JointAxis.ANG_Z),
+    ),
+    "fixed": JointType(rapier3d.JointAxesMask.LOCKED_FIXED_AXES, ()),
+}
+"""Scene joint type -> Rapier's axes (the joint frame's x is the scene's axis)."""
+
+
+def _rotation(matrix: np.ndarray) -> rapier3d.Rotation3:
+    w, x, y, z = (float(c) for c in matrix_to_quat(matrix))
+    return rapier3d.Rotation3(w, x, y, z)
+
+
+def _isometry(translation: np.ndarray, matrix: np.ndarray) -> rapier3d.Isometry3:
+    return rapier3d.Isometry3(tuple(float(t) for t in translation), _rotation(matrix))
+
+
+def axis_frame(axis: np.ndarray) -> np.ndarray:
+    """(3, 3) a rotation whose first column is the unit ``axis`` (identity for no axis): the
+    shortest turn from x to the axis (a half turn about z for -x)."""
+    if not np.any(axis):
+        return np.eye(3)
+    normal = np.cross(X, axis)
+    sine, cosine = float(np.linalg.norm(normal)), float(X @ axis)
+    if sine < 1e-12:
+        return np.eye(3) if cosine > 0 else np.diag([-1.0, -1.0, 1.0])
+    k = normal / sine
+    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + sine * skew + (1.0 - cosine) * skew @ skew
+
+
+def joint_frames(joint: Joint) -> tuple[rapier3d.Isometry3, rapier3d.Isometry3]:
+    """(frame1 in the parent's body frame, frame2 in the child's) of one tree joint (module
+    docstring)."""
+    frame = axis_frame(joint.axis)
+    back = joint.rotation.T
+    return _isometry(joint.anchor, frame), _isometry(-back @ joint.offset, back @ frame)
+
+
+def generic_joint(
+    joint: Joint, limits: tuple[float, float] | None, motor_damping: bool
+) -> rapier3d.GenericJoint:
+    """The ``GenericJoint`` of one tree joint: its frames, no contact between its two bodies,
+    the scene's limits on its free axis; with ``motor_damping`` (impulse joints) its damping
+    as a velocity motor of target 0 on each free axis, force-based (a torque or force
+    ``-c · rate``: Rapier's way to damp an impulse joint, engines-rapier.md 9)."""
+    kind = JOINT_TYPES[joint.type]
+    frame1, frame2 = joint_frames(joint)
+    builder = (
+        rapier3d.GenericJointBuilder(kind.locked)
+        .local_frame1(frame1)
+        .local_frame2(frame2)
+        .contacts_enabled(False)
+    )
+    if limits is not None:
+        builder = builder.limits(kind.free[0], float(limits[0]), float(limits[1]))
+    if motor_damping and joint.damping > 0.0:
+        for axis in kind.free:
+            builder = builder.motor_velocity(axis, 0.0, float(joint.damping))
+            builder = builder.motor_model(axis, rapier3d.MotorModel.FORCE_BASED)
+    return builder.build()
+
+
+class JointBuilder:
+    """Inserts a scene's joint tree into a ``PhysicsWorld`` as one kind of Rapier joint, and
+    sets what Rapier's joint state needs: the multibodies' damping and initial velocities."""
+
+    def __init__(self, world, kind: str):
+        self.world = world
+        self.kind = kind
+        self.world_body = None
+
+    def build(
+        self,
+        tree: JointTree,
+        handles: list,
+        limits: dict[str, tuple[float, float] | None],
+        velocities: tuple[np.ndarray, np.ndarray],
+    ) -> None:
+        """Every stated joint of ``tree`` between the bodies ``handles`` (scenario order),
+        parents first; for multibodies, then their damping and their generalized velocities
+        from the bodies' stated ``velocities`` (v (n, 3), ω (n, 3))."""
+        impulse = self.kind == "impulse"
+        inserted = []
+        for joint in tree.joints:
+            if joint.type == "free":
+                continue
+            parent = self._world_body() if joint.parent == WORLD else handles[joint.parent]
+            data = generic_joint(joint, limits.get(joint.name), motor_damping=impulse)
+            if impulse:
+                self.world.impulse_joints.insert(parent, handles[joint.child], data)
+            else:
+                handle = self.world.multibody_joints.insert(parent, handles[joint.child], data)
+                if handle is None:
+                    raise RuntimeError(f"Rapier refused joint {joint.name!r} into a multibody")
+                inserted.append(joint)
+        if inserted:
+            damping = {handles[j.child]: j.damping for j in inserted}
+            for multibody in self._multibodies(handles).values():
+                # the links' poses and Jacobians (before the first step Rapier counts a
+                # fixed root's six coordinates and has no Jacobian yet)
+                multibody.forward_kinematics(self.world.rigid_bodies, True)
+                set_damping(multibody, damping)
+                set_velocities(multibody, tree, handles, velocities)
+
+    def _world_body(self):
+        """The fixed body that stands for the world (identity pose, no collider), made once."""
+        if self.world_body is None:
+            self.world_body = self.world.add_body(rapier3d.RigidBody.fixed())
+        return self.world_body
+
+    def _multibodies(self, handles: list) -> dict:
+        """Each multibody among the scene's bodies, once: root body handle -> ``Multibody``."""
+        found = {}
+        joints = self.world.multibody_joints
+        for handle in handles:
+            link = joints.rigid_body_link(handle)
+            if link is not None:
+                multibody = joints.get_multibody(link.multibody)
+                found[multibody.root_handle] = multibody
+        return found
+
+
+def _links(multibody):
+    return (multibody.get_link(k) for k in range(multibody.num_links))
+
+
+def set_damping(multibody, damping: dict) -> None:
+    """The multibody's damping per generalized velocity: each link's joint's (``damping``:
+    child body handle -> N·m·s/rad or N·s/m), 0 on a floating root's six (Rapier's default is
+    0.1 on every one, engines-rapier.md 9)."""
+    values = [0.0] * multibody.ndofs
+    for link in _links(multibody):
+        value = 0.0 if link.is_root() else float(damping.get(link.rigid_body, 0.0))
+        values[link.assembly_id : link.assembly_id + link.ndofs] = [value] * link.ndofs
+    multibody.set_damping(values)
+
+
+def set_velocities(
+    multibody, tree: JointTree, handles: list, velocities: tuple[np.ndarray, np.ndarray]
+) -> None:
+    """The multibody's generalized velocity from its links' stated velocities (v, ω (n, 3)),
+    through Rapier's own Jacobians at the initial configuration (``body_jacobian``: the link's
+    centre velocity, then its world ω): the least-squares ν of ``J ν = (v, ω)``, exact for
+    the velocities the scene's checks let through (the joints allow them)."""
+    if multibody.ndofs == 0:
+        return
+    row = {h: k for k, h in enumerate(handles)}
+    vel, ang_vel = velocities
+    rows, stated = [], []
+    for link in _links(multibody):
+        body = row.get(link.rigid_body)
+        if body is None or tree.fixed[body]:
+            continue
+        rows.append(np.array(multibody.body_jacobian(link.link_id), dtype=float))
+        stated.append(np.concatenate([vel[body], ang_vel[body]]))
+    nu = np.linalg.lstsq(np.concatenate(rows), np.concatenate(stated), rcond=None)[0]
+    multibody.set_generalized_velocity([float(v) for v in nu])
