@@ -1,0 +1,262 @@
+"""Rapier's joints (validation/engines/rapier/joints.py), multibody and impulse: every joint
+type follows the reference's joint-space motion, a joint's two bodies never touch while other
+pairs do, a joint's damping decays at its exponential rate and its limits stop it.
+
+The compound and double pendulums against closed forms are in tests/test_joint_scenes.py
+(``rapier`` and ``rapier(joints=impulse)`` in its parametrization); the numbers here are
+docs/engines-rapier.md section 9.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from validation.engines.registry import create_adapter
+from validation.measure.resolution import FLOAT32_UNIT_ROUNDOFF
+from validation.measure.runner import run_engine
+from validation.reference.articulated import (
+    Loads,
+    initial_velocities,
+    joint_coordinates,
+    joint_violations,
+    reference_motion,
+)
+from validation.reference.rotation import quat_to_matrix
+from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import parse_engine_spec
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("rapier3d") is None,
+    reason='needs rapier3d: pip install "physval[rapier]"',
+)
+
+KINDS = ("rapier", "rapier(joints=impulse)")
+"""Rapier's two joint sets (``declaration.JOINT_KINDS``), multibody the default."""
+
+DT = 1e-3
+SUBSTEPS = 4
+"""Rapier's state updates per step (engines-rapier.md 3), each rounding to float32."""
+
+
+def recorded(engine: str, scenario: Scenario):
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec(engine))
+    assert run.status == "ok", (engine, run.status, run.message)
+    return scene, run.recording.trajectory
+
+
+# --- every joint type against the reference ------------------------------------------------
+
+RAIL = np.array([0.6, 0.0, -0.8])
+CARRIAGE = np.array([0.0, 0.0, 2.0])
+BOB = np.array([0.3, 0.1, 1.6])
+FIN = BOB + np.array([0.15, 0.0, 0.0])
+SPIN = np.array([1.0, 0.0, 2.0])
+
+
+def slider_ball_weld(engine: str) -> Scenario:
+    """A carriage sliding down a tilted rail (slider), a bob hung from it by a ball joint,
+    spinning, and a fin welded to the bob (fixed): each body's stated velocity the one the
+    joints allow (the carriage at 0.5 m/s along the rail)."""
+    carriage_velocity = 0.5 * RAIL
+    bob_velocity = carriage_velocity + np.cross(SPIN, BOB - CARRIAGE)
+    fin_velocity = bob_velocity + np.cross(SPIN, FIN - BOB)
+    return Scenario.model_validate(
+        {
+            "name": "slider_ball_weld",
+            "dt": DT,
+            "duration": 1.0,
+            "engines": [engine],
+            "bodies": [
+                {"name": "carriage", "shape": {"type": "box", "half_extents": [0.1, 0.1, 0.05]},
+                 "mass": 2.0, "position": CARRIAGE.tolist(),
+                 "velocity": carriage_velocity.tolist()},
+                {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+                 "position": BOB.tolist(), "velocity": bob_velocity.tolist(),
+                 "angular_velocity": SPIN.tolist()},
+                {"name": "fin", "shape": {"type": "box", "half_extents": [0.1, 0.02, 0.03]},
+                 "mass": 0.5, "position": FIN.tolist(), "velocity": fin_velocity.tolist(),
+                 "angular_velocity": SPIN.tolist()},
+            ],
+            "joints": [
+                {"name": "rail", "type": "slider", "parent": "world", "child": "carriage",
+                 "anchor": CARRIAGE.tolist(), "axis": RAIL.tolist()},
+                {"name": "socket", "type": "ball", "parent": "carriage", "child": "bob",
+                 "anchor": CARRIAGE.tolist()},
+                {"name": "weld", "type": "fixed", "parent": "bob", "child": "fin",
+                 "anchor": BOB.tolist()},
+            ],
+        }
+    )  # fmt: skip
+
+
+FLOAT32_POSITION_FLOOR = round(1.0 / DT) * SUBSTEPS * FLOAT32_UNIT_ROUNDOFF * 2.0
+"""m, 4.8e-4: what float32 can resolve of a position up to 2 m carried over 1 s of 4
+substeps a step (validation/measure/resolution.py's floor for a carried value)."""
+
+REFERENCE_TOLERANCE = 5e-3 + FLOAT32_POSITION_FLOOR
+"""m over 1 s against the reference's DOP853: a first-order scheme's O(dt)·|a|·t (the bound
+tests/test_joint_scenes.py gives MuJoCo and mini, which measure 3.2e-3 and 1.1e-2 on this
+scene) plus the float32 floor. Measured: 1.3e-3 m (multibody), 1.0e-3 m (impulse)."""
+
+VIOLATION_BOUND = {"rapier": 5e-5, "rapier(joints=impulse)": 1e-4}
+"""m, the largest separation of a joint's two anchors over 1 s, measured with a margin of 3:
+the multibody's ball joint 1.5e-5 m (float32 link poses composed down the chain: the bodies'
+poses are rounded to ~1e-7 relative each step, the joint coordinates are exact), the impulse
+joints' 4.1e-5 m (a constraint solved once per substep)."""
+
+
+@pytest.mark.parametrize("engine", KINDS)
+def test_a_slider_a_ball_and_a_weld_follow_the_joint_space_reference(engine):
+    scenario = slider_ball_weld(engine)
+    scene, trajectory = recorded(engine, scenario)
+    tree = scene.joint_tree
+    stated = scenario.bodies
+    nu0, residual = initial_velocities(
+        tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
+    )
+    assert residual < 1e-12, residual
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
+    difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+    assert difference < REFERENCE_TOLERANCE, (engine, difference)
+    separation, _, _ = joint_violations(tree, trajectory.pos, quat_to_matrix(trajectory.quat))
+    assert separation.max() < VIOLATION_BOUND[engine], (engine, separation.max(axis=0))
+
+
+# --- contacts -----------------------------------------------------------------------------
+
+
+def overlapping_chain(engine: str) -> Scenario:
+    """Three balls of r = 0.4 m in a chain (hinge, hinge, ball) whose every two overlap: a-b
+    and b-c are joints' pairs, a-c (grandparent and grandchild) is not."""
+    ball = lambda name, position: {  # noqa: E731
+        "name": name,
+        "shape": {"type": "sphere", "radius": 0.4},
+        "mass": 1.0,
+        "position": position,
+    }
+    return Scenario.model_validate(
+        {
+            "name": "overlapping_chain",
+            "dt": DT,
+            "duration": 10 * DT,
+            "engines": [engine],
+            "gravity": [0.0, 0.0, 0.0],
+            "bodies": [ball("a", [0.6, 0.0, 2.0]), ball("b", [0.6, 0.6, 2.0]),
+                       ball("c", [0.6, 0.2, 2.0])],
+            "joints": [
+                {"name": "j1", "type": "hinge", "parent": "world", "child": "a",
+                 "anchor": [0.0, 0.0, 2.0], "axis": [0.0, 1.0, 0.0]},
+                {"name": "j2", "type": "hinge", "parent": "a", "child": "b",
+                 "anchor": [0.6, 0.0, 2.0], "axis": [1.0, 0.0, 0.0]},
+                {"name": "j3", "type": "ball", "parent": "b", "child": "c",
+                 "anchor": [0.6, 0.6, 2.0]},
+            ],
+        }
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("engine", KINDS)
+def test_a_joints_two_bodies_never_touch_in_rapier_while_other_pairs_do(engine):
+    adapter = create_adapter(parse_engine_spec(engine))
+    adapter.load(compile_scene(overlapping_chain(engine)))
+    adapter.advance(1)
+    world = adapter.world
+    colliders = [world.rigid_bodies[h].colliders[0] for h in adapter.handles]
+
+    def touching(i: int, j: int) -> bool:
+        pair = world.narrow_phase.contact_pair(colliders[i], colliders[j])
+        return pair is not None and pair.has_any_active_contact
+
+    assert not touching(0, 1) and not touching(1, 2), engine
+    assert touching(0, 2), engine  # a multibody's other pairs keep their contacts
+    adapter.close()
+
+
+# --- damping and limits -------------------------------------------------------------------
+
+WHEEL_MASS = 2.0
+WHEEL_HALF = (0.3, 0.1, 0.05)
+WHEEL_INERTIA = WHEEL_MASS * (4 * WHEEL_HALF[0] ** 2 + 4 * WHEEL_HALF[1] ** 2) / 12
+"""kg·m², the box's moment about z through its centre (the hinge)."""
+DAMPING = 0.05
+"""N·m·s/rad: ω(t) = ω0 exp(-c t / I), 0.945 ω0 left at 1 s."""
+SPIN_RATE = 2.0
+
+DAMPED_STEPS = round(1.0 / DT)
+DAMPING_TOLERANCE = DAMPED_STEPS * (DAMPING * DT / WHEEL_INERTIA) ** 2
+"""Relative, 5.6e-4: twice the error of a damping step implicit in ω (the multibody's, per
+step: (1 + h)⁻ⁿ against e⁻ⁿʰ, n h²/2 with h = c dt / I). Measured: 2.6e-4 (multibody, that
+n h²/2), 4.8e-4 (impulse, the force-based velocity motor)."""
+
+
+def damped_wheel(engine: str) -> Scenario:
+    """A box spinning about a damped hinge through its centre, without gravity."""
+    return Scenario.model_validate(
+        {
+            "name": "damped_wheel",
+            "dt": DT,
+            "duration": DAMPED_STEPS * DT,
+            "engines": [engine],
+            "gravity": [0.0, 0.0, 0.0],
+            "bodies": [
+                {"name": "wheel", "shape": {"type": "box", "half_extents": list(WHEEL_HALF)},
+                 "mass": WHEEL_MASS, "position": [0.0, 0.0, 1.0],
+                 "angular_velocity": [0.0, 0.0, SPIN_RATE]},
+            ],
+            "joints": [
+                {"name": "axle", "type": "hinge", "parent": "world", "child": "wheel",
+                 "anchor": [0.0, 0.0, 1.0], "axis": [0.0, 0.0, 1.0], "damping": DAMPING},
+            ],
+        }
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("engine", KINDS)
+def test_a_damped_hinge_decays_at_its_exponential_rate(engine):
+    _, trajectory = recorded(engine, damped_wheel(engine))
+    exact = SPIN_RATE * np.exp(-DAMPING * trajectory.t / WHEEL_INERTIA)
+    error = np.abs(trajectory.ang_vel[:, 0, 2] / exact - 1.0).max()
+    assert error < DAMPING_TOLERANCE, (engine, error)
+
+
+LIMITS = (-0.3, 0.25)
+"""rad from the release (horizontal): the bob falls onto one of them and rests there."""
+
+LIMIT_TOLERANCE = 1e-5
+"""rad past a limit or short of it at rest: measured 2.0e-6 rad past (multibody) and 1.3e-8
+(impulse) for a 0.3 m pendulum falling onto a limit 0.2 rad below the horizontal; float32
+resolves an angle to 1e-7."""
+
+
+def limited_pendulum(engine: str, axis: list[float]) -> Scenario:
+    """A 1 kg ball 0.3 m out along x on a hinge at the origin, released from rest: about +y it
+    falls towards positive angles (the upper limit), about -y towards the lower one."""
+    return Scenario.model_validate(
+        {
+            "name": "limited_pendulum",
+            "dt": DT,
+            "duration": 1.0,
+            "engines": [engine],
+            "bodies": [{"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+                        "position": [0.3, 0.0, 0.0]}],
+            "joints": [{"name": "pivot", "type": "hinge", "parent": "world", "child": "bob",
+                        "anchor": [0.0, 0.0, 0.0], "axis": axis, "limits": list(LIMITS)}],
+        }
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("engine", KINDS)
+@pytest.mark.parametrize(("axis", "limit"), [([0.0, 1.0, 0.0], 1), ([0.0, -1.0, 0.0], 0)])
+def test_a_hinge_falls_onto_its_limit_and_rests_there(engine, axis, limit):
+    scene, trajectory = recorded(engine, limited_pendulum(engine, axis))
+    angle = joint_coordinates(scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat))
+    swing = angle["pivot"]
+    assert swing.min() > LIMITS[0] - LIMIT_TOLERANCE, (engine, swing.min())
+    assert swing.max() < LIMITS[1] + LIMIT_TOLERANCE, (engine, swing.max())
+    assert abs(swing[-1] - LIMITS[limit]) < LIMIT_TOLERANCE, (engine, swing[-1])
