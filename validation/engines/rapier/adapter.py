@@ -205,6 +205,7 @@ class RapierAdapter:
         self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
+        self.joint_builder: JointBuilder | None = None
         self.world = rapier3d.PhysicsWorld(gravity=tuple(float(g) for g in scenario.gravity))
         self.world.set_num_threads(WORKER_THREADS)
         self._set_integration(scenario)
@@ -392,7 +393,10 @@ class RapierAdapter:
     # -- reading back ----------------------------------------------------------------------
 
     def _raw_state(self) -> np.ndarray:
-        """(n, 13): position, quaternion x y z w, velocity, world ω of every scene body."""
+        """(n, 13): position, quaternion x y z w, velocity, world ω of every scene body; after
+        a step, a multibody link's velocities from its multibody (``JointBuilder.
+        link_velocities``: its rigid body's are one substep late). Before the first, every body
+        carries its stated velocities, which the multibody's reproduce to float32 only."""
         bodies = self.world.rigid_bodies
         rows = []
         for handle in self.handles:
@@ -405,7 +409,11 @@ class RapierAdapter:
                     *body.angvel.to_tuple(),
                 )
             )
-        return np.array(rows, dtype=float)
+        raw = np.array(rows, dtype=float)
+        if self.joint_builder is not None and self.steps_taken:
+            for k, velocity in self.joint_builder.link_velocities(self.handles).items():
+                raw[k, 7:13] = velocity
+        return raw
 
     @staticmethod
     def _split(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

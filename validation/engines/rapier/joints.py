@@ -150,6 +150,24 @@ class JointBuilder:
                 set_damping(multibody, damping)
                 set_velocities(multibody, tree, handles, velocities)
 
+    def link_velocities(self, handles: list) -> dict[int, np.ndarray]:
+        """Scene body index -> (6,) its centre's velocity and world ω, for every multibody
+        link among ``handles``, from the multibody's own state: ``body_jacobian`` at the current
+        coordinates (after ``forward_kinematics``, which recomputes the links' poses from the
+        coordinates they already came from) times the generalized velocity. The links' rigid
+        bodies carry the velocity of one substep earlier (engines-rapier.md 9)."""
+        row = {h: k for k, h in enumerate(handles)}
+        found = {}
+        for multibody in self._multibodies(handles).values():
+            multibody.forward_kinematics(self.world.rigid_bodies, False)
+            nu = np.array(multibody.generalized_velocity(), dtype=float)
+            for link in _links(multibody):
+                body = row.get(link.rigid_body)
+                if body is not None and not link.is_root():
+                    jacobian = np.array(multibody.body_jacobian(link.link_id), dtype=float)
+                    found[body] = jacobian @ nu
+        return found
+
     def _world_body(self):
         """The fixed body that stands for the world (identity pose, no collider), made once."""
         if self.world_body is None:
