@@ -195,9 +195,10 @@ DAMPING_TOLERANCE = DAMPED_STEPS * (
 )
 """Relative, 5.2e-4: a first-order damping step's error over n steps of dt, n h²/2 with
 h = c dt / I (2.8e-4, the bound the library's damped_hinge gives first-order schemes), plus
-the float32 floor of ω carried over n steps of 4 substeps (2.4e-4). Measured: 2.6e-4
-(multibody, too slow a decay, first order in the substep: 1.0e-3 with 1, 6.5e-5 with 16) and
-4.8e-4 (impulse, the force-based velocity motor; 1.4e-3 with 16 substeps), engines-rapier.md 9."""
+the float32 floor of ω carried over n steps of 4 substeps (2.4e-4). Measured: 7.1e-5
+(multibody: a first-order step per substep, n h²/(2k): 2.8e-4, 7.1e-5, 1.8e-5 with 1, 4, 16
+substeps) and 4.8e-4 (impulse, the force-based velocity motor; 1.4e-3 with 16 substeps),
+engines-rapier.md 9."""
 
 
 def damped_wheel(engine: str) -> Scenario:
@@ -234,9 +235,10 @@ LIMITS = (-0.3, 0.25)
 """rad from the release (horizontal): the bob falls onto one of them and rests there."""
 
 LIMIT_TOLERANCE = 1e-5
-"""rad past a limit or short of it at rest: measured 2.0e-6 rad past (multibody) and 1.3e-8
-(impulse) for a 0.3 m pendulum falling onto a limit 0.2 rad below the horizontal; float32
-resolves an angle to 1e-7."""
+"""rad past a limit or short of it at rest, measured with a margin of 5: a 0.3 m pendulum
+falling onto these limits goes at most 2.3e-7 rad past one (impulse, the lower) and rests
+within 2e-8 rad of it (both sets); onto a limit of 0.2 rad it rests 2.0e-6 rad past (multibody).
+Float32 resolves an angle to 1e-7."""
 
 
 def limited_pendulum(engine: str, axis: list[float]) -> Scenario:
