@@ -151,8 +151,9 @@ class JointBuilder:
                 set_velocities(multibody, tree, handles, velocities)
 
     def link_velocities(self, handles: list) -> dict[int, np.ndarray]:
-        """Scene body index -> (6,) its centre's velocity and world ω, for every multibody
-        link among ``handles``, from the multibody's own state: ``body_jacobian`` at the current
+        """Scene body index -> (6,) its centre's velocity and world ω, for every moving
+        multibody link among ``handles`` (a floating root included), from the multibody's own
+        state: ``body_jacobian`` at the current
         coordinates (after ``forward_kinematics``, which recomputes the links' poses from the
         coordinates they already came from) times the generalized velocity. The links' rigid
         bodies carry the velocity of one substep earlier (engines-rapier.md 9)."""
@@ -163,7 +164,7 @@ class JointBuilder:
             nu = np.array(multibody.generalized_velocity(), dtype=float)
             for link in _links(multibody):
                 body = row.get(link.rigid_body)
-                if body is not None and not link.is_root():
+                if body is not None and not (link.is_root() and link.ndofs == 0):  # not fixed
                     jacobian = np.array(multibody.body_jacobian(link.link_id), dtype=float)
                     found[body] = jacobian @ nu
         return found
