@@ -100,7 +100,7 @@ ANGLE_TOLERANCE = {
 """rad at T/2 and T. First-order schemes add their phase error over the swing (measured 2.8e-5
 and 6e-5 rad in mini at dt = 1 ms; the energy error, 1e-3 of the scale, bounds the period's);
 RK4 adds O(dt⁴), far below the sampling. Rapier's multibody (symplectic Euler substeps in
-float32) takes the first-order bound plus its float32 floor (measured 3.9e-6 and 1.9e-8 rad).
+float32) takes the first-order bound plus its float32 floor (measured 3.3e-6 and 1.5e-6 rad).
 Rapier's impulse joints are an engine finding asserted at its measured size: they dissipate
 0.16 % of the energy per period and lag 3.9e-3 rad at T/2, 7.8e-3 rad at T (engines-rapier.md
 9)."""

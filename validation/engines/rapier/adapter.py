@@ -33,10 +33,11 @@ from dataclasses import dataclass
 import numpy as np
 import rapier3d
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.frames import principal_axes
 from validation.engines.rapier.declaration import DEFAULT_JOINTS, PRECISION, PROFILES, Profile
 from validation.engines.rapier.joints import JointBuilder
+from validation.engines.rapier.readback import from_xyzw, world_inertia
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_to_matrix
@@ -92,11 +93,6 @@ def rotation(quat) -> rapier3d.Rotation3:
     """A unit quaternion w x y z as Rapier's ``Rotation3`` (its constructor takes w first)."""
     w, x, y, z = (float(c) for c in quat)
     return rapier3d.Rotation3(w, x, y, z)
-
-
-def from_xyzw(quat: np.ndarray) -> np.ndarray:
-    """Rapier's ``Rotation3.quaternion`` order x y z w -> w x y z (..., 4)."""
-    return np.asarray(quat, dtype=float)[..., [3, 0, 1, 2]]
 
 
 PLAIN_DEPTH = 3
@@ -441,6 +437,12 @@ class RapierAdapter:
             *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel)),
         )
 
+    def joint_report(self) -> JointReport:
+        """The joints Rapier holds, read back at t = 0 (``JointBuilder.report``): types from
+        their locked axes, anchors and axes from their frames on the parent's pose, and for
+        multibody joints M(q0) from Rapier's own Jacobians and masses."""
+        return self.joint_builder.report(self.scene.joint_tree, self.scenario.joints, self.handles)
+
     def model_report(self) -> ModelReport:
         """The dynamic bodies as Rapier holds them: ``RigidBody.mass``, ``center_of_mass``
         (world), the principal inertia and its local frame rotated to world with the body's
@@ -452,17 +454,9 @@ class RapierAdapter:
         mass, com, inertia = [], [], []
         for k in moving:
             body = bodies[self.handles[k]]
-            properties = body.mass_properties
-            frame = (
-                quat_to_matrix(from_xyzw(np.array([body.rotation.quaternion])))[0]
-                @ quat_to_matrix(
-                    from_xyzw(np.array([properties.principal_inertia_local_frame.quaternion]))
-                )[0]
-            )
-            moments = np.array(properties.principal_inertia.to_tuple(), dtype=float)
             mass.append(float(body.mass))
             com.append(body.center_of_mass.to_tuple())
-            inertia.append(frame @ np.diag(moments) @ frame.T)
+            inertia.append(world_inertia(body))
         mass_array = np.array(mass, dtype=float)
         inertia_array = np.array(inertia, dtype=float).reshape(-1, 3, 3)
         pos, quat, vel, ang_vel = self._split(self._raw_state()[None])

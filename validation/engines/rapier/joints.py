@@ -26,10 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 import rapier3d
 
+from validation.engines.base import JointReport
 from validation.engines.frames import matrix_to_quat
-from validation.reference.articulated import WORLD, Joint, JointTree
+from validation.engines.rapier.readback import rotation_matrix, world_inertia
+from validation.reference.articulated import AXIS_TYPES, WORLD, Joint, JointTree
 
 X = np.array([1.0, 0.0, 0.0])
+"""Rapier's joint axis in the joint frame (a revolute's ``ANG_X``, a prismatic's ``LIN_X``)."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,9 @@ JOINT_TYPES: dict[str, JointType] = {
 }
 """Scene joint type -> Rapier's axes (the joint frame's x is the scene's axis)."""
 
+LOCKED_TYPES = {kind.locked.bits: name for name, kind in JOINT_TYPES.items()}
+"""A ``GenericJoint``'s locked axes (bits) -> the scene's joint type."""
+
 
 def _rotation(matrix: np.ndarray) -> rapier3d.Rotation3:
     w, x, y, z = (float(c) for c in matrix_to_quat(matrix))
@@ -64,16 +70,17 @@ def _isometry(translation: np.ndarray, matrix: np.ndarray) -> rapier3d.Isometry3
 
 def axis_frame(axis: np.ndarray) -> np.ndarray:
     """(3, 3) a rotation whose first column is the unit ``axis`` (identity for no axis): the
-    shortest turn from x to the axis (a half turn about z for -x)."""
+    axis, the coordinate axis after its largest component made perpendicular to it, and their
+    cross product. For an axis along ±x, ±y or ±z this is a signed permutation whose
+    quaternion float32 holds exactly (components 0, ±½, ±1: a y axis is the 120° turn
+    (½, ½, ½, ½)); the shortest turn from x, a 90° one, is √½ each, rounded, and its rounding
+    accumulates down a chain (engines-rapier.md 9)."""
     if not np.any(axis):
         return np.eye(3)
-    normal = np.cross(X, axis)
-    sine, cosine = float(np.linalg.norm(normal)), float(X @ axis)
-    if sine < 1e-12:
-        return np.eye(3) if cosine > 0 else np.diag([-1.0, -1.0, 1.0])
-    k = normal / sine
-    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + sine * skew + (1.0 - cosine) * skew @ skew
+    following = np.roll(np.eye(3), -1, axis=0)[int(np.argmax(np.abs(axis)))]
+    across = following - (following @ axis) * axis
+    across /= np.linalg.norm(across)
+    return np.column_stack([axis, across, np.cross(axis, across)])
 
 
 def joint_frames(joint: Joint) -> tuple[rapier3d.Isometry3, rapier3d.Isometry3]:
@@ -116,6 +123,8 @@ class JointBuilder:
         self.world = world
         self.kind = kind
         self.world_body = None
+        self.built: dict[str, tuple] = {}
+        """Scene joint name -> (its handle in Rapier's joint set, its parent body's handle)."""
 
     def build(
         self,
@@ -135,12 +144,13 @@ class JointBuilder:
             parent = self._world_body() if joint.parent == WORLD else handles[joint.parent]
             data = generic_joint(joint, limits.get(joint.name), motor_damping=impulse)
             if impulse:
-                self.world.impulse_joints.insert(parent, handles[joint.child], data)
+                handle = self.world.impulse_joints.insert(parent, handles[joint.child], data)
             else:
                 handle = self.world.multibody_joints.insert(parent, handles[joint.child], data)
                 if handle is None:
                     raise RuntimeError(f"Rapier refused joint {joint.name!r} into a multibody")
                 inserted.append(joint)
+            self.built[joint.name] = (handle, parent)
         if inserted:
             damping = {handles[j.child]: j.damping for j in inserted}
             for multibody in self._multibodies(handles).values():
@@ -168,6 +178,61 @@ class JointBuilder:
                     jacobian = np.array(multibody.body_jacobian(link.link_id), dtype=float)
                     found[body] = jacobian @ nu
         return found
+
+    def report(self, tree: JointTree, stated: list, handles: list) -> JointReport:
+        """The joints as Rapier holds them, in the scene's order (``stated``): each one's type
+        (its locked axes), its anchor (frame1's origin on the parent's pose) and its axis
+        (frame1's x, hinge and slider); for multibodies M(q0) in the tree's coordinates
+        (``mass_matrix``), none for impulse joints (no joint coordinates)."""
+        bodies = self.world.rigid_bodies
+        joints = (
+            self.world.impulse_joints if self.kind == "impulse" else self.world.multibody_joints
+        )
+        types, anchors, axes = [], [], []
+        for joint in stated:
+            handle, parent = self.built[joint.name]
+            data = joints[handle].data
+            body = bodies[parent]
+            turn = rotation_matrix(body.rotation)
+            frame = data.local_frame1
+            kind = LOCKED_TYPES.get(data.locked_axes.bits, f"locked axes {data.locked_axes.bits}")
+            types.append(kind)
+            anchors.append(
+                np.array(body.translation.to_tuple()) + turn @ frame.translation.to_tuple()
+            )
+            axis = turn @ rotation_matrix(frame.rotation) @ X
+            axes.append(axis if kind in AXIS_TYPES else np.zeros(3))
+        matrix = None if self.kind == "impulse" else self.mass_matrix(tree, handles)
+        return JointReport(tuple(types), np.array(anchors), np.array(axes), matrix)
+
+    def mass_matrix(self, tree: JointTree, handles: list) -> np.ndarray:
+        """(nv, nv) M(q0) in the joint tree's coordinates from Rapier's own model: per
+        multibody ``Σ Jᵀ diag(m, I_world) J`` over its links (``body_jacobian``: the link's
+        centre velocity then world ω; ``mass``, ``mass_properties``), its coordinates placed
+        at the tree's. Rapier's coordinates are the tree's (engines-rapier.md 9): a hinge's or
+        slider's rate along frame1's x, which is the scene's axis; a ball's spin relative to
+        its parent in the parent's frame; a floating root's v and ω in the world frame."""
+        bodies = self.world.rigid_bodies
+        where = {handles[j.child]: j.v_slice for j in tree.joints}
+        full = np.zeros((tree.nv, tree.nv))
+        for multibody in self._multibodies(handles).values():
+            index = np.zeros(multibody.ndofs, dtype=int)
+            blocks = np.zeros((multibody.ndofs, multibody.ndofs))
+            for link in _links(multibody):
+                if link.ndofs:
+                    index[link.assembly_id : link.assembly_id + link.ndofs] = np.arange(tree.nv)[
+                        where[link.rigid_body]
+                    ]
+                body = bodies[link.rigid_body]
+                if not body.is_dynamic:
+                    continue
+                jacobian = np.array(multibody.body_jacobian(link.link_id), dtype=float)
+                inertia = np.zeros((6, 6))
+                inertia[:3, :3] = float(body.mass) * np.eye(3)
+                inertia[3:, 3:] = world_inertia(body)
+                blocks += jacobian.T @ inertia @ jacobian
+            full[np.ix_(index, index)] = blocks
+        return full
 
     def _world_body(self):
         """The fixed body that stands for the world (identity pose, no collider), made once."""
