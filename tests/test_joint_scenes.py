@@ -10,6 +10,7 @@ against the reference side's own joint-space DOP853 integration.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -279,3 +280,18 @@ def test_the_sweep_measures_jointed_scenes_against_the_joint_space_reference(tmp
     orders = rows[rows["metric"] == "convergence_order"]
     assert set(orders["expected_kind"]) == {"dop853"}, orders
     assert (abs(orders["value"] - 1.0) < ORDER_TOLERANCE).all(), orders[["engine", "value"]]
+
+
+def test_stability_finds_each_engines_largest_stable_step_on_the_stiff_chain(tmp_path):
+    """``physval stability`` on the library's stiff chain: MuJoCo's Euler loses energy control
+    between the probed steps and is unstable above them; the bisection brackets that step."""
+    import pandas as pd
+
+    from validation.cli import main
+
+    scene = Path(__file__).resolve().parents[1] / "scenarios" / "joints" / "stiff_chain.yaml"
+    out = tmp_path / "stability.csv"
+    assert main(["stability", str(scene), "--engines", "mujoco", "--out", str(out)]) == 0
+    row = pd.read_csv(out).iloc[0]
+    assert row["status"] == "ok" and row["stable_dt"] < row["unstable_dt"], row.to_dict()
+    assert row["unstable_dt"] - row["stable_dt"] < 0.02 * row["stable_dt"], row.to_dict()
