@@ -14,19 +14,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_joint_scenes import off_the_reference, recorded
 
 from validation.engines.base import Snapshot, Trajectory
 from validation.engines.joint_parity import compare_joints, expected_report
 from validation.engines.parity import PRECISION_TOLERANCE
 from validation.engines.registry import create_adapter
 from validation.measure.resolution import FLOAT32_UNIT_ROUNDOFF
-from validation.measure.runner import run_engine
 from validation.reference.articulated import (
-    Loads,
-    initial_velocities,
     joint_coordinates,
     joint_violations,
-    reference_motion,
 )
 from validation.reference.rotation import quat_to_matrix
 from validation.scenario import Scenario, load_scenario
@@ -44,13 +41,6 @@ KINDS = ("rapier", "rapier(joints=impulse)")
 DT = 1e-3
 SUBSTEPS = 4
 """Rapier's state updates per step (engines-rapier.md 3), each rounding to float32."""
-
-
-def recorded(engine: str, scenario: Scenario):
-    scene = compile_scene(scenario)
-    run = run_engine(scene, parse_engine_spec(engine))
-    assert run.status == "ok", (engine, run.status, run.message)
-    return scene, run.recording.trajectory
 
 
 # --- every joint type against the reference ------------------------------------------------
@@ -118,17 +108,11 @@ ball, a constraint solved once per substep)."""
 def test_a_slider_a_ball_and_a_weld_follow_the_joint_space_reference(engine):
     scenario = slider_ball_weld(engine)
     scene, trajectory = recorded(engine, scenario)
-    tree = scene.joint_tree
-    stated = scenario.bodies
-    nu0, residual = initial_velocities(
-        tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
-    )
-    assert residual < 1e-12, residual
-    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
-    motion, _, _ = reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])
-    difference = np.abs(trajectory.pos[1:] - motion.pos).max()
+    difference = off_the_reference(scenario, scene, trajectory)
     assert difference < REFERENCE_TOLERANCE, (engine, difference)
-    separation, _, _ = joint_violations(tree, trajectory.pos, quat_to_matrix(trajectory.quat))
+    separation, _, _ = joint_violations(
+        scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+    )
     assert separation.max() < VIOLATION_BOUND[engine], (engine, separation.max(axis=0))
 
 
