@@ -9,13 +9,13 @@ multibody places a link by its frames alone, engines-rapier.md 9):
     frame1 = (a_P, F)            in the parent's body frame (the world's for ``WORLD``)
     frame2 = (-R0ᵀ r0, R0ᵀ F)    in the child's body frame
 
-with ``F`` a rotation taking Rapier's joint x axis to the scene's axis ``u_P`` (identity for a
-ball or a weld). Then ``R_C = R_P F Rot_x(θ) Fᵀ R0 = R_P Rot(u_P, θ) R0`` and the child's
+with ``F`` a rotation taking Rapier's joint x axis to the scene's axis ``u_P`` (``axis_frame``;
+identity for a ball or a weld). Then ``R_C = R_P F Rot_x(θ) Fᵀ R0 = R_P Rot(u_P, θ) R0`` and the child's
 anchor meets the parent's, the reference's kinematics (``validation.reference.articulated``)
 with the same sign of θ and s: a scene's limits go to Rapier as they are.
 
 A joint to the world hangs from one fixed body at the world origin, without a collider
-(``WORLD_BODY``), never observed. The parent and the child of a joint never collide
+(``JointBuilder._world_body``), never observed. The parent and the child of a joint never collide
 (``contacts_enabled(False)``); every other pair, in one multibody or not, keeps its contacts.
 """
 
@@ -116,15 +116,20 @@ def generic_joint(
 
 
 class JointBuilder:
-    """Inserts a scene's joint tree into a ``PhysicsWorld`` as one kind of Rapier joint, and
-    sets what Rapier's joint state needs: the multibodies' damping and initial velocities."""
+    """Inserts a scene's joint tree into a ``PhysicsWorld`` as one kind of Rapier joint, sets
+    what Rapier's joint state needs (the multibodies' damping and initial velocities) and reads
+    the joints back.
+
+    Attributes:
+        kind: one of ``declaration.JOINT_KINDS``.
+        built: scene joint name -> (its handle in Rapier's joint set, its parent's body handle).
+    """
 
     def __init__(self, world, kind: str):
         self.world = world
         self.kind = kind
         self.world_body = None
         self.built: dict[str, tuple] = {}
-        """Scene joint name -> (its handle in Rapier's joint set, its parent body's handle)."""
 
     def build(
         self,
@@ -163,10 +168,10 @@ class JointBuilder:
     def link_velocities(self, handles: list) -> dict[int, np.ndarray]:
         """Scene body index -> (6,) its centre's velocity and world ω, for every moving
         multibody link among ``handles`` (a floating root included), from the multibody's own
-        state: ``body_jacobian`` at the current
-        coordinates (after ``forward_kinematics``, which recomputes the links' poses from the
-        coordinates they already came from) times the generalized velocity. The links' rigid
-        bodies carry the velocity of one substep earlier (engines-rapier.md 9)."""
+        state: ``body_jacobian`` at the current coordinates (after ``forward_kinematics``,
+        which recomputes the links' poses from the coordinates they already came from) times
+        the generalized velocity. The links' rigid bodies carry the velocity of one substep
+        earlier (engines-rapier.md 9)."""
         row = {h: k for k, h in enumerate(handles)}
         found = {}
         for multibody in self._multibodies(handles).values():
