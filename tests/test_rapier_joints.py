@@ -1,6 +1,10 @@
 """Rapier's joints (validation/engines/rapier/joints.py), multibody and impulse: every joint
 type follows the reference's joint-space motion, a joint's two bodies never touch while other
-pairs do, a joint's damping decays at its exponential rate and its limits stop it.
+pairs do, a joint's damping decays at its exponential rate and its limits stop it, a jointed
+body's velocity read back is the one that moved it (a multibody link's rigid body carries the
+previous substep's), reading never moves the run, and the joints Rapier built are the scene's
+(the parity gate's joint report). One engine finding is asserted at its measured size: a
+multibody ball joint's link drifts off its point.
 
 The compound and double pendulums against closed forms are in tests/test_joint_scenes.py
 (``rapier`` and ``rapier(joints=impulse)`` in its parametrization); the numbers here are
@@ -21,10 +25,7 @@ from validation.engines.joint_parity import compare_joints, expected_report
 from validation.engines.parity import PRECISION_TOLERANCE
 from validation.engines.registry import create_adapter
 from validation.measure.resolution import FLOAT32_UNIT_ROUNDOFF
-from validation.reference.articulated import (
-    joint_coordinates,
-    joint_violations,
-)
+from validation.reference.articulated import joint_coordinates, joint_violations
 from validation.reference.rotation import quat_to_matrix
 from validation.scenario import Scenario, load_scenario
 from validation.scenario.compiled import compile_scene
