@@ -33,9 +33,11 @@ from dataclasses import dataclass
 import numpy as np
 import rapier3d
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.frames import principal_axes
-from validation.engines.rapier.declaration import PRECISION, PROFILES, Profile
+from validation.engines.rapier.declaration import DEFAULT_JOINTS, PRECISION, PROFILES, Profile
+from validation.engines.rapier.joints import JointBuilder
+from validation.engines.rapier.readback import from_xyzw, world_inertia
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_to_matrix
@@ -93,11 +95,6 @@ def rotation(quat) -> rapier3d.Rotation3:
     return rapier3d.Rotation3(w, x, y, z)
 
 
-def from_xyzw(quat: np.ndarray) -> np.ndarray:
-    """Rapier's ``Rotation3.quaternion`` order x y z w -> w x y z (..., 4)."""
-    return np.asarray(quat, dtype=float)[..., [3, 0, 1, 2]]
-
-
 PLAIN_DEPTH = 3
 ADDRESS = " at 0x"
 """What an object's default repr carries and a plain value never does: its memory address."""
@@ -138,6 +135,7 @@ class Settings:
     sleeping: bool
     prediction_distance: float | None
     solver_iterations: int | None
+    joints: str
 
     @staticmethod
     def of(spec: EngineSpec) -> Settings:
@@ -154,6 +152,7 @@ class Settings:
             sleeping=profile.sleeping,
             prediction_distance=profile.prediction_distance,
             solver_iterations=None if iterations is None else int(iterations),
+            joints=str(options.get("joints", DEFAULT_JOINTS)),
         )
 
 
@@ -202,6 +201,7 @@ class RapierAdapter:
         self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
+        self.joint_builder: JointBuilder | None = None
         self.world = rapier3d.PhysicsWorld(gravity=tuple(float(g) for g in scenario.gravity))
         self.world.set_num_threads(WORKER_THREADS)
         self._set_integration(scenario)
@@ -211,6 +211,8 @@ class RapierAdapter:
         if self.hook_pairs:
             self.world.physics_hooks = PairHooks(self.hook_pairs)
         self._set_up_loads(scenario)
+        if scene.joint_tree is not None:
+            self._create_joints(scene)
         self._fixed_pose = (
             np.array([b.position for b in scenario.bodies], dtype=float),
             np.array([b.orientation for b in scenario.bodies], dtype=float),
@@ -304,6 +306,26 @@ class RapierAdapter:
         pose = rapier3d.Isometry3(tuple(float(p) for p in point), rotation(quat))
         return self.world.add_body(rapier3d.RigidBody.fixed().position(pose), [collider])
 
+    def _create_joints(self, scene: CompiledScene) -> None:
+        """The scene's joint tree as Rapier joints of the ``joints`` kind (multibody or
+        impulse, ``validation.engines.rapier.joints``); the bodies keep their stated states."""
+        scenario = scene.scenario
+        self.joint_builder = JointBuilder(self.world, self.settings.joints)
+        self.joint_builder.build(
+            scene.joint_tree,
+            self.handles,
+            {j.name: j.limits for j in scenario.joints},
+            (
+                np.array([b.velocity for b in scenario.bodies], dtype=float),
+                np.array([b.angular_velocity for b in scenario.bodies], dtype=float),
+            ),
+        )
+        self.notes.append(
+            f"joints: {len(scenario.joints)} Rapier {self.settings.joints} joint(s) "
+            "(GenericJoint, frames placing each child at its stated pose, no contact between "
+            "a joint's two bodies)"
+        )
+
     def _set_up_loads(self, scenario: Scenario) -> None:
         """Constant loads are Rapier's persistent user force and torque (set once, kept over
         every step, engines-rapier.md 2); with springs, every loaded body's force and torque
@@ -367,7 +389,10 @@ class RapierAdapter:
     # -- reading back ----------------------------------------------------------------------
 
     def _raw_state(self) -> np.ndarray:
-        """(n, 13): position, quaternion x y z w, velocity, world ω of every scene body."""
+        """(n, 13): position, quaternion x y z w, velocity, world ω of every scene body; after
+        a step, a multibody link's velocities from its multibody (``JointBuilder.
+        link_velocities``: its rigid body's are one substep late). Before the first, every body
+        carries its stated velocities, which the multibody's reproduce to float32 only."""
         bodies = self.world.rigid_bodies
         rows = []
         for handle in self.handles:
@@ -380,7 +405,11 @@ class RapierAdapter:
                     *body.angvel.to_tuple(),
                 )
             )
-        return np.array(rows, dtype=float)
+        raw = np.array(rows, dtype=float)
+        if self.joint_builder is not None and self.steps_taken:
+            for k, velocity in self.joint_builder.link_velocities(self.handles).items():
+                raw[k, 7:13] = velocity
+        return raw
 
     @staticmethod
     def _split(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -408,6 +437,12 @@ class RapierAdapter:
             *(a[0] for a in (states.pos, states.quat, states.vel, states.ang_vel)),
         )
 
+    def joint_report(self) -> JointReport:
+        """The joints Rapier holds, read back at t = 0 (``JointBuilder.report``): types from
+        their locked axes, anchors and axes from their frames on the parent's pose, and for
+        multibody joints M(q0) from Rapier's own Jacobians and masses."""
+        return self.joint_builder.report(self.scene.joint_tree, self.scenario.joints, self.handles)
+
     def model_report(self) -> ModelReport:
         """The dynamic bodies as Rapier holds them: ``RigidBody.mass``, ``center_of_mass``
         (world), the principal inertia and its local frame rotated to world with the body's
@@ -419,17 +454,9 @@ class RapierAdapter:
         mass, com, inertia = [], [], []
         for k in moving:
             body = bodies[self.handles[k]]
-            properties = body.mass_properties
-            frame = (
-                quat_to_matrix(from_xyzw(np.array([body.rotation.quaternion])))[0]
-                @ quat_to_matrix(
-                    from_xyzw(np.array([properties.principal_inertia_local_frame.quaternion]))
-                )[0]
-            )
-            moments = np.array(properties.principal_inertia.to_tuple(), dtype=float)
             mass.append(float(body.mass))
             com.append(body.center_of_mass.to_tuple())
-            inertia.append(frame @ np.diag(moments) @ frame.T)
+            inertia.append(world_inertia(body))
         mass_array = np.array(mass, dtype=float)
         inertia_array = np.array(inertia, dtype=float).reshape(-1, 3, 3)
         pos, quat, vel, ang_vel = self._split(self._raw_state()[None])
@@ -481,6 +508,8 @@ class RapierAdapter:
             "worker_threads": WORKER_THREADS,
             "build_features": str(rapier3d.build_features()),
         }
+        if self.scene.joint_tree is not None:
+            settings["joints"] = s.joints
         dt = self.world.integration_parameters.dt
         notes = [
             f"float32 engine: Rapier stores every state, mass and dt in 32-bit floats "

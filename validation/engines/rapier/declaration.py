@@ -10,7 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    JOINT_FEATURES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 
 NAME = "rapier"
 """The engine's spec name."""
@@ -44,12 +51,16 @@ FEATURES = (
     "loads",
     "restitution",
     "friction",
+    *JOINT_FEATURES,
 )
 """Every scene feature: the ground is a fixed ``halfspace`` collider (any normal), fixed bodies
 are ``RigidBody.fixed()``, constant loads are Rapier's persistent user force and torque,
 springs are forces applied before every step from the reference's load law, restitution and
 friction are per-collider with per-pair combine rules, and a scene's ``pairs:`` overrides
-are set on the contact by a ``modify_solver_contacts`` hook."""
+are set on the contact by a ``modify_solver_contacts`` hook; joints (hinge, slider, ball,
+fixed) are Rapier ``GenericJoint``s, multibody (reduced coordinates) or impulse joints by the
+``joints`` option, their limits Rapier's joint limits on the free axis
+(``validation.engines.rapier.joints``)."""
 
 INTEGRATORS = ("symplectic_euler_substeps",)
 """Rapier's only time integration: ``num_solver_iterations`` substeps of dt/k per step, each a
@@ -133,6 +144,18 @@ PROFILES: dict[str, Profile] = {
 SOLVER_ITERATIONS_EXAMPLE = 8
 """A solver_iterations value other than Rapier's 4, for the conformance suite's provenance check."""
 
+JOINT_KINDS = ("multibody", "impulse")
+"""Rapier's two joint sets: ``multibody``: reduced coordinates (``MultibodyJointSet``, a
+Featherstone articulation whose damping is its own per coordinate); ``impulse``: constraints
+between free rigid bodies (``ImpulseJointSet``, solved with the contacts, a joint's damping a
+force-based velocity motor of target 0)."""
+
+DEFAULT_JOINTS = "multibody"
+"""Both profiles build multibody joints unless the spec says ``joints=impulse``: measured
+(engines-rapier.md 9), a multibody keeps a pendulum's energy to 3e-7 over a period and its
+hinges and sliders to float32 (its ball joints drift 8e-5 m in 1 s), where impulse joints lose
+0.16 % of the energy per period in Rapier's stabilization pass."""
+
 OPTIONS = (
     EngineOption(
         "profile",
@@ -163,6 +186,14 @@ OPTIONS = (
         Count,
         "IntegrationParameters.num_solver_iterations (substeps per step); unset: Rapier's 4",
         example=SOLVER_ITERATIONS_EXAMPLE,
+    ),
+    EngineOption(
+        "joints",
+        str,
+        "the Rapier joints a scene's joints become: multibody (reduced coordinates, "
+        "MultibodyJointSet) or impulse (constraints, ImpulseJointSet) (default multibody)",
+        JOINT_KINDS,
+        DEFAULT_JOINTS,
     ),
 )
 """The settings a Rapier spec may carry; unset ones take the profile's value (``PROFILES``)."""
