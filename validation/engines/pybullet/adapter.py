@@ -40,9 +40,11 @@ from types import ModuleType
 import numpy as np
 
 from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
-from validation.engines.frames import principal_axes
+from validation.engines.frames import matrix_to_quat, principal_axes
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
+from validation.engines.pybullet.trees import BASE, Tree, plan_trees
 from validation.engines.reference import dynamic_bodies
+from validation.reference.articulated import WORLD
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import BodySpec, Scenario
@@ -276,6 +278,23 @@ SHAPE_KEYWORDS = {
 }
 """Scene shape type -> ``createCollisionShape`` keywords (same size conventions)."""
 
+PYBULLET_JOINT_TYPES = {
+    "hinge": pybullet.JOINT_REVOLUTE,
+    "slider": pybullet.JOINT_PRISMATIC,
+    "ball": pybullet.JOINT_SPHERICAL,
+    "fixed": pybullet.JOINT_FIXED,
+}
+"""Scene joint type -> PyBullet's link joint type (engines.md 2.7)."""
+
+JOINT_DOFS = {"hinge": 1, "slider": 1, "ball": 3, "fixed": 0}
+"""Velocity coordinates of each joint type (``resetJointStateMultiDof``'s ``targetVelocity``)."""
+
+FLOATING_BASE_DOFS = 6
+"""A floating base's velocity coordinates: v and ω, world frame (``resetBaseVelocity``)."""
+
+JOINT_REST = {"hinge": [0.0], "slider": [0.0], "ball": [0.0, 0.0, 0.0, 1.0], "fixed": []}
+"""Each joint type's position at the scene's t = 0 (``targetValue``; a quaternion x y z w)."""
+
 # --- frames ---------------------------------------------------------------------------------
 
 
@@ -330,12 +349,22 @@ class PybulletAdapter:
         self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
+        self.trees = [] if scene.joint_tree is None else plan_trees(scene.joint_tree)
         self._set_up_world(scenario)
-        self.ids = [self._create_body(spec) for spec in scenario.bodies]
+        jointed = {body for tree in self.trees for body in tree.bodies}
+        self.ids = [
+            -1 if k in jointed else self._create_body(spec)
+            for k, spec in enumerate(scenario.bodies)
+        ]
+        self.links = [BASE] * len(self.ids)
+        for tree in self.trees:
+            self._create_tree(tree)
         self.ground = self._create_ground() if scenario.ground else None
         self._set_contact_values(scenario)
         self._filter_pairs(scenario)
         self._set_up_loads(scenario)
+        if self.trees:
+            self._set_joint_velocities(scenario)
 
     def _world_parameters(self, scenario: Scenario) -> dict[str, float | int]:
         parameters: dict[str, float | int] = {
@@ -344,7 +373,7 @@ class PybulletAdapter:
             "contactBreakingThreshold": self.profile.contact_breaking_threshold,
             **self.profile.world,
         }
-        if self.bodies_mode == "multibody":
+        if self.bodies_mode == "multibody" or self.trees:
             parameters.update(self.profile.multibody_world)
         if self.solver_iterations is not None:
             parameters["numSolverIterations"] = int(self.solver_iterations)
@@ -358,9 +387,7 @@ class PybulletAdapter:
     def _create_body(self, spec: BodySpec) -> int:
         """One scene body; its base pose is the COM with the principal axes (module docstring)."""
         moments, q_principal = principal_axes(body_inertia(spec))
-        shape = pybullet.createCollisionShape(
-            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), physicsClientId=self.client
-        )
+        shape = self._collision_shape(spec)
         body = pybullet.createMultiBody(
             baseMass=0.0 if spec.fixed else spec.mass,
             baseCollisionShapeIndex=shape,
@@ -381,21 +408,161 @@ class PybulletAdapter:
             )
         return body
 
-    def _set_mass_properties(self, body: int, mass: float, moments: np.ndarray) -> None:
+    def _collision_shape(self, spec: BodySpec) -> int:
+        return pybullet.createCollisionShape(
+            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), physicsClientId=self.client
+        )
+
+    def _set_mass_properties(
+        self, body: int, mass: float, moments: np.ndarray, link: int = BASE
+    ) -> None:
         """Mass and principal moments in one call (engines.md 2.1: mass alone recomputes the
-        inertia from the shape; a diagonal alone zeroes a maximal body's mass); then the
-        profile's damping and velocity clamp."""
+        inertia from the shape; a diagonal alone zeroes a maximal body's mass); with a base's,
+        the profile's damping and velocity clamp (``_multibody_settings``: the whole
+        multibody's). A link's go alone: with any multibody-wide keyword in the call,
+        PyBullet gives the mass and moments to the base instead (engines.md 2.7)."""
+        extra = self._multibody_settings() if link == BASE else {}
+        pybullet.changeDynamics(
+            body,
+            link,
+            mass=mass,
+            localInertiaDiagonal=[float(m) for m in moments],
+            **extra,
+            physicsClientId=self.client,
+        )
+
+    def _multibody_settings(self) -> dict[str, float]:
+        """The profile's damping and velocity clamp, ``changeDynamics`` keywords."""
         extra: dict[str, float] = {}
         if self.profile.zero_damping:
             extra.update(linearDamping=0.0, angularDamping=0.0)
         if self.profile.lift_velocity_clamp:
             extra["maxJointVelocity"] = MAX_JOINT_VELOCITY
-        pybullet.changeDynamics(
-            body,
-            -1,
-            mass=mass,
-            localInertiaDiagonal=[float(m) for m in moments],
-            **extra,
+        return extra
+
+    def _create_tree(self, tree: Tree) -> None:
+        """One multibody of ``trees.plan_trees`` (Featherstone, reduced coordinates): the base
+        (the world's massless, shapeless fixed base, or the root body: fixed massless, or
+        floating), then a link per jointed body at the frames of ``trees``'s docstring, each
+        with its mass, principal moments and joint damping and with PyBullet's default joint
+        motor switched off (engines.md 2.7). ``URDF_USE_SELF_COLLISION``: the tree's bodies
+        collide with each other except a joint's parent and child."""
+        bodies = self.scenario.bodies
+        root = None if tree.root == WORLD else bodies[tree.root]
+        base = {"baseMass": 0.0, "baseCollisionShapeIndex": -1}
+        if root is not None:
+            base = {
+                "baseMass": 0.0 if root.fixed else root.mass,
+                "baseCollisionShapeIndex": self._collision_shape(root),
+                "basePosition": list(root.position),
+                "baseOrientation": to_xyzw(np.asarray(root.orientation)),
+                "baseInertialFrameOrientation": to_xyzw(principal_axes(body_inertia(root))[1]),
+            }
+        specs = [bodies[link.body] for link in tree.links]
+        multibody = pybullet.createMultiBody(
+            **base,
+            linkMasses=[spec.mass for spec in specs],
+            linkCollisionShapeIndices=[self._collision_shape(spec) for spec in specs],
+            linkVisualShapeIndices=[-1] * len(specs),
+            linkPositions=[link.position.tolist() for link in tree.links],
+            linkOrientations=[to_xyzw(matrix_to_quat(link.rotation)) for link in tree.links],
+            linkInertialFramePositions=[link.centre.tolist() for link in tree.links],
+            linkInertialFrameOrientations=[
+                to_xyzw(principal_axes(body_inertia(spec))[1]) for spec in specs
+            ],
+            linkParentIndices=[link.parent + 1 for link in tree.links],  # 0 is the base
+            linkJointTypes=[PYBULLET_JOINT_TYPES[link.type] for link in tree.links],
+            linkJointAxis=[link.axis.tolist() for link in tree.links],
+            flags=pybullet.URDF_USE_SELF_COLLISION,
+            physicsClientId=self.client,
+        )
+        if root is not None:
+            self.ids[tree.root] = multibody
+        if root is not None and not root.fixed:
+            moments = principal_axes(body_inertia(root))[0]
+            self._set_mass_properties(multibody, root.mass, moments)
+        else:
+            pybullet.changeDynamics(
+                multibody, BASE, **self._multibody_settings(), physicsClientId=self.client
+            )
+        for k, (link, spec) in enumerate(zip(tree.links, specs, strict=True)):
+            self.ids[link.body], self.links[link.body] = multibody, k
+            self._set_mass_properties(
+                multibody, spec.mass, principal_axes(body_inertia(spec))[0], k
+            )
+            pybullet.changeDynamics(
+                multibody, k, jointDamping=link.damping, physicsClientId=self.client
+            )
+            self._release_motor(multibody, k, link.type)
+
+    def _set_joint_velocities(self, scenario: Scenario) -> None:
+        """The trees' joint velocities (and floating bases') from the bodies' stated
+        velocities, through PyBullet's own kinematics at the initial configuration: column k
+        of the Jacobian is every tree body's (v, ω) read back (``_link_state``) with velocity
+        coordinate k at 1 and the others at 0 (body velocities are linear in them); then the
+        least-squares solution of ``J ν = (v, ω)``, exact for the velocities the scene's
+        checks let through (the joints allow them), is set."""
+        moving = [b for tree in self.trees for b in tree.bodies if not scenario.bodies[b].fixed]
+        count = sum(self._velocity_sizes())
+        columns = []
+        for k in range(count):
+            self._set_tree_velocities(np.eye(count)[k])
+            columns.append(np.array(self._raw_state())[moving, 7:13].reshape(-1))
+        stated = np.array(
+            [[*scenario.bodies[b].velocity, *scenario.bodies[b].angular_velocity] for b in moving]
+        ).reshape(-1)
+        jacobian = np.array(columns).reshape(count, -1).T
+        self._set_tree_velocities(np.linalg.lstsq(jacobian, stated, rcond=None)[0])
+
+    def _velocity_sizes(self) -> list[int]:
+        """The trees' velocity blocks in order: a floating base's 6, then each joint's."""
+        sizes = []
+        for tree in self.trees:
+            if tree.root != WORLD and not self.scenario.bodies[tree.root].fixed:
+                sizes.append(FLOATING_BASE_DOFS)
+            sizes += [JOINT_DOFS[link.type] for link in tree.links]
+        return sizes
+
+    def _set_tree_velocities(self, nu: np.ndarray) -> None:
+        """Every tree's velocity coordinates ``nu`` (``_velocity_sizes``' order): a floating
+        base's (v, ω) world frame by ``resetBaseVelocity``, each joint's by
+        ``resetJointStateMultiDof`` at its initial position."""
+        at = 0
+        for tree in self.trees:
+            if tree.root != WORLD and not self.scenario.bodies[tree.root].fixed:
+                base = nu[at : at + FLOATING_BASE_DOFS]
+                pybullet.resetBaseVelocity(
+                    self.ids[tree.root],
+                    linearVelocity=base[:3].tolist(),
+                    angularVelocity=base[3:].tolist(),
+                    physicsClientId=self.client,
+                )
+                at += FLOATING_BASE_DOFS
+            for link in tree.links:
+                size = JOINT_DOFS[link.type]
+                if size:
+                    pybullet.resetJointStateMultiDof(
+                        self.ids[link.body],
+                        self.links[link.body],
+                        targetValue=JOINT_REST[link.type],
+                        targetVelocity=nu[at : at + size].tolist(),
+                        physicsClientId=self.client,
+                    )
+                at += size
+
+    def _release_motor(self, multibody: int, link: int, joint_type: str) -> None:
+        """Switch off the velocity motor PyBullet puts on every joint it creates (engines.md
+        2.7: it holds a joint at rest, 1 rad/s -> 0 within a second): a zero-force motor."""
+        if joint_type == "fixed":
+            return
+        dofs = JOINT_DOFS[joint_type]
+        pybullet.setJointMotorControlMultiDof(
+            multibody,
+            link,
+            pybullet.POSITION_CONTROL,  # the one multi-DOF mode every joint type takes
+            targetPosition=JOINT_REST[joint_type],
+            targetVelocity=[0.0] * dofs,
+            force=[0.0] * dofs,
             physicsClientId=self.client,
         )
 
@@ -428,8 +595,10 @@ class PybulletAdapter:
             return {"shape": "GEOM_BOX", "halfExtents": ground_box(self.scene)[1].tolist()}
         return {"shape": "GEOM_PLANE"}
 
-    def _objects(self) -> list[int]:
-        return [*self.ids, *([self.ground] if self.ground is not None else [])]
+    def _objects(self) -> list[tuple[int, int]]:
+        """(PyBullet body id, link index) of each scene body, then of the ground."""
+        ground = [(self.ground, BASE)] if self.ground is not None else []
+        return [*zip(self.ids, self.links, strict=True), *ground]
 
     def _set_contact_values(self, scenario: Scenario) -> None:
         """Per-body restitution and friction whose products are the scene's pair values
@@ -467,10 +636,10 @@ class PybulletAdapter:
                 if quantity == "friction" and t > FRICTION_CAP
             ]
         self.notes += self._contact_notes()
-        for k, body in enumerate(self._objects()):
+        for k, (body, link) in enumerate(self._objects()):
             pybullet.changeDynamics(
                 body,
-                -1,
+                link,
                 restitution=self.contact_values["restitution"][k],
                 lateralFriction=self.contact_values["friction"][k],
                 rollingFriction=0.0,
@@ -510,8 +679,9 @@ class PybulletAdapter:
             if static[i] and static[j]
         ]
         for i, j in self.filtered_pairs:
+            (body_a, link_a), (body_b, link_b) = objects[i], objects[j]
             pybullet.setCollisionFilterPair(
-                objects[i], objects[j], -1, -1, 0, physicsClientId=self.client
+                body_a, body_b, link_a, link_b, 0, physicsClientId=self.client
             )
 
     def _set_up_loads(self, scenario: Scenario) -> None:
@@ -560,7 +730,7 @@ class PybulletAdapter:
         for body in np.flatnonzero(self.loaded):
             pybullet.applyExternalForce(
                 self.ids[body],
-                -1,
+                self.links[body],
                 force[body].tolist(),
                 pos[body].tolist(),
                 pybullet.WORLD_FRAME,
@@ -568,7 +738,7 @@ class PybulletAdapter:
             )
             pybullet.applyExternalTorque(
                 self.ids[body],
-                -1,
+                self.links[body],
                 torque[body].tolist(),
                 pybullet.WORLD_FRAME,
                 physicsClientId=self.client,
@@ -593,7 +763,8 @@ class PybulletAdapter:
         moving = dynamic_bodies(self.scene)
         pos, quat, vel, ang_vel = self._read_state()
         info = [
-            pybullet.getDynamicsInfo(self.ids[i], -1, physicsClientId=self.client) for i in moving
+            pybullet.getDynamicsInfo(self.ids[i], self.links[i], physicsClientId=self.client)
+            for i in moving
         ]
         mass = np.array([item[0] for item in info])
         moments = np.array([item[2] for item in info]).reshape(-1, 3)
@@ -652,15 +823,33 @@ class PybulletAdapter:
         self.steps_taken += 1
 
     def _raw_state(self) -> list[list[float]]:
-        """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω."""
+        """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω
+        (world frame); a link's from PyBullet's own kinematics (``_link_state``)."""
         rows = []
-        for body in self.ids:
+        for body, link in zip(self.ids, self.links, strict=True):
+            if link != BASE:
+                rows.append(self._link_state(body, link))
+                continue
             position, orientation = pybullet.getBasePositionAndOrientation(
                 body, physicsClientId=self.client
             )
             linear, angular = pybullet.getBaseVelocity(body, physicsClientId=self.client)
             rows.append([*position, *orientation, *linear, *angular])
         return rows
+
+    def _link_state(self, body: int, link: int) -> list[float]:
+        """A link's 13 numbers from ``getLinkState`` with forward kinematics and velocities
+        computed from the multibody's current joint state: ``linkWorldPosition`` and
+        ``linkWorldOrientation`` are its inertial frame (the centre of mass with the principal
+        axes, as a base's), ``worldLinkLinearVelocity`` the centre's velocity (engines.md 2.7)."""
+        state = pybullet.getLinkState(
+            body,
+            link,
+            computeLinkVelocity=1,
+            computeForwardKinematics=1,
+            physicsClientId=self.client,
+        )
+        return [*state[0], *state[1], *state[6], *state[7]]
 
     def _states(self, times: np.ndarray, raw: np.ndarray) -> Trajectory:
         """World COM positions, body-frame quaternions w x y z, COM velocities, world ω of

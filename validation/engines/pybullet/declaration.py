@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    BASE_FEATURES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 
 DECLARATION = EngineDeclaration(
     name="pybullet",
@@ -33,5 +40,8 @@ DECLARATION = EngineDeclaration(
             20,
         ),
     ),
-    capabilities=Capabilities(integrators=("semi_implicit_euler",)),
+    capabilities=Capabilities(
+        integrators=("semi_implicit_euler",),
+        features=frozenset({*BASE_FEATURES, "joints"}),
+    ),
 )
