@@ -408,9 +408,12 @@ class PybulletAdapter:
             )
         return body
 
-    def _collision_shape(self, spec: BodySpec) -> int:
+    def _collision_shape(self, spec: BodySpec, centre: np.ndarray | None = None) -> int:
+        """The body's shape; a link's placed at its ``centre`` in the link frame (PyBullet
+        puts a link's shape at the link frame's origin, the joint, engines.md 2.7)."""
+        placed = {} if centre is None else {"collisionFramePosition": centre.tolist()}
         return pybullet.createCollisionShape(
-            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), physicsClientId=self.client
+            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), **placed, physicsClientId=self.client
         )
 
     def _set_mass_properties(
@@ -462,7 +465,10 @@ class PybulletAdapter:
         multibody = pybullet.createMultiBody(
             **base,
             linkMasses=[spec.mass for spec in specs],
-            linkCollisionShapeIndices=[self._collision_shape(spec) for spec in specs],
+            linkCollisionShapeIndices=[
+                self._collision_shape(spec, link.centre)
+                for link, spec in zip(tree.links, specs, strict=True)
+            ],
             linkVisualShapeIndices=[-1] * len(specs),
             linkPositions=[link.position.tolist() for link in tree.links],
             linkOrientations=[to_xyzw(matrix_to_quat(link.rotation)) for link in tree.links],

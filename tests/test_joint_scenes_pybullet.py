@@ -1,0 +1,250 @@
+"""PyBullet's joints (engines.md 2.7): every joint type in a btMultiBody rooted at the world
+and at a floating body against the reference side's joint-space DOP853, the joints held to
+round-off, joint damping as btMultiBody applies it, and a joint's parent and child never in
+contact while every other pair of the scene still is.
+
+(The compound pendulum and the crossed-axis double pendulum run PyBullet in
+tests/test_joint_scenes.py.)"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from validation.engines.registry import create_adapter
+from validation.measure.runner import run_engine
+from validation.reference.articulated import (
+    Loads,
+    body_motion,
+    forward_kinematics,
+    joint_violations,
+    reference_motion,
+)
+from validation.reference.rotation import quat_to_matrix
+from validation.scenario import Scenario
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import parse_engine_spec
+
+G = 9.81
+DT = 1e-3
+ENGINE = "pybullet"
+
+
+def _box(name: str, half, position, mass=1.0, **extra) -> dict:
+    return {
+        "name": name,
+        "shape": {"type": "box", "half_extents": list(half)},
+        "mass": mass,
+        "position": list(position),
+        **extra,
+    }
+
+
+def _sphere(name: str, radius, position, mass=1.0, **extra) -> dict:
+    return {
+        "name": name,
+        "shape": {"type": "sphere", "radius": radius},
+        "mass": mass,
+        "position": list(position),
+        **extra,
+    }
+
+
+def _scenario(name, bodies, joints, duration=1.0, gravity=(0.0, 0.0, -G)) -> Scenario:
+    return Scenario.model_validate(
+        {
+            "name": name,
+            "dt": DT,
+            "duration": duration,
+            "engines": [ENGINE],
+            "gravity": list(gravity),
+            "bodies": bodies,
+            "joints": joints,
+        }
+    )
+
+
+def moving(scenario: Scenario, nu0: np.ndarray) -> Scenario:
+    """``scenario`` with every body's stated velocity the one joint-space velocity ``nu0``
+    gives (so the joints allow it by construction)."""
+    tree = compile_scene(scenario).joint_tree
+    motion = body_motion(tree, forward_kinematics(tree, tree.zero()), nu0, np.zeros(tree.nv))
+    bodies = [
+        body.model_copy(update={"velocity": tuple(v), "angular_velocity": tuple(w)})
+        for body, v, w in zip(scenario.bodies, motion.vel, motion.ang_vel, strict=True)
+    ]
+    return scenario.model_copy(update={"bodies": bodies})
+
+
+def world_root_tree() -> Scenario:
+    """An arm on a damped ball joint at a world point, swinging down and turning about x; a
+    bead on a damped slider along the arm, a tip welded across it."""
+    scenario = _scenario(
+        "pybullet_world_root",
+        [
+            _box("arm", (0.3, 0.03, 0.03), (0.3, 0.0, 2.0)),
+            _sphere("bead", 0.05, (0.5, 0.0, 2.0), mass=0.5),
+            _sphere("tip", 0.05, (0.3, 0.0, 2.15), mass=0.3),
+        ],
+        [
+            {"name": "shoulder", "type": "ball", "parent": "world", "child": "arm",
+             "anchor": [0.0, 0.0, 2.0], "damping": 0.05},
+            {"name": "rail", "type": "slider", "parent": "arm", "child": "bead",
+             "anchor": [0.5, 0.0, 2.0], "axis": [1.0, 0.0, 0.0], "damping": 0.2},
+            {"name": "weld", "type": "fixed", "parent": "arm", "child": "tip",
+             "anchor": [0.3, 0.0, 2.1]},
+        ],
+    )  # fmt: skip
+    return moving(scenario, np.array([1.0, 0.0, 0.5, -0.3]))
+
+
+def floating_root_tree() -> Scenario:
+    """A free hub thrown up spinning about z, a paddle on a hinge about the hub's y axis."""
+    scenario = _scenario(
+        "pybullet_floating_root",
+        [
+            _box("hub", (0.1, 0.1, 0.1), (0.0, 0.0, 1.0), mass=2.0),
+            _box("paddle", (0.2, 0.02, 0.1), (0.35, 0.0, 1.0)),
+        ],
+        [
+            {"name": "pin", "type": "hinge", "parent": "hub", "child": "paddle",
+             "anchor": [0.15, 0.0, 1.0], "axis": [0.0, 1.0, 0.0], "damping": 0.01},
+        ],
+    )  # fmt: skip
+    return moving(scenario, np.array([0.2, 0.0, 3.0, 0.0, 0.5, 3.0, 1.0]))
+
+
+POSITION_TOLERANCE = 2e-2
+"""m over 1 s at dt = 1 ms against the reference's DOP853: btMultiBody's first-order scheme
+drifts by O(dt)·|a|·t, |a| up to 2g for the bead sliding out along the swinging arm
+(2·9.81·1 s·1 ms = 2e-2); measured 1.3e-2 m (the bead; the arm 1.0e-3) and 4.9e-3 m (the
+floating root: g·t·dt/2, semi-implicit Euler's free-fall error, engines.md 1.6)."""
+
+FIRST_ORDER = (0.4, 0.6)
+"""The error at dt/2 over the error at dt: 1/2 for a first-order scheme that integrates the
+reference's model (measured 0.499 and 0.500); a model that differs keeps its error as dt
+shrinks."""
+
+JOINT_TOLERANCE = 1e-12
+"""m and rad: reduced coordinates keep every joint by construction; the observed poses break
+them by round-off alone (measured below 3e-15 m, 2e-15 rad)."""
+
+
+def recorded(scenario: Scenario):
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec(ENGINE))
+    assert run.status == "ok", (run.status, run.message)
+    return scene, run.recording.trajectory
+
+
+def reference(scene, trajectory):
+    tree = scene.joint_tree
+    stated = scene.scenario.bodies
+    from validation.reference.articulated import initial_velocities
+
+    nu0, residual = initial_velocities(
+        tree, np.array([b.velocity for b in stated]), np.array([b.angular_velocity for b in stated])
+    )
+    assert residual < 1e-12, residual
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    return reference_motion(tree, tree.zero(), nu0, loads, trajectory.t[1:])[0]
+
+
+@pytest.mark.parametrize("build", [world_root_tree, floating_root_tree])
+def test_every_joint_type_follows_the_joint_space_reference_and_holds(build):
+    errors = []
+    for dt in (DT, DT / 2):
+        scene, trajectory = recorded(build().model_copy(update={"dt": dt}))
+        stated = [b.velocity for b in scene.scenario.bodies]
+        assert np.abs(trajectory.vel[0] - stated).max() < 1e-12
+        motion = reference(scene, trajectory)
+        errors.append(np.abs(trajectory.pos[1:] - motion.pos).max())
+        moved = np.abs(motion.pos[-1] - motion.pos[0]).max()
+        assert moved > 20 * POSITION_TOLERANCE, moved  # the test sees a real motion
+        separation, misalignment, _ = joint_violations(
+            scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+        )
+        assert separation.max() < JOINT_TOLERANCE, separation.max()
+        assert misalignment.max() < JOINT_TOLERANCE, misalignment.max()
+    assert errors[0] < POSITION_TOLERANCE, errors
+    assert FIRST_ORDER[0] < errors[1] / errors[0] < FIRST_ORDER[1], errors
+
+
+SPIN = 2.0
+"""rad/s: the damped wheel's initial rate."""
+
+WHEEL_DAMPING = 0.5
+"""N·m·s/rad on a wheel of unit moment about its hinge: the rate decays at 0.5 /s."""
+
+
+def test_joint_damping_is_btmultibodys_explicit_torque():
+    """A wheel (unit moment about its axle) on a damped hinge in zero gravity: ω_n = ω0 (1 -
+    c dt / I)^n, the explicit Euler step of the torque -c ω (engines.md 2.7), and so within
+    O(dt) of the exact exp(-c t / I)."""
+    radius = math.sqrt(2.5)  # a 1 kg solid sphere of moment 2/5 m r² = 1
+    scenario = _scenario(
+        "damped_wheel",
+        [_sphere("wheel", radius, (0.0, 0.0, 0.0), angular_velocity=[0.0, 0.0, SPIN])],
+        [{"name": "axle", "type": "hinge", "parent": "world", "child": "wheel",
+          "anchor": [0.0, 0.0, 0.0], "axis": [0.0, 0.0, 1.0], "damping": WHEEL_DAMPING}],
+        gravity=(0.0, 0.0, 0.0),
+    )  # fmt: skip
+    _, trajectory = recorded(scenario)
+    steps = np.rint(trajectory.t / DT)
+    explicit = SPIN * (1.0 - WHEEL_DAMPING * DT) ** steps
+    assert np.abs(trajectory.ang_vel[:, 0, 2] - explicit).max() < 1e-12
+    exact = SPIN * np.exp(-WHEEL_DAMPING * trajectory.t)
+    assert np.abs(trajectory.ang_vel[-1, 0, 2] - explicit[-1]) < 1e-12
+    assert np.abs(trajectory.ang_vel[-1, 0, 2] - exact[-1]) > 1e-5  # first order, not exact
+
+
+def contacts(adapter, a: str, b: str) -> int:
+    """PyBullet's contact points between scene bodies ``a`` and ``b`` after the last step."""
+    from validation.engines.pybullet.adapter import pybullet
+
+    names = [body.name for body in adapter.scenario.bodies]
+    i, j = names.index(a), names.index(b)
+    return len(
+        pybullet.getContactPoints(
+            adapter.ids[i],
+            adapter.ids[j],
+            adapter.links[i],
+            adapter.links[j],
+            physicsClientId=adapter.client,
+        )
+    )
+
+
+def test_a_joints_parent_and_child_never_touch_while_every_other_pair_does():
+    """Big overlapping spheres: two pendulums from the world (one multibody, siblings), the
+    second with a child, and a free ball dropped into the chain. Every overlapping pair has
+    contact points after a step except the joints' parent-child pairs."""
+    scenario = _scenario(
+        "overlapping_chain",
+        [
+            _sphere("left", 0.3, (-0.25, 0.0, 1.0)),
+            _sphere("right", 0.3, (0.25, 0.0, 1.0)),
+            _sphere("below", 0.3, (0.1, 0.0, 0.6)),
+            _sphere("ball", 0.3, (0.0, 0.0, 0.5)),
+        ],
+        [
+            {"name": "a", "type": "hinge", "parent": "world", "child": "left",
+             "anchor": [-0.25, 0.0, 1.5], "axis": [0.0, 1.0, 0.0]},
+            {"name": "b", "type": "hinge", "parent": "world", "child": "right",
+             "anchor": [0.25, 0.0, 1.5], "axis": [0.0, 1.0, 0.0]},
+            {"name": "c", "type": "ball", "parent": "right", "child": "below",
+             "anchor": [0.25, 0.0, 0.8]},
+        ],
+        duration=10 * DT,
+    )  # fmt: skip
+    adapter = create_adapter(parse_engine_spec(ENGINE))
+    try:
+        adapter.load(compile_scene(scenario))
+        adapter.advance(1)
+        assert contacts(adapter, "right", "below") == 0  # a joint's parent and child
+        for pair in (("left", "right"), ("left", "below"), ("ball", "below"), ("ball", "left")):
+            assert contacts(adapter, *pair) > 0, pair  # siblings, a cousin, a free body
+    finally:
+        adapter.close()
