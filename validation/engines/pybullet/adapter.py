@@ -284,7 +284,7 @@ PYBULLET_JOINT_TYPES = {
     "ball": pybullet.JOINT_SPHERICAL,
     "fixed": pybullet.JOINT_FIXED,
 }
-"""Scene joint type -> PyBullet's link joint type (engines.md 2.7)."""
+"""Scene joint type -> PyBullet's link joint type (engines.md 2.5)."""
 
 JOINT_DOFS = {"hinge": 1, "slider": 1, "ball": 3, "fixed": 0}
 """Velocity coordinates of each joint type (``resetJointStateMultiDof``'s ``targetVelocity``)."""
@@ -294,6 +294,15 @@ FLOATING_BASE_DOFS = 6
 
 JOINT_REST = {"hinge": [0.0], "slider": [0.0], "ball": [0.0, 0.0, 0.0, 1.0], "fixed": []}
 """Each joint type's position at the scene's t = 0 (``targetValue``; a quaternion x y z w)."""
+
+JOINTS_NOTE = (
+    "joints: one btMultiBody per tree (Featherstone, reduced coordinates) whatever the bodies "
+    "option says (it sets the free bodies' mode); joint damping is btMultiBody's jointDamping, "
+    "an explicit torque -c·q̇ from the step's start velocity; PyBullet's default joint motors "
+    "are switched off; a joint's parent and child never collide (URDF_USE_SELF_COLLISION), "
+    "every other pair does (engines.md 2.5)"
+)
+"""The provenance note of a scene with joints."""
 
 # --- frames ---------------------------------------------------------------------------------
 
@@ -410,7 +419,7 @@ class PybulletAdapter:
 
     def _collision_shape(self, spec: BodySpec, centre: np.ndarray | None = None) -> int:
         """The body's shape; a link's placed at its ``centre`` in the link frame (PyBullet
-        puts a link's shape at the link frame's origin, the joint, engines.md 2.7)."""
+        puts a link's shape at the link frame's origin, the joint, engines.md 2.5)."""
         placed = {} if centre is None else {"collisionFramePosition": centre.tolist()}
         return pybullet.createCollisionShape(
             **SHAPE_KEYWORDS[spec.shape.type](spec.shape), **placed, physicsClientId=self.client
@@ -423,7 +432,7 @@ class PybulletAdapter:
         inertia from the shape; a diagonal alone zeroes a maximal body's mass); with a base's,
         the profile's damping and velocity clamp (``_multibody_settings``: the whole
         multibody's). A link's go alone: with any multibody-wide keyword in the call,
-        PyBullet gives the mass and moments to the base instead (engines.md 2.7)."""
+        PyBullet gives the mass and moments to the base instead (engines.md 2.5)."""
         extra = self._multibody_settings() if link == BASE else {}
         pybullet.changeDynamics(
             body,
@@ -448,7 +457,7 @@ class PybulletAdapter:
         (the world's massless, shapeless fixed base, or the root body: fixed massless, or
         floating), then a link per jointed body at the frames of ``trees``'s docstring, each
         with its mass, principal moments and joint damping and with PyBullet's default joint
-        motor switched off (engines.md 2.7). ``URDF_USE_SELF_COLLISION``: the tree's bodies
+        motor switched off (engines.md 2.5). ``URDF_USE_SELF_COLLISION``: the tree's bodies
         collide with each other except a joint's parent and child."""
         bodies = self.scenario.bodies
         root = None if tree.root == WORLD else bodies[tree.root]
@@ -847,7 +856,7 @@ class PybulletAdapter:
         """A link's 13 numbers from ``getLinkState`` with forward kinematics and velocities
         computed from the multibody's current joint state: ``linkWorldPosition`` and
         ``linkWorldOrientation`` are its inertial frame (the centre of mass with the principal
-        axes, as a base's), ``worldLinkLinearVelocity`` the centre's velocity (engines.md 2.7)."""
+        axes, as a base's), ``worldLinkLinearVelocity`` the centre's velocity (engines.md 2.5)."""
         state = pybullet.getLinkState(
             body,
             link,
@@ -908,18 +917,37 @@ class PybulletAdapter:
             "contact_misses": self.contact_misses,
             "filtered_pairs": self.filtered_pairs,
         }
+        if self.trees:
+            settings["joint_trees"] = self._tree_settings()
         notes = list(self.notes)
         if self.bodies_mode == "maximal":
             notes.append(
                 "maximal bodies: getDynamicsInfo reports no inertial frame (measured: zeros "
                 "or stale memory); the principal axes passed at load convert orientations"
             )
+        if self.trees:
+            notes.append(JOINTS_NOTE)
         return Provenance(
             engine="pybullet",
             version=importlib.metadata.version("pybullet"),
             settings=settings,
             notes=notes,
         )
+
+    def _tree_settings(self) -> list[dict[str, object]]:
+        """Each multibody (provenance): its base and each link's body, joint and parent."""
+        names = [body.name for body in self.scenario.bodies]
+        return [
+            {
+                "base": "world" if tree.root == WORLD else names[tree.root],
+                "links": [
+                    {"body": names[link.body], "joint": link.joint, "type": link.type,
+                     "parent_link": link.parent, "jointDamping": link.damping}
+                    for link in tree.links
+                ],
+            }
+            for tree in self.trees
+        ]  # fmt: skip
 
     def close(self) -> None:
         """Disconnect this adapter's client (idempotent)."""

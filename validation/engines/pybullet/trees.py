@@ -6,7 +6,7 @@ fixed body (its base, massless: a fixed base) or at a floating body (its base, f
 multibody's six base coordinates). Every other body of the tree is a link, its parent's link
 index before its own (the ``JointTree``'s parents-first order).
 
-Frames (engines.md 2.7). A link's frame (PyBullet's URDF link frame, where its joint is) has
+Frames (engines.md 2.5). A link's frame (PyBullet's URDF link frame, where its joint is) has
 its origin at the joint's anchor and the body's axes; its inertial frame is the body's centre
 of mass with the principal axes, as for a base (adapter module docstring). So, for a joint of
 the tree (``anchor`` a and ``axis`` u in the parent's body frame, ``offset`` r0 and
