@@ -26,6 +26,11 @@ Profiles (``ENGINE_OPTIONS["pybullet"]``):
 - ``defaults``: what a new user gets (a btMultiBody with Bullet's damping, clamps and
   contact settings), with the scene's masses, inertias, gravity, dt and contact values,
   on a ``GEOM_PLANE`` ground.
+
+Joints (engines.md 2.5): a scene's joint tree becomes one btMultiBody per tree (``trees``),
+whatever the ``bodies`` option; its bodies' states are read from PyBullet's own kinematics
+(``getLinkState``) and its joint velocities set from the stated body velocities through them.
+A scene without joints takes the path above untouched.
 """
 
 from __future__ import annotations
@@ -333,7 +338,10 @@ class PybulletAdapter:
 
     Attributes (after ``load``):
         client: the PyBullet physics client id (pass it as ``physicsClientId``).
-        ids: (n,) PyBullet body ids of the scene's bodies, scenario order.
+        ids: (n,) PyBullet body ids of the scene's bodies, scenario order (a jointed body's
+            is its tree's multibody).
+        links: (n,) each body's link index in its multibody (-1: a base, every unjointed body).
+        trees: the scene's multibodies (``trees.plan_trees``; empty without joints).
         ground: PyBullet body id of the ground plane, or None.
     """
 
@@ -567,7 +575,7 @@ class PybulletAdapter:
 
     def _release_motor(self, multibody: int, link: int, joint_type: str) -> None:
         """Switch off the velocity motor PyBullet puts on every joint it creates (engines.md
-        2.7: it holds a joint at rest, 1 rad/s -> 0 within a second): a zero-force motor."""
+        2.5: it holds a joint at rest, 1 rad/s -> 0 within a second): a zero-force motor."""
         if joint_type == "fixed":
             return
         dofs = JOINT_DOFS[joint_type]
