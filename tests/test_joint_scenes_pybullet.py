@@ -248,3 +248,38 @@ def test_a_joints_parent_and_child_never_touch_while_every_other_pair_does():
             assert contacts(adapter, *pair) > 0, pair  # siblings, a cousin, a free body
     finally:
         adapter.close()
+
+
+LIMIT = 0.205
+"""rad or m: the upper limit, not a whole number of steps' travel from the start."""
+
+
+@pytest.mark.parametrize(
+    ("kind", "mass", "speed"),
+    [("slider", 1.0, 3.0), ("hinge", 1000.0, 10.0)],  # a 1000 kg·m² wheel: Bullet's default
+)  # limit force let it through (engines.md 2.5)
+def test_a_limit_stops_its_joint_inelastically_within_a_steps_travel(kind, mass, speed):
+    """A body on a limited joint in zero gravity, moving at ``speed`` toward ``LIMIT``: it
+    passes the limit by less than one step's travel (the stop comes a step late, engines.md
+    2.5), then rests there (e = 0: no bounce, no correction)."""
+    motion = {"velocity": [0.0, 0.0, speed]} if kind == "slider" else {}
+    motion |= {"angular_velocity": [0.0, 0.0, speed]} if kind == "hinge" else {}
+    scenario = _scenario(
+        "limited",
+        [_sphere("bead", math.sqrt(2.5), (0.0, 0.0, 0.0), mass=mass, **motion)],
+        [{"name": "joint", "type": kind, "parent": "world", "child": "bead",
+          "anchor": [0.0, 0.0, 0.0], "axis": [0.0, 0.0, 1.0], "limits": [-0.1, LIMIT]}],
+        duration=0.1,
+        gravity=(0.0, 0.0, 0.0),
+    )  # fmt: skip
+    scene, trajectory = recorded(scenario)
+    from validation.reference.articulated import joint_coordinates
+
+    coordinate = joint_coordinates(
+        scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+    )["joint"]
+    rate = (trajectory.vel if kind == "slider" else trajectory.ang_vel)[:, 0, 2]
+    assert LIMIT < coordinate.max() < LIMIT + speed * DT, coordinate.max()
+    stopped = int(np.argmax(coordinate > LIMIT))
+    assert np.abs(rate[stopped + 1 :]).max() < 1e-12, rate[stopped:]
+    assert np.ptp(coordinate[stopped + 1 :]) < 1e-12

@@ -300,6 +300,11 @@ FLOATING_BASE_DOFS = 6
 JOINT_REST = {"hinge": [0.0], "slider": [0.0], "ball": [0.0, 0.0, 0.0, 1.0], "fixed": []}
 """Each joint type's position at the scene's t = 0 (``targetValue``; a quaternion x y z w)."""
 
+JOINT_LIMIT_FORCE = 1e12
+"""N or N·m: the joint limit constraint's largest force (``jointLimitForce``). Bullet's default
+is too small to stop heavy bodies: a 1000 kg·m² wheel at 10 rad/s ran 0.5 rad past a 0.2 rad
+limit with it, and stopped at the limit with this (engines.md 2.5)."""
+
 JOINTS_NOTE = (
     "joints: one btMultiBody per tree (Featherstone, reduced coordinates) whatever the bodies "
     "option says (it sets the free bodies' mode); joint damping is btMultiBody's jointDamping, "
@@ -517,6 +522,7 @@ class PybulletAdapter:
                 multibody, k, jointDamping=link.damping, physicsClientId=self.client
             )
             self._release_motor(multibody, k, link.type)
+            self._set_limits(multibody, k, link.joint)
 
     def _set_joint_velocities(self, scenario: Scenario) -> None:
         """The trees' joint velocities (and floating bases') from the bodies' stated
@@ -572,6 +578,24 @@ class PybulletAdapter:
                         physicsClientId=self.client,
                     )
                 at += size
+
+    def _set_limits(self, multibody: int, link: int, joint: str) -> None:
+        """The scene joint's ``limits`` (rad or m from t = 0, PyBullet's joint coordinate 0):
+        btMultiBody's joint limit constraint, its impulse unbounded (``JOINT_LIMIT_FORCE``).
+        Measured (engines.md 2.5): an inelastic stop one step late, the limit passed by up to
+        the step's travel and then kept (``erp``, ``contactERP``, ``frictionERP`` 0.2 leave it)."""
+        stated = next(j for j in self.scenario.joints if j.name == joint)
+        if stated.limits is None:
+            return
+        lower, upper = stated.limits
+        pybullet.changeDynamics(
+            multibody,
+            link,
+            jointLowerLimit=float(lower),
+            jointUpperLimit=float(upper),
+            jointLimitForce=JOINT_LIMIT_FORCE,
+            physicsClientId=self.client,
+        )
 
     def _release_motor(self, multibody: int, link: int, joint_type: str) -> None:
         """Switch off the velocity motor PyBullet puts on every joint it creates (engines.md
@@ -943,14 +967,17 @@ class PybulletAdapter:
         )
 
     def _tree_settings(self) -> list[dict[str, object]]:
-        """Each multibody (provenance): its base and each link's body, joint and parent."""
+        """Each multibody (provenance): its base and each link's body, joint, parent, damping
+        and limits."""
         names = [body.name for body in self.scenario.bodies]
+        limits = {joint.name: joint.limits for joint in self.scenario.joints}
         return [
             {
                 "base": "world" if tree.root == WORLD else names[tree.root],
                 "links": [
                     {"body": names[link.body], "joint": link.joint, "type": link.type,
-                     "parent_link": link.parent, "jointDamping": link.damping}
+                     "parent_link": link.parent, "jointDamping": link.damping,
+                     "limits": limits[link.joint]}
                     for link in tree.links
                 ],
             }

@@ -5,6 +5,7 @@ from __future__ import annotations
 from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
+    JOINT_FEATURES,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -42,6 +43,6 @@ DECLARATION = EngineDeclaration(
     ),
     capabilities=Capabilities(
         integrators=("semi_implicit_euler",),
-        features=frozenset({*BASE_FEATURES, "joints"}),
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}),
     ),
 )
