@@ -29,7 +29,8 @@ DECLARATION = EngineDeclaration(
         EngineOption(
             "bodies",
             str,
-            "btRigidBody (maximal) or btMultiBody; unset: maximal when matched, else multibody",
+            "btRigidBody (maximal) or btMultiBody; unset: maximal when matched, else multibody "
+            "(jointed bodies: always a btMultiBody per tree)",
             ("maximal", "multibody"),
         ),
         EngineOption(
