@@ -310,7 +310,8 @@ JOINTS_NOTE = (
     "option says (it sets the free bodies' mode); joint damping is btMultiBody's jointDamping, "
     "an explicit torque -c·q̇ from the step's start velocity; PyBullet's default joint motors "
     "are switched off; a joint's parent and child never collide (URDF_USE_SELF_COLLISION), "
-    "every other pair does (engines.md 2.5)"
+    "every other pair does; the world takes the multibody settings (contactERP 0), so maximal "
+    "free bodies do not push out of overlaps (engines.md 2.5)"
 )
 """The provenance note of a scene with joints."""
 
