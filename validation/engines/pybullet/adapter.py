@@ -99,10 +99,10 @@ shallower than this (default −0.04: only deeper than 4 cm). A large positive v
 splits, so penetration recovery never adds bounce velocity (engines.md 2.4 recipe)."""
 
 MULTIBODY_CONTACT_ERP = 0.0
-"""Matched profile with ``bodies=multibody``: btMultiBody ignores split impulse (engines.md
-2.4 [SRC]); its penetration recovery adds ≈0.08·depth/dt of bounce (up to +8 % in e). 0
-removes it (engines.md 2.4: cbt 1e-6 + contactERP 0 gave e = 0.498–0.502 and 1.002–1.005),
-as the scene's default ``position_correction: none`` does."""
+"""Matched profile with ``bodies=multibody`` or a joint tree (engines.md 2.5): btMultiBody
+ignores split impulse (engines.md 2.4 [SRC]); its penetration recovery adds ≈0.08·depth/dt of
+bounce (up to +8 % in e). 0 removes it (engines.md 2.4: cbt 1e-6 + contactERP 0 gave e =
+0.498–0.502 and 1.002–1.005), as the scene's default ``position_correction: none`` does."""
 
 MAX_JOINT_VELOCITY = 1e4
 """rad/s and m/s. btMultiBody clamps every base velocity component to ±100 even in free
