@@ -92,7 +92,12 @@ STATUS_DESCRIPTIONS: dict[str, str] = {
     "unstable": "the run failed a stability check (non-finite state, energy blow-up, quaternion "
     "drift, tunnelling, impossible speed, the engine's own instability warning); it stopped there",
     "model_mismatch": "the engine's model differs from the scenario (the message names the "
-    "quantity and both values); the engine was not run",
+    "quantity and both values): a mass, centre of mass, world inertia, energy or momentum off "
+    "by more than its precision's tolerance (1e-9 float64, 1e-6 float32) of the quantity's "
+    "physical magnitude (the mass; the distance from the origin plus the radius of gyration; "
+    "the largest inertia entry; for a total the sizes of its terms, none cancelling: Σ m|v|, "
+    "Σ m|(x - c) × (v - v_c)| + |Iω|, kinetic + |m g·x| + |F·x| + spring energy); the engine "
+    "was not run",
     "error": "the engine raised; the message carries the exception",
     "crashed": "the engine's process died or exited mid-job (a segfault, an abort, an "
     "out-of-memory kill, sys.exit); the message names the signal or exit code; the other jobs "

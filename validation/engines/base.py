@@ -64,6 +64,7 @@ __all__ = [
     "EngineDeclaration",
     "EngineOption",
     "EngineSpec",
+    "JointReport",
     "ModelReport",
     "Provenance",
     "Snapshot",
@@ -165,6 +166,28 @@ class ModelReport:
     angular_momentum: np.ndarray
 
 
+@dataclass(frozen=True)
+class JointReport:
+    """The joints an engine built, read back from the engine itself after loading (the parity
+    gate of a scene with joints), in the scene's joint order.
+
+    Attributes:
+        types: each joint's type in the scene's words (hinge, slider, ball, fixed).
+        anchors: (j, 3) m, world frame at t = 0: each joint's point as the engine holds it.
+        axes: (j, 3) unit, world frame at t = 0 (hinge, slider; zeros for ball and fixed).
+        mass_matrix: (nv, nv) the tree's mass matrix M(q0) from the engine's own computation,
+            in the coordinates of ``CompiledScene.joint_tree`` (its ν: a hinge's or slider's
+            rate, a ball's spin relative to its parent in the parent's frame, a floating root's
+            v and ω in the world frame), or None for an engine that holds no joint coordinates
+            (maximal coordinates: mini).
+    """
+
+    types: tuple[str, ...]
+    anchors: np.ndarray
+    axes: np.ndarray
+    mass_matrix: np.ndarray | None = None
+
+
 @dataclass
 class Provenance:
     """Enough to reproduce a run: the engine's version and its full effective settings."""
@@ -206,6 +229,9 @@ class EngineAdapter(Protocol):
     # Optional: ``precision``, ``"float64"`` (the default) or ``"float32"``: the floating-point
     # type the engine computes in, which sets the parity gate's tolerance
     # (``validation.engines.parity.PRECISION_TOLERANCE``; Rapier's bindings are float32).
+
+    # Required of an engine that declares ``joints``: ``joint_report() -> JointReport``, the
+    # joints it built (``validation.engines.joint_parity`` compares them with the scene's).
 
     def observe(self) -> Snapshot:
         """The current state, in the scene's conventions."""

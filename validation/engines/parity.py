@@ -1,13 +1,17 @@
 """The parity gate: an engine's model must equal the scenario before the first step.
 
 Each quantity of the engine's ``ModelReport`` is compared with the scenario's
-``reference_report`` to ``PARITY_TOLERANCE`` relative. A mismatch names the quantity,
-the body and both values, and becomes a result row with status ``model_mismatch``.
+``reference_report`` to a relative tolerance, the engine's precision's
+(``PRECISION_TOLERANCE``), of the quantity's physical magnitude (``Magnitudes``): a body's
+mass, its distance from the origin plus its reach, its largest inertia entry; for the totals
+the sum of their terms' sizes, which do not cancel (``Σ m |v|`` for a linear momentum of
+bodies moving apart, whose total is zero). A mismatch names the quantity, the body and both
+values, and becomes a result row with status ``model_mismatch``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -24,8 +28,9 @@ over a few terms to a few epsilons; 1e-6 (8 epsilons) admits that and nothing a 
 term or an offset centre of mass would give."""
 
 ABSOLUTE_FLOOR = 1e-12
-"""Absolute floor in the quantity's SI unit, for quantities that are zero in the scene
-(the momentum of a scene at rest): below it, a difference is round-off."""
+"""Absolute floor in the quantity's SI unit, for quantities whose magnitude is zero in the
+scene (the momentum of a scene at rest, a body at the origin): below it, a difference is
+round-off."""
 
 
 @dataclass(frozen=True)
@@ -50,8 +55,12 @@ class Mismatch:
         )
 
 
-def _relative(engine: np.ndarray, expected: np.ndarray, tolerance: float) -> float:
-    scale = max(float(np.max(np.abs(expected), initial=0.0)), ABSOLUTE_FLOOR / tolerance)
+def _relative(
+    engine: np.ndarray, expected: np.ndarray, magnitude: float, tolerance: float
+) -> float:
+    """The largest difference of ``engine`` from ``expected`` relative to the quantity's
+    physical ``magnitude`` (``ABSOLUTE_FLOOR`` below it is round-off whatever the magnitude)."""
+    scale = max(float(magnitude), ABSOLUTE_FLOOR / tolerance)
     return float(np.max(np.abs(engine - expected), initial=0.0)) / scale
 
 
@@ -60,6 +69,53 @@ QUANTITIES = tuple(f.name for f in fields(ModelReport))
 
 PER_BODY = ("mass", "com", "inertia_world")
 """The quantities a ``ModelReport`` has one row of per dynamic body; the others are totals."""
+
+
+@dataclass(frozen=True)
+class Magnitudes:
+    """The physical size of each quantity of a ``ModelReport`` (its fields, in its order),
+    what its error is relative to (``reference.magnitudes``): the size of every term the
+    quantity adds, none cancelling, so a total that is zero in the scene (two bodies moving
+    apart) is judged against what its terms round off, not against zero.
+
+    Attributes:
+        mass: (d,) kg, each body's mass.
+        com: (d,) m, each body's distance from the origin plus its radius of gyration (how
+            far its mass reaches: the size a shape's centre is computed to).
+        inertia_world: (d,) kg·m², each body's largest inertia entry.
+        energy: J, ``Σ ½ m |v|² + ½ ωᵀ I ω + |m g·x| + |F·x|`` plus the spring energy.
+        linear_momentum: kg·m/s, ``Σ m |v|``.
+        angular_momentum: kg·m²/s, ``Σ m |(x - c) × (v - v_c)| + |I ω|`` about the centre of
+            mass c moving at v_c (``metrics.angular_momentum_drift``'s scale).
+    """
+
+    mass: np.ndarray
+    com: np.ndarray
+    inertia_world: np.ndarray
+    energy: float
+    linear_momentum: float
+    angular_momentum: float
+
+
+@dataclass(frozen=True)
+class ExpectedReport(ModelReport):
+    """What the gate expects (``reference.reference_report``): the scene's ``ModelReport``
+    and the ``Magnitudes`` its errors are relative to."""
+
+    magnitudes: Magnitudes = field(compare=False)
+
+
+def own_magnitudes(report: ModelReport) -> Magnitudes:
+    """Magnitudes read off a report's own values, each body's largest entry and each total's
+    largest component: for an expected report that carries no scene (not an
+    ``ExpectedReport``); a total that cancels reads zero here, the floor alone."""
+
+    def largest(quantity: str) -> np.ndarray:
+        values = np.abs(np.asarray(getattr(report, quantity), dtype=np.float64))
+        first = 1 if quantity in PER_BODY else 0
+        return values.max(axis=tuple(range(first, values.ndim)), initial=0.0)
+
+    return Magnitudes(*(largest(q) for q in QUANTITIES))
 
 
 def _as_floats(value: object) -> np.ndarray | None:
@@ -97,45 +153,59 @@ def unusable(engine: ModelReport, expected: ModelReport) -> list[Mismatch]:
     return found
 
 
+def magnitudes_of(expected: ModelReport) -> Magnitudes:
+    """The magnitudes the errors against ``expected`` are relative to: the scene's
+    (``ExpectedReport``), else the report's own values (``own_magnitudes``)."""
+    if isinstance(expected, ExpectedReport):
+        return expected.magnitudes
+    return own_magnitudes(expected)
+
+
+def _mismatch(quantity: str, body: int | None, got, want, magnitude, tolerance) -> Mismatch | None:
+    """The mismatch of one quantity (one body's row of it), None within ``tolerance``."""
+    error = _relative(np.asarray(got), np.asarray(want), magnitude, tolerance)
+    if error <= tolerance:
+        return None
+    shown = (np.round(got, 12).tolist(), np.round(want, 12).tolist())
+    return Mismatch(quantity, body, *shown, error, tolerance)
+
+
 def compare(
     engine: ModelReport, expected: ModelReport, tolerance: float = PARITY_TOLERANCE
 ) -> list[Mismatch]:
     """Every quantity of ``engine`` that differs from ``expected`` beyond ``tolerance``
-    (relative; ``PRECISION_TOLERANCE`` of the engine's declared precision); a quantity of the
-    wrong shape or not finite (``unusable``) is a mismatch before any is compared."""
+    (``PRECISION_TOLERANCE`` of the engine's declared precision) relative to the quantity's
+    magnitude (``magnitudes_of``); a quantity of the wrong shape or not finite (``unusable``)
+    is a mismatch before any is compared."""
     mismatches = unusable(engine, expected)
     if mismatches:
         return mismatches
-    for quantity in PER_BODY:
-        got, want = getattr(engine, quantity), getattr(expected, quantity)
-        for body in range(len(want)):
-            error = _relative(np.asarray(got[body]), np.asarray(want[body]), tolerance)
-            if error > tolerance:
-                mismatches.append(
-                    Mismatch(
-                        quantity,
-                        body,
-                        np.round(got[body], 12).tolist(),
-                        np.round(want[body], 12).tolist(),
-                        error,
-                        tolerance,
-                    )
-                )
-    for quantity in (q for q in QUANTITIES if q not in PER_BODY):
-        got, want = getattr(engine, quantity), getattr(expected, quantity)
-        error = _relative(np.asarray(got), np.asarray(want), tolerance)
-        if error > tolerance:
-            mismatches.append(
-                Mismatch(
-                    quantity,
-                    None,
-                    np.round(got, 12).tolist(),
-                    np.round(want, 12).tolist(),
-                    error,
-                    tolerance,
-                )
-            )
-    return mismatches
+    magnitudes = magnitudes_of(expected)
+    found = [
+        _mismatch(
+            quantity,
+            body,
+            getattr(engine, quantity)[body],
+            getattr(expected, quantity)[body],
+            getattr(magnitudes, quantity)[body],
+            tolerance,
+        )
+        for quantity in PER_BODY
+        for body in range(len(getattr(expected, quantity)))
+    ]
+    found += [
+        _mismatch(
+            quantity,
+            None,
+            getattr(engine, quantity),
+            getattr(expected, quantity),
+            getattr(magnitudes, quantity),
+            tolerance,
+        )
+        for quantity in QUANTITIES
+        if quantity not in PER_BODY
+    ]
+    return [mismatch for mismatch in found if mismatch is not None]
 
 
 OBSERVED_COLUMNS = {"pos": 3, "quat": 4, "vel": 3, "ang_vel": 3}

@@ -10,7 +10,8 @@ named in every row's ``expected_kind``:
 
 1. ``dop853``: for scenes where nothing can touch, the Newton–Euler equations integrated by
    SciPy's DOP853 at rtol 3e-14 (``validation.reference.newton_euler``), independent of every
-   engine. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
+   engine; a scene with joints in its joint tree's coordinates (the Lagrange equations of the
+   tree, ``validation.reference.articulated``), at the same tolerance. MuJoCo's RK4 at a tenth of the smallest step is run as a cross-check of it (row
    ``reference_cross_check``);
 2. ``analytic:<expectation>``: scenes that can touch and state an expectation: its error
    (the expectation constrains a position or a velocity, not an orientation);

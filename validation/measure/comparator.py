@@ -4,6 +4,14 @@ One row per (scenario, engine spec, metric), with the columns of ``COLUMNS``. A 
 with a tolerance in the scene's ``checks`` gets ``passed``; one without gets ``passed``
 empty (never a guessed tolerance). An engine that did not produce metrics (model
 mismatch, error) gets one row with metric ``status`` and its message.
+
+A ``divergence`` row measures a pair of engines, one against the scene's reference (the
+first engine that ran), so its failure is the pair's until the engines' own rows say whose
+it is (``judge_divergence``): an engine with a failing row of its own (a closed form it
+misses, a bad status) is *off its closed forms*. A divergence beyond its tolerance fails
+its engine when that engine is off its closed forms, or when neither is (the pair
+disagrees; the message names both); when only the reference is off, the row is not judged
+(``passed`` empty): the reference is suspect, and its own rows carry the failure.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ import json
 import math
 
 from validation.contract import (
+    BAD_STATUSES,
     NOT_JUDGED_STATUSES,
     RESULTS_COLUMNS,
     SIGNED_COLUMNS,
@@ -21,6 +30,7 @@ from validation.contract import (
 )
 from validation.engine_api import Capabilities, declaration_of
 from validation.measure.metrics import Context, Measurement, divergence, measure
+from validation.measure.noise import DIVERGENCE
 from validation.measure.resolution import precision_band, resolution_note
 from validation.measure.runner import EngineRun
 from validation.scenario.compiled import CompiledScene
@@ -143,6 +153,55 @@ def _status_row(scene: CompiledScene, run: EngineRun) -> dict:
     }
 
 
+SHOWN_FAILURES = 3
+"""How many of an engine's own failing rows a divergence row's message names (then "…")."""
+
+
+def off_closed_forms(rows: list[dict], engine: str) -> list[str]:
+    """The metrics of ``engine``'s own failing rows in one scene's ``rows`` (a bad status or
+    a failed check; divergence rows excluded): empty when it meets every closed form it was
+    judged on."""
+    return [
+        str(row["metric"])
+        for row in rows
+        if row["engine"] == engine
+        and row["metric"] != DIVERGENCE
+        and (row["status"] in BAD_STATUSES or row["passed"] is False)
+    ]
+
+
+def _named(engine: str, metrics: list[str]) -> str:
+    shown = ", ".join(metrics[:SHOWN_FAILURES]) + (", …" if len(metrics) > SHOWN_FAILURES else "")
+    return f"{engine} is off its own closed forms ({shown})"
+
+
+def judge_divergence(rows: list[dict], reference: str) -> list[dict]:
+    """One scene's ``rows`` with each failed ``divergence`` row judged on its pair (the module
+    docstring): failed and charged to its own engine when that engine is off its closed forms
+    (``off_closed_forms``), failed on the pair when neither is, not judged (``passed`` empty,
+    status ``ok``) when only the ``reference`` is."""
+    suspect = off_closed_forms(rows, reference)
+    judged = []
+    for row in rows:
+        if row["metric"] != DIVERGENCE or row["passed"] is not False:
+            judged.append(row)
+            continue
+        own = off_closed_forms(rows, str(row["engine"]))
+        if own:
+            verdict = _named(str(row["engine"]), own)
+        elif suspect:
+            verdict = f"not judged: {_named(reference, suspect)}; the divergence is charged to it"
+            row = {**row, "passed": None, "status": "ok"}
+        else:
+            verdict = (
+                f"the pair {row['engine']} and {reference} diverge; neither is off its own "
+                "closed forms"
+            )
+        message = "; ".join(part for part in (verdict, row["message"]) if part)
+        judged.append({**row, "message": message})
+    return judged
+
+
 def measure_run(scene: CompiledScene, run: EngineRun) -> list[Measurement]:
     """Every metric of one engine run that needs only that run (empty without a recording)."""
     return [] if run.recording is None else measure(Context(scene, run.recording))
@@ -152,8 +211,9 @@ def compare_scene(
     scene: CompiledScene, runs: list[EngineRun], measured: list[list[Measurement]] | None = None
 ) -> list[dict]:
     """Rows for every engine run of one scene; the first engine that ran is the reference
-    of ``divergence`` for the others. ``measured``: each run's ``measure_run`` when it was
-    already computed (in the worker that ran it)."""
+    of ``divergence`` for the others, whose failed divergence rows are judged on the pair
+    (``judge_divergence``). ``measured``: each run's ``measure_run`` when it was already
+    computed (in the worker that ran it)."""
     if measured is None:
         measured = [measure_run(scene, run) for run in runs]
     rows: list[dict] = []
@@ -172,4 +232,4 @@ def compare_scene(
         rows += [_row(scene, run, result, run.status) for result in results]
         if run.status != "ok":
             rows.append(_status_row(scene, run))
-    return rows
+    return rows if reference is None else judge_divergence(rows, reference)

@@ -52,7 +52,11 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "point of the child (a slider's across its axis), or the angle a hinge's axis (a slider's "
     "or fixed joint's whole rotation) is off times the child's centre's distance from the anchor",
     "divergence": "max over the kept samples t of the centre-of-mass distance (m) between this "
-    "engine and the reference engine of the scene (the first engine listed) on the same scene",
+    "engine and the reference engine of the scene (the first engine listed) on the same scene; "
+    "judged on the pair: beyond its tolerance it fails this engine when this engine is off its "
+    "own closed forms (a failing row of its own in the scene) or when neither engine is (the "
+    "message names the pair), and is not judged (passed empty) when only the reference engine "
+    "is off its closed forms (the reference is suspect: its own rows fail)",
 }
 """Metric name -> the one-line definition shown in the report legend."""
 

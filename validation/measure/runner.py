@@ -32,6 +32,7 @@ import numpy as np
 
 from validation.engine_api import declaration_of
 from validation.engines.base import Provenance
+from validation.engines.joint_parity import compare_joints
 from validation.engines.parity import PRECISION_TOLERANCE, Mismatch, compare
 from validation.engines.reference import reference_report
 from validation.engines.registry import create_adapter
@@ -87,11 +88,10 @@ def run_engine(
     try:
         adapter.load(scene)
         run.provenance = checked_provenance(adapter.provenance())
-        run.mismatches = compare(
-            adapter.model_report(),
-            reference_report(scene),
-            PRECISION_TOLERANCE[capabilities.precision],
-        )
+        tolerance = PRECISION_TOLERANCE[capabilities.precision]
+        run.mismatches = compare(adapter.model_report(), reference_report(scene), tolerance)
+        if scene.joint_tree is not None:
+            run.mismatches += compare_joints(adapter, scene, tolerance)
         if run.mismatches:
             run.status = "model_mismatch"
             run.message = "; ".join(str(m) for m in run.mismatches)

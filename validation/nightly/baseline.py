@@ -14,7 +14,9 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
   size held while its sign or direction moved beyond noise; a row without an error (a fitted
   order, a cross-check) whose value moved is ``changed``;
 - ``reference_moved``: a ``divergence`` row that moved because only its scene's reference
-  engine moved (``noise.attribute_divergence``).
+  engine moved (``noise.attribute_divergence``). A divergence row reaches the baseline already
+  judged on its pair (``comparator.judge_divergence``): one whose reference alone is off its
+  closed forms is not judged, so it is never a failure, new or not, of the other engine.
 
 The run fails (exit 1) on a regression, a ``changed`` row or a *new failure*: a failing row
 (bad status, not a known finding) that the baseline does not have failing too.

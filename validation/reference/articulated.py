@@ -68,14 +68,17 @@ JOINT_TYPES = ("hinge", "slider", "ball", "fixed")
 AXIS_TYPES = ("hinge", "slider")
 """Joint types with an axis."""
 
-RELATIVE_TOLERANCE = 1e-12
-"""DOP853's rtol in joint space: the joint-space state is smaller (a pendulum: 2 numbers, not
-13) but its right-hand side costs a Python pass over the tree, so this stops 30 times short of
-the free-body reference's 3e-14; 1e-12 keeps the reference below 1e-9 of a 10 s swing, far
-below the first-order errors it judges (tests/test_reference_articulated.py measures both)."""
+RELATIVE_TOLERANCE = 3e-14
+"""DOP853's rtol in joint space, the free-body reference's (``newton_euler``): near the
+smallest SciPy accepts. At 1e-12 the joint-space reference of a 2 rad compound pendulum was
+2.3e-12 m off MuJoCo's RK4 at dt = 5e-5 s (the sweep's cross-check), the floor of RK4's own
+sweep curve from dt = 1 ms on; at 3e-14, 2.5e-13 m, and RK4's curve falls 16x per halving
+(5.0e-10, 3.1e-11, 2.0e-12, 1.1e-13 m at dt = 4, 2, 1, 0.5 ms). The right-hand side is a
+Python pass over the tree: a 1 s swing integrates in about half a second."""
 
-ABSOLUTE_TOLERANCE = 1e-14
-"""DOP853's atol in rad, m, rad/s, m/s: round-off of the library's unit-sized joint states."""
+ABSOLUTE_TOLERANCE = 1e-16
+"""DOP853's atol in rad, m, rad/s, m/s (the free-body reference's): round-off of the library's
+unit-sized joint states."""
 
 
 @dataclass(frozen=True)
@@ -681,6 +684,22 @@ def reference_motion(
     """The tree's motion from ``(q0, ν0)`` sampled at ``times (s,)``: DOP853 on
     ``(q̇, ν̇) = (position_rate, acceleration)``; returns the bodies' ``Motion`` and the
     joint-space samples ``q (s, nq)``, ``ν (s, nv)``."""
+    times = np.asarray(times, dtype=float)
+    solution = joint_space_solution(tree, q0, nu0, loads, float(times[-1]), times)
+    q_samples, nu_samples = solution.y[: tree.nq].T, solution.y[tree.nq :].T
+    return body_states(tree, times, solution.y.T), q_samples, nu_samples
+
+
+def joint_space_solution(
+    tree: JointTree,
+    q0: np.ndarray,
+    nu0: np.ndarray,
+    loads: Loads,
+    end: float,
+    times: np.ndarray | None = None,
+):
+    """SciPy's DOP853 solution of the tree from ``(q0, ν0)`` at t = 0 to ``end`` s, sampled at
+    ``times``, or (None) with its dense output; its states are ``(q, ν)``, flat."""
     from scipy.integrate import solve_ivp  # only here: the scene's checks build trees too,
     # and ``physval check`` imports no SciPy (tests/test_architecture.py)
 
@@ -690,20 +709,24 @@ def reference_motion(
         q, nu = state[:nq], state[nq:]
         return np.concatenate([position_rate(tree, q, nu), acceleration(tree, q, nu, loads)])
 
-    times = np.asarray(times, dtype=float)
     solution = solve_ivp(
         rhs,
-        (0.0, float(times[-1])),
+        (0.0, end),
         np.concatenate([q0, nu0]),
         method="DOP853",
         t_eval=times,
+        dense_output=times is None,
         rtol=RELATIVE_TOLERANCE,
         atol=ABSOLUTE_TOLERANCE,
     )
     if not solution.success:
         raise RuntimeError(f"the joint-space reference failed: {solution.message}")
-    q_samples, nu_samples = solution.y[:nq].T, solution.y[nq:].T
-    return _body_states(tree, times, q_samples, nu_samples), q_samples, nu_samples
+    return solution
+
+
+def body_states(tree: JointTree, times: np.ndarray, states: np.ndarray) -> Motion:
+    """Each body's ``Motion`` at ``times (s,)`` from the joint-space states ``(s, nq + nv)``."""
+    return _body_states(tree, times, states[:, : tree.nq], states[:, tree.nq :])
 
 
 def _body_states(tree: JointTree, times, q_samples, nu_samples) -> Motion:

@@ -23,6 +23,13 @@ from typing import Protocol
 import numpy as np
 from scipy.integrate import OdeSolution, solve_ivp
 
+from validation.reference.articulated import (
+    JointTree,
+    Loads,
+    body_states,
+    initial_velocities,
+    joint_space_solution,
+)
 from validation.reference.loads import Springs, applied_loads
 from validation.reference.motion import Motion
 from validation.reference.rotation import norm, quat_multiply, quat_to_matrix
@@ -138,6 +145,9 @@ def reference_motion(scene: RigidBodyScene, times: np.ndarray) -> Motion:
     only on the scene and the rounded end, whichever process or order asks."""
     n = scene.count
     end = float(times[-1])
+    tree = getattr(scene, "joint_tree", None)
+    if tree is not None:
+        return _joint_space_motion(scene, tree, np.asarray(times, dtype=float))
     if n > DENSE_OUTPUT_MAX_BODIES:
         states = _integrate(scene, end, times=times).y
     else:
@@ -149,15 +159,53 @@ def reference_motion(scene: RigidBodyScene, times: np.ndarray) -> Motion:
     return Motion(np.asarray(times, dtype=float), pos, quat, vel, omega)
 
 
-def _dense_output(scene: RigidBodyScene, end: float) -> OdeSolution:
+def _joint_space_motion(scene: RigidBodyScene, tree: JointTree, times: np.ndarray) -> Motion:
+    """A scene with joints: DOP853 in the joint tree's coordinates
+    (``articulated.joint_space_solution``: the Lagrange equations of the tree, every body
+    kept on its joints exactly), from the stated poses (q = 0) and the joint rates the stated
+    velocities give (``articulated.initial_velocities``), sampled from its dense output like a
+    free scene's."""
+    start = scene.start
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    nu0, _ = initial_velocities(tree, start.vel[0], start.ang_vel[0])
+
+    def integrate(end: float) -> OdeSolution:
+        return joint_space_solution(tree, tree.zero(), nu0, loads, end).sol
+
+    solution = _dense_output(scene, float(times[-1]), integrate, _tree_fingerprint(tree))
+    return body_states(tree, times, np.asarray(solution(times)).T)
+
+
+def _tree_fingerprint(tree: JointTree) -> tuple:
+    """Everything of the joint tree the joint-space integration reads, as bytes."""
+    placed = ("anchor", "axis", "offset", "rotation")
+    return tuple(
+        (
+            joint.type,
+            joint.parent,
+            joint.child,
+            joint.damping,
+            *(np.ascontiguousarray(getattr(joint, name)).tobytes() for name in placed),
+        )
+        for joint in tree.joints
+    )
+
+
+def _dense_output(
+    scene: RigidBodyScene, end: float, integrate=None, extra: tuple = ()
+) -> OdeSolution:
     """DOP853's dense output of the scene from 0 past ``end`` s (``reference_motion``),
-    integrated once per process."""
+    integrated once per process (``integrate(end)``: the Newton-Euler equations by default,
+    the joint-space ones for a tree, whose ``extra`` fingerprint joins the key)."""
     named_end = float(f"{end:.{END_DIGITS}g}")
-    key = (_fingerprint(scene), named_end)
+    key = (_fingerprint(scene), *extra, named_end)
     if key in _integrations:
         _integrations.move_to_end(key)
         return _integrations[key]
-    solution = _integrate(scene, named_end * (1.0 + END_MARGIN), times=None).sol
+    if integrate is None:
+        solution = _integrate(scene, named_end * (1.0 + END_MARGIN), times=None).sol
+    else:
+        solution = integrate(named_end * (1.0 + END_MARGIN))
     _integrations[key] = solution
     while len(_integrations) > CACHED_INTEGRATIONS:
         _integrations.popitem(last=False)

@@ -8,8 +8,16 @@ from dataclasses import replace
 import numpy as np
 
 from mini_engine import Settings, step
+from mini_engine.joints import JOINT_TYPES, WORLD
 from mini_engine.rotation import quat_to_matrix, world_inertia
-from validation.engines.base import ModelReport, Provenance, Snapshot, StoppedEarlyError, Trajectory
+from validation.engines.base import (
+    JointReport,
+    ModelReport,
+    Provenance,
+    Snapshot,
+    StoppedEarlyError,
+    Trajectory,
+)
 from validation.engines.mini.model import build_mini_model
 from validation.engines.reference import scene_report
 from validation.scenario.compiled import CompiledScene
@@ -40,6 +48,24 @@ class MiniAdapter:
             mass=self.model.body_mass[:n][moving].copy(),
             inertia_world=world_inertia(rot, self.model.body_inertia[:n])[moving],
         )
+
+    def joint_report(self) -> JointReport:
+        """The model's joints at the initial poses: each one's type, its anchor as a point of
+        its parent (a world point for the world) and its axis as the parent carries it; no
+        mass matrix (mini holds bodies, not joint coordinates)."""
+        joints, state = self.model.joints, self.state
+        rot = quat_to_matrix(state.quat)
+        world = joints.body_a == WORLD
+        parent = np.where(world, 0, joints.body_a)
+        anchors = np.where(
+            world[:, None],
+            joints.anchor_a,
+            state.pos[parent] + np.einsum("jik,jk->ji", rot[parent], joints.anchor_a),
+        )
+        axes = np.where(
+            world[:, None], joints.axis_a, np.einsum("jik,jk->ji", rot[parent], joints.axis_a)
+        )
+        return JointReport(tuple(JOINT_TYPES[k] for k in joints.kind), anchors, axes)
 
     def advance(self, steps: int) -> None:
         state = self.state

@@ -16,10 +16,11 @@ from types import ModuleType
 
 import numpy as np
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.mujoco.mjcf import (
     DEFAULT_SETTINGS,
     INERTIAL_ORIGIN_TOLERANCE,
+    JOINT_WORDS,
     RESTITUTION_NOTES,
     build_mjcf,
     contact_note,
@@ -204,6 +205,67 @@ class MujocoAdapter:
             targets += [np.asarray(body.velocity), np.asarray(body.angular_velocity)]
         jacobian, stated = np.concatenate(rows), np.concatenate(targets)
         d.qvel[:] = np.linalg.lstsq(jacobian, stated, rcond=None)[0]
+
+    def joint_report(self) -> JointReport:
+        """The joints MuJoCo compiled, at the initial state (``mj_forward`` on a scratch copy):
+        each stated joint's type (``jnt_type``; a fixed joint is a body welded into its
+        parent: no joint), anchor ``xanchor`` and axis ``xaxis``, world frame; and M(q0),
+        ``mj_fullM``, carried into the joint tree's coordinates: ``M_tree = Tᵀ M T`` with T
+        mapping the tree's ν to MuJoCo's qvel (a hinge's or slide's rate as it is; a ball's
+        parent-frame spin into the child's frame, R_Cᵀ R_P; a free root's world ω into its
+        body frame, R_Cᵀ)."""
+        m = self.model
+        d = mujoco.MjData(m)
+        d.qpos[:], d.qvel[:] = self.data.qpos, self.data.qvel
+        mujoco.mj_forward(m, d)
+        types, anchors, axes = [], [], []
+        for joint in self.scenario.joints:
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+            welded = jid < 0
+            types.append("fixed" if welded else JOINT_WORDS[int(m.jnt_type[jid])])
+            anchors.append(joint.anchor if welded else d.xanchor[jid].copy())
+            has_axis = not welded and joint.type in ("hinge", "slider")
+            axes.append(d.xaxis[jid].copy() if has_axis else np.zeros(3))
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, full)
+        change = self._tree_velocities(d)
+        return JointReport(
+            tuple(types), np.array(anchors), np.array(axes), change.T @ full @ change
+        )
+
+    def _tree_velocities(self, d) -> np.ndarray:
+        """(nv MuJoCo, nv tree) T: MuJoCo's qvel of the joint tree's ν at the state of ``d``."""
+        m, tree = self.model, self.tree
+        change = np.zeros((m.nv, tree.nv))
+        for joint in tree.joints:
+            if joint.type == "fixed":
+                continue
+            body = int(self.body_ids[joint.child])
+            name = (
+                f"{self.scenario.bodies[joint.child].name}/free"
+                if joint.type == "free"
+                else joint.name
+            )
+            dof = int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)])
+            rows, columns = (
+                slice(dof, dof + joint.v_slice.stop - joint.v_slice.start),
+                joint.v_slice,
+            )
+            child = d.xmat[body].reshape(3, 3)
+            if joint.type in ("hinge", "slider"):
+                change[rows, columns] = np.eye(1)
+            elif joint.type == "ball":
+                parent = (
+                    np.eye(3)
+                    if joint.parent < 0
+                    else d.xmat[int(self.body_ids[joint.parent])].reshape(3, 3)
+                )
+                change[rows, columns] = child.T @ parent
+            else:  # free: (v world, ω world) -> (v world, ω body)
+                change[rows, columns] = np.block(
+                    [[np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), child.T]]
+                )
+        return change
 
     def model_report(self) -> ModelReport:
         """Read back from MuJoCo after ``mj_forward`` on a scratch copy of the current state

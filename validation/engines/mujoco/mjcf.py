@@ -623,6 +623,10 @@ MUJOCO_JOINT_TYPES = {"hinge": "hinge", "slider": "slide", "ball": "ball"}
 """The scene's joint types as MJCF's ``<joint type>``; a fixed joint is a body nested in its
 parent with no joint (welded)."""
 
+JOINT_WORDS = {3: "hinge", 2: "slider", 1: "ball", 0: "free"}
+"""MuJoCo's ``mjtJoint`` codes (mjJNT_HINGE 3, mjJNT_SLIDE 2, mjJNT_BALL 1, mjJNT_FREE 0) in
+the scene's words: what the parity gate reads back."""
+
 
 def _add_body(
     parent: ET.Element,
