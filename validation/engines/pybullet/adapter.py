@@ -44,7 +44,7 @@ from types import ModuleType
 
 import numpy as np
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.frames import matrix_to_quat, principal_axes
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
 from validation.engines.pybullet.trees import BASE, Tree, plan_trees
@@ -291,6 +291,9 @@ PYBULLET_JOINT_TYPES = {
 }
 """Scene joint type -> PyBullet's link joint type (engines.md 2.5)."""
 
+JOINT_WORDS = {code: word for word, code in PYBULLET_JOINT_TYPES.items()}
+"""PyBullet's joint type -> the scene's word (``joint_report``)."""
+
 JOINT_DOFS = {"hinge": 1, "slider": 1, "ball": 3, "fixed": 0}
 """Velocity coordinates of each joint type (``resetJointStateMultiDof``'s ``targetVelocity``)."""
 
@@ -527,22 +530,30 @@ class PybulletAdapter:
 
     def _set_joint_velocities(self, scenario: Scenario) -> None:
         """The trees' joint velocities (and floating bases') from the bodies' stated
-        velocities, through PyBullet's own kinematics at the initial configuration: column k
-        of the Jacobian is every tree body's (v, ω) read back (``_link_state``) with velocity
-        coordinate k at 1 and the others at 0 (body velocities are linear in them); then the
-        least-squares solution of ``J ν = (v, ω)``, exact for the velocities the scene's
-        checks let through (the joints allow them), is set."""
-        moving = [b for tree in self.trees for b in tree.bodies if not scenario.bodies[b].fixed]
+        velocities, through PyBullet's own kinematics at the initial configuration
+        (``_tree_jacobian``): the least-squares solution of ``J ν = (v, ω)``, exact for the
+        velocities the scene's checks let through (the joints allow them), is set."""
+        moving, jacobian = self._tree_jacobian()
+        stated = np.array(
+            [[*scenario.bodies[b].velocity, *scenario.bodies[b].angular_velocity] for b in moving]
+        ).reshape(-1)
+        self.tree_velocities = np.linalg.lstsq(jacobian, stated, rcond=None)[0]
+        self._set_tree_velocities(self.tree_velocities)
+
+    def _tree_jacobian(self) -> tuple[list[int], np.ndarray]:
+        """(the trees' moving bodies, J (6 per body, velocity coordinates)): column k is every
+        such body's (v, ω), world frame, read back (``_link_state``) with velocity coordinate k
+        (``_set_tree_velocities``) at 1 and the others at 0 (body velocities are linear in
+        them). It leaves the trees' velocities at 0."""
+        bodies = self.scenario.bodies
+        moving = [b for tree in self.trees for b in tree.bodies if not bodies[b].fixed]
         count = sum(self._velocity_sizes())
         columns = []
         for k in range(count):
             self._set_tree_velocities(np.eye(count)[k])
             columns.append(np.array(self._raw_state())[moving, 7:13].reshape(-1))
-        stated = np.array(
-            [[*scenario.bodies[b].velocity, *scenario.bodies[b].angular_velocity] for b in moving]
-        ).reshape(-1)
-        jacobian = np.array(columns).reshape(count, -1).T
-        self._set_tree_velocities(np.linalg.lstsq(jacobian, stated, rcond=None)[0])
+        self._set_tree_velocities(np.zeros(count))
+        return moving, np.array(columns).reshape(count, -1).T
 
     def _velocity_sizes(self) -> list[int]:
         """The trees' velocity blocks in order: a floating base's 6, then each joint's."""
@@ -966,6 +977,96 @@ class PybulletAdapter:
             settings=settings,
             notes=notes,
         )
+
+    def joint_report(self) -> JointReport:
+        """The joints PyBullet built, read back at the current state (the parity gate's, at
+        t = 0), in the scene's joint order: ``getJointInfo``'s type, its joint point in the
+        parent's inertial frame (``parentFramePos``) and its axis in the child's, turned to the
+        world by the two frames' poses (``getLinkState``, the base's, or the world's for a tree
+        rooted at the world); and M(q0) of the trees (``_mass_matrix``). (A fixed link's
+        ``worldLinkFramePosition`` is float32-rounded, 7e-8 of the scene, engines.md 2.5.)"""
+        types, anchors, axes = [], [], []
+        names = [body.name for body in self.scenario.bodies]
+        pos, quat, _, _ = self._read_state()
+        inertial = quat_to_matrix(quat)
+        for joint in self.scenario.joints:
+            child, parent = names.index(joint.child), self._parent_body(joint.parent)
+            info = pybullet.getJointInfo(
+                self.ids[child], self.links[child], physicsClientId=self.client
+            )
+            origin, frame = (
+                (np.zeros(3), np.eye(3)) if parent is None else (pos[parent], inertial[parent])
+            )
+            types.append(JOINT_WORDS[info[2]])
+            anchors.append(origin + frame @ np.asarray(info[14]))
+            has_axis = joint.type in ("hinge", "slider")
+            axes.append(inertial[child] @ np.asarray(info[13]) if has_axis else np.zeros(3))
+        return JointReport(tuple(types), np.array(anchors), np.array(axes), self._mass_matrix())
+
+    def _parent_body(self, name: str) -> int | None:
+        """The scene index of a joint's parent body; None for the world."""
+        names = [body.name for body in self.scenario.bodies]
+        return names.index(name) if name in names else None
+
+    def _mass_matrix(self) -> np.ndarray:
+        """M(q0) in the joint tree's coordinates (``CompiledScene.joint_tree``'s ν) as
+        PyBullet's forward dynamics holds it: the kinetic energy's matrix Σ Jᵀ diag(m, I) J of
+        the trees' bodies as PyBullet moves them (``_tree_jacobian``, each body's mass and
+        principal moments from ``getDynamicsInfo`` in its inertial frame), a ball's coordinates
+        (its spin relative to its parent in the child's inertial frame) carried to the tree's
+        (the parent's frame); a free body in no tree adds its mass and world inertia. Read at
+        load (the parity gate's t = 0: the probing restores the velocities set then).
+        ``calculateMassMatrix`` is not used: it drops a ball joint's child offset from the
+        joints above it (engines.md 2.5)."""
+        tree = self.scene.joint_tree
+        matrix = np.zeros((tree.nv, tree.nv))
+        quat = self._read_state()[1]
+        inertial = quat_to_matrix(quat)
+        slices = {joint.child: joint.v_slice for joint in tree.joints}
+        in_trees = {body for plan in self.trees for body in plan.bodies}
+        for root in [j.child for j in tree.joints if j.type == "free" and j.child not in in_trees]:
+            mass, world = self._world_inertia(root, inertial)
+            block = np.block([[mass * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), world]])
+            matrix[slices[root], slices[root]] = block
+        moving, jacobian = self._tree_jacobian()
+        self._set_tree_velocities(self.tree_velocities)
+        own = np.zeros((jacobian.shape[1], jacobian.shape[1]))
+        for k, body in enumerate(moving):
+            mass, world = self._world_inertia(body, inertial)
+            linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
+            own += mass * linear.T @ linear + angular.T @ world @ angular
+        change = self._tree_coordinates(inertial, quat_to_matrix(self._body_quat(quat)))
+        return matrix + change.T @ own @ change
+
+    def _world_inertia(self, body: int, inertial: np.ndarray) -> tuple[float, np.ndarray]:
+        """A body's mass and world inertia as PyBullet holds them (``getDynamicsInfo``)."""
+        info = pybullet.getDynamicsInfo(
+            self.ids[body], self.links[body], physicsClientId=self.client
+        )
+        return info[0], inertial[body] @ np.diag(info[2]) @ inertial[body].T
+
+    def _tree_coordinates(self, inertial: np.ndarray, body_rot: np.ndarray) -> np.ndarray:
+        """T (the trees' velocity coordinates, the tree's ν): a floating base's (v, ω) and a
+        hinge's or slider's rate as they are; a ball's parent-frame spin into its child's
+        inertial frame, ``R_Cᵀ R_P``."""
+        tree = self.scene.joint_tree
+        slices = {joint.child: joint.v_slice for joint in tree.joints}
+        change = np.zeros((sum(self._velocity_sizes()), tree.nv))
+        at = 0
+        for plan in self.trees:
+            if plan.root != WORLD and not self.scenario.bodies[plan.root].fixed:
+                change[at : at + FLOATING_BASE_DOFS, slices[plan.root]] = np.eye(6)
+                at += FLOATING_BASE_DOFS
+            for link in plan.links:
+                size = JOINT_DOFS[link.type]
+                block = np.eye(size)
+                if link.type == "ball":
+                    parent = plan.root if link.parent == BASE else plan.links[link.parent].body
+                    turn = np.eye(3) if parent == WORLD else body_rot[parent]
+                    block = inertial[link.body].T @ turn
+                change[at : at + size, slices[link.body]] = block
+                at += size
+        return change
 
     def _tree_settings(self) -> list[dict[str, object]]:
         """Each multibody (provenance): its base and each link's body, joint, parent, damping

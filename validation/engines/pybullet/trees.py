@@ -3,8 +3,8 @@ coordinates) per tree of the compiled scene's ``JointTree``, planned here withou
 
 A tree is rooted at the world (a massless, shapeless fixed base at the world origin), at a
 fixed body (its base, massless: a fixed base) or at a floating body (its base, free: the
-multibody's six base coordinates). Every other body of the tree is a link, its parent's link
-index before its own (the ``JointTree``'s parents-first order).
+multibody's six base coordinates). Every other body of the tree is a link, in depth-first
+order (PyBullet's own order of a multibody's links).
 
 Frames (engines.md 2.5). A link's frame (PyBullet's URDF link frame, where its joint is) has
 its origin at the joint's anchor and the body's axes; its inertial frame is the body's centre
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from validation.reference.articulated import WORLD, JointTree
+from validation.reference.articulated import WORLD, Joint, JointTree
 
 BASE = -1
 """PyBullet's link index of a multibody's base."""
@@ -72,32 +72,42 @@ class Tree:
 
 def plan_trees(tree: JointTree) -> list[Tree]:
     """The multibodies of ``tree``: one per root with jointed children (the world first if
-    any joint hangs from it, then the bodies in their scene order), each link after its
-    parent's."""
-    root_of: dict[int, int] = {}
-    links: dict[int, list[Link]] = {}
+    any joint hangs from it, then the bodies in their scene order), each with its links in
+    depth-first order (``_depth_first``)."""
+    children: dict[int, list[Joint]] = {}
+    for joint in tree.joints:
+        if joint.type != "free":
+            children.setdefault(joint.parent, []).append(joint)
+    jointed = {joint.child for hanging in children.values() for joint in hanging}
+    roots = sorted(parent for parent in children if parent not in jointed)
+    return [Tree(root, _depth_first(root, children)) for root in roots]
+
+
+def _depth_first(root: int, children: dict[int, list[Joint]]) -> tuple[Link, ...]:
+    """The links below ``root`` in pre-order, each parent's children in the tree's order:
+    the order PyBullet gives a multibody's links whatever order they are passed in
+    (engines.md 2.5: passed parents-first, base->0, base->1, 0->2 came back as 0, 2, 1), so
+    a link's index here is its index in PyBullet."""
+    links: list[Link] = []
     index: dict[int, int] = {}  # body -> its link index
     centre: dict[int, np.ndarray] = {}  # body -> its centre in its link frame
-    for joint in tree.joints:
-        if joint.type == "free":
-            continue
-        parent = joint.parent
-        root = root_of.get(parent, parent)
-        own = links.setdefault(root, [])
-        root_of[joint.child] = root
-        index[joint.child] = len(own)
+    pending = list(reversed(children.get(root, [])))
+    while pending:
+        joint = pending.pop()
+        index[joint.child] = len(links)
         centre[joint.child] = joint.rotation.T @ joint.offset
-        own.append(
+        links.append(
             Link(
                 body=joint.child,
                 joint=joint.name,
                 type=joint.type,
-                parent=index.get(parent, BASE),
-                position=joint.anchor + centre.get(parent, np.zeros(3)),
+                parent=index.get(joint.parent, BASE),
+                position=joint.anchor + centre.get(joint.parent, np.zeros(3)),
                 rotation=joint.rotation,
                 centre=centre[joint.child],
                 axis=joint.rotation.T @ joint.axis,
                 damping=joint.damping,
             )
         )
-    return [Tree(root, tuple(links[root])) for root in sorted(links)]
+        pending += reversed(children.get(joint.child, []))
+    return tuple(links)
