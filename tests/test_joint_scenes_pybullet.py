@@ -305,12 +305,24 @@ def test_a_limit_stops_its_joint_inelastically_within_a_steps_travel(kind, mass,
     assert np.ptp(coordinate[stopped + 1 :]) < 1e-12
 
 
+def joint_mismatches(scene) -> list:
+    """What the parity gate finds between the joints PyBullet built for ``scene`` and the
+    scene's (``joint_parity.compare_joints``, right after loading)."""
+    from validation.engines.joint_parity import compare_joints
+
+    adapter = create_adapter(parse_engine_spec(ENGINE))
+    try:
+        adapter.load(scene)
+        return compare_joints(adapter, scene)
+    finally:
+        adapter.close()
+
+
 def test_pybullet_reports_the_joints_it_built():
     """The parity gate's readback (``joint_report``) on a tree whose links' principal axes are
     not their body axes (a stated full inertia, a turned body), with an oblique hinge, a ball
     and a slider under a floating root: every type, anchor, axis and M(q0) entry is the
     scene's (``joint_parity.compare_joints``: no mismatch at 1e-9)."""
-    from validation.engines.joint_parity import compare_joints
 
     tilted = [math.cos(0.3), 0.2, math.sin(0.3) * 0.8, 0.1]
     norm = math.sqrt(sum(c * c for c in tilted))
@@ -333,13 +345,7 @@ def test_pybullet_reports_the_joints_it_built():
              "anchor": [0.0, 0.2, 1.0], "axis": [0.0, 0.8, 0.6]},
         ],
     )  # fmt: skip
-    scene = compile_scene(scenario)
-    adapter = create_adapter(parse_engine_spec(ENGINE))
-    try:
-        adapter.load(scene)
-        assert compare_joints(adapter, scene) == []
-    finally:
-        adapter.close()
+    assert joint_mismatches(compile_scene(scenario)) == []
 
 
 LIBRARY = sorted((Path(__file__).resolve().parents[1] / "scenarios" / "joints").glob("*.yaml"))
@@ -348,13 +354,6 @@ LIBRARY = sorted((Path(__file__).resolve().parents[1] / "scenarios" / "joints").
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: p.stem)
 def test_pybullets_joints_are_the_library_scenes(path):
     """The parity gate's readback on every library scene with joints: no mismatch."""
-    from validation.engines.joint_parity import compare_joints
     from validation.scenario.load import load_scenario
 
-    scene = compile_scene(load_scenario(path))
-    adapter = create_adapter(parse_engine_spec(ENGINE))
-    try:
-        adapter.load(scene)
-        assert compare_joints(adapter, scene) == []
-    finally:
-        adapter.close()
+    assert joint_mismatches(compile_scene(load_scenario(path))) == []
