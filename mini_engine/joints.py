@@ -31,7 +31,22 @@ rotation error about each spin row (a hinge's axes' misalignment ``u_A × u_B``;
 vector of B's orientation against the one the joint holds it at); so a joint's drift decays by
 1 - β per step instead of growing. Joint damping (``Joint.damping``) is an explicit impulse
 ``-d · rate · dt`` about a hinge's axis, a ball's spin or along a slider's axis, taken at the
-start of the joint phase. Limits are not modelled yet.
+start of the joint phase.
+
+Limits (``Joint.limits``, a hinge's or slider's [lower, upper] from its initial coordinate)
+are one-sided rows, the same impulse with e = 0 along the joint's own coordinate (a hinge's
+spin about its axis, a slider's anchors' separation along it), present while the coordinate
+is at or past a limit (Box2D-Lite's contact, for a joint): solved with the joint rows, each
+limit's impulse must push the coordinate back inside (λ >= 0); a limit whose impulse would
+pull is dropped and the rest solved again (an active set: each pass drops one limit at least,
+so m limits take at most m + 1 solves). Its Baumgarte bias ``β C / dt`` (C the coordinate
+past the limit) brings a coordinate that passed the limit within a step back by 1 - β per
+step; it never bounces (restitution 0): the bias's push back, at most β times the step's
+travel into the limit, is all that leaves it. A hinge's coordinate is read from the bodies'
+orientations alone, as the twist of B's rotation from its held orientation about the axis,
+within π of the middle of its limits (an angle and that angle plus 2π are the same pose):
+hinge limits must be less than 2π apart (``LIMIT_SPAN``), and a hinge that passed one by more
+than the rest of the turn, π - (upper - lower)/2, would read as inside.
 """
 
 from __future__ import annotations
@@ -64,6 +79,13 @@ as it does quaternions)."""
 CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 """Signs that turn a quaternion w x y z into its conjugate (the inverse of a unit one)."""
 
+LIMITED_TYPES = ("hinge", "slider")
+"""Joint types that take limits (one coordinate)."""
+
+LIMIT_SPAN = 2.0 * np.pi
+"""rad: a hinge's limits are less than this apart (its coordinate is read from the
+orientations, where an angle and that angle plus 2π are the same pose)."""
+
 JOINT_BAUMGARTE = 0.2
 """β of the position bias ``β C / dt`` (Box2D-Lite's ``Joint::biasFactor``, 0.2): the drift
 left after a step shrinks by 1 - β per step; 0 turns the correction off."""
@@ -80,6 +102,8 @@ class Joint:
         axis: (3,) unit, world frame at the initial poses (hinge, slider).
         damping: N·m·s/rad (hinge, ball) or N·s/m (slider).
         name: label for reports.
+        limits: (lower, upper) rad (hinge) or m (slider) from the initial configuration,
+            lower <= 0 <= upper; None: unlimited.
     """
 
     type: str
@@ -89,6 +113,7 @@ class Joint:
     axis: tuple[float, float, float] = (0.0, 0.0, 0.0)
     damping: float = 0.0
     name: str = ""
+    limits: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +128,7 @@ class JointModel:
         rest_quat: (j, 4) w x y z, B's orientation relative to A's that the joint holds,
             ``q_A⁻¹ ⊗ q_B`` at the initial poses (``q_B`` with the world as A).
         damping: (j,).
+        lower, upper: (j,) each joint's limits (-inf, inf where it has none).
     """
 
     name: tuple[str, ...]
@@ -115,6 +141,8 @@ class JointModel:
     axis_b: np.ndarray
     rest_quat: np.ndarray
     damping: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
 
     @property
     def count(self) -> int:
@@ -168,6 +196,8 @@ def build_joints(
         axis_b=np.array(axis_b),
         rest_quat=np.array(rest),
         damping=np.array([j.damping for j in joints], dtype=float),
+        lower=np.array([-np.inf if j.limits is None else j.limits[0] for j in joints]),
+        upper=np.array([np.inf if j.limits is None else j.limits[1] for j in joints]),
     )
     for value in vars(model).values():
         if isinstance(value, np.ndarray):
@@ -191,6 +221,20 @@ def _check(joints: list[Joint], n: int) -> None:
         has_axis = POINT_ROWS[joint.type] == 2 or SPIN_ROWS[joint.type] == 2
         if has_axis and abs(float(np.linalg.norm(joint.axis)) - 1.0) > UNIT_AXIS_TOLERANCE:
             raise ValueError(f"{label}.axis: expected a unit vector; got {joint.axis}")
+        if joint.limits is not None:
+            _check_limits(label, joint)
+
+
+def _check_limits(label: str, joint: Joint) -> None:
+    lower, upper = joint.limits
+    if joint.type not in LIMITED_TYPES:
+        raise ValueError(f"{label}.limits: a {joint.type} joint takes none; only {LIMITED_TYPES}")
+    if not lower <= 0.0 <= upper or not lower < upper:
+        raise ValueError(f"{label}.limits: expected lower <= 0 <= upper; got {joint.limits}")
+    if joint.type == "hinge" and not upper - lower < LIMIT_SPAN:
+        raise ValueError(
+            f"{label}.limits: expected hinge limits less than 2π apart (a turn); got {joint.limits}"
+        )
 
 
 # --- the solve -----------------------------------------------------------------------------
@@ -233,9 +277,11 @@ def solve_joints(
     b_row = joints.body_b
     inverse_mass = np.append(inv_mass, 0.0)
     inverse_inertia = np.concatenate([inv_inertia_world, np.zeros((1, 3, 3))])
-    block = _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
+    frames = _world_frames(joints, pos, rot, a_row, b_row)
+    block = _block(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
+    limits = _limit_rows(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt)
     _damp(joints, rot, a_row, b_row, twist, inverse_mass, inverse_inertia, dt)
-    _apply_impulses(block, a_row, b_row, twist)
+    _apply_impulses(block, limits, a_row, b_row, twist)
     return twist[:n, :3].copy(), twist[:n, 3:].copy()
 
 
@@ -263,19 +309,41 @@ def _perpendiculars(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, cross(axis, first)
 
 
-def _rotation_error(joints: JointModel, quat, a_row, b_row) -> np.ndarray:
-    """(j, 3) rad, world frame: the rotation vector that takes B's held orientation
-    ``q_A ⊗ rest`` to its actual one (small: twice the vector part, sign of w)."""
+def _error_quat(joints: JointModel, quat, a_row, b_row) -> np.ndarray:
+    """(j, 4) w x y z, world frame, w >= 0: the rotation that takes B's held orientation
+    ``q_A ⊗ rest`` to its actual one."""
     quat_all = np.concatenate([quat, [[1.0, 0.0, 0.0, 0.0]]])
     held = quat_multiply(quat_all[a_row], joints.rest_quat)
     error = quat_multiply(quat[b_row], held * CONJUGATE)
-    return 2.0 * np.sign(error[:, :1] + (error[:, :1] == 0)) * error[:, 1:]
+    return np.sign(error[:, :1] + (error[:, :1] == 0)) * error
 
 
-def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, dt) -> _Block:
+def _rotation_error(joints: JointModel, quat, a_row, b_row) -> np.ndarray:
+    """(j, 3) rad, world frame: the rotation vector of ``_error_quat`` (small: twice the
+    vector part)."""
+    return 2.0 * _error_quat(joints, quat, a_row, b_row)[:, 1:]
+
+
+def _coordinates(joints: JointModel, quat, a_row, b_row, frames) -> np.ndarray:
+    """(j,) each joint's coordinate from its initial configuration: a hinge's twist angle of
+    ``_error_quat`` about its axis (rad, within π of the middle of its limits, of 0 without),
+    a slider's anchors' separation along its axis (m); 0 for the other types."""
+    _, _, point_a, point_b, axis_a, _ = frames
+    error = _error_quat(joints, quat, a_row, b_row)
+    twist = 2.0 * np.arctan2(np.einsum("ji,ji->j", error[:, 1:], axis_a), error[:, 0])
+    limited = np.isfinite(joints.lower)  # limits come in pairs (``_check_limits``)
+    middle = np.zeros(joints.count)
+    middle[limited] = 0.5 * (joints.lower[limited] + joints.upper[limited])
+    angle = middle + (twist - middle + np.pi) % (2.0 * np.pi) - np.pi
+    slide = np.einsum("ji,ji->j", point_b - point_a, axis_a)
+    kinds = np.array(JOINT_TYPES)[joints.kind]
+    return np.select([kinds == "hinge", kinds == "slider"], [angle, slide], 0.0)
+
+
+def _block(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt) -> _Block:
     """Every joint's rows, their response, inverse block mass and Baumgarte bias."""
     count = joints.count
-    arm_a, arm_b, point_a, point_b, axis_a, axis_b = _world_frames(joints, pos, rot, a_row, b_row)
+    arm_a, arm_b, point_a, point_b, axis_a, axis_b = frames
     first, second = _perpendiculars(axis_a)
     eye = np.broadcast_to(np.eye(3), (count, 3, 3))
     point_dirs = np.zeros((count, 3, 3))
@@ -298,11 +366,7 @@ def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, 
     jacobian[:, 3:, 3:6] = -spin_dirs
     jacobian[:, 3:, 9:12] = spin_dirs
 
-    response = np.zeros_like(jacobian)
-    response[:, :, 0:3] = inverse_mass[a_row, None, None] * jacobian[:, :, 0:3]
-    response[:, :, 3:6] = np.einsum("jik,jrk->jri", inverse_inertia[a_row], jacobian[:, :, 3:6])
-    response[:, :, 6:9] = inverse_mass[b_row, None, None] * jacobian[:, :, 6:9]
-    response[:, :, 9:12] = np.einsum("jik,jrk->jri", inverse_inertia[b_row], jacobian[:, :, 9:12])
+    response = _response(jacobian, a_row, b_row, inverse_mass, inverse_inertia)
     unused = ~np.any(jacobian != 0.0, axis=2)
 
     separation = point_b - point_a
@@ -319,21 +383,97 @@ def _block(joints, pos, rot, quat, a_row, b_row, inverse_mass, inverse_inertia, 
     return _Block(jacobian, response, unused, JOINT_BAUMGARTE * error / dt)
 
 
-def _apply_impulses(block: _Block, a_row, b_row, twist: np.ndarray) -> None:
-    """Every joint's impulses at once, in place: the rows scattered into one ``J (6j, 6(n+1))``
-    and ``M⁻¹Jᵀ`` over the bodies' twists (the world's last, never moved), ``K = J M⁻¹ Jᵀ``
-    with 1 on the padding rows' diagonal (their impulse is then 0), ``λ = -K⁻¹ (J u + bias)``."""
-    count, columns = block.jacobian.shape[0], twist.size
-    jacobian = np.zeros((count * ROWS, columns))
-    response = np.zeros((count * ROWS, columns))
-    rows = np.arange(count * ROWS).reshape(count, ROWS)
+def _response(jacobian, a_row, b_row, inverse_mass, inverse_inertia) -> np.ndarray:
+    """(j, r, 12) ``(M⁻¹ Jᵀ)ᵀ`` of rows ``jacobian (j, r, 12)`` between bodies ``a_row`` and
+    ``b_row`` (j,)."""
+    response = np.zeros_like(jacobian)
+    response[:, :, 0:3] = inverse_mass[a_row, None, None] * jacobian[:, :, 0:3]
+    response[:, :, 3:6] = np.einsum("jik,jrk->jri", inverse_inertia[a_row], jacobian[:, :, 3:6])
+    response[:, :, 6:9] = inverse_mass[b_row, None, None] * jacobian[:, :, 6:9]
+    response[:, :, 9:12] = np.einsum("jik,jrk->jri", inverse_inertia[b_row], jacobian[:, :, 9:12])
+    return response
+
+
+class _Limits(NamedTuple):
+    """The one-sided rows of the limits a coordinate is at or past: ``jacobian (m, 1, 12)``
+    and ``response (m, 1, 12)`` as ``_Block``'s, ``bias (m, 1)``, ``joint (m,)`` whose."""
+
+    jacobian: np.ndarray
+    response: np.ndarray
+    bias: np.ndarray
+    joint: np.ndarray
+
+
+def _limit_rows(joints, frames, quat, a_row, b_row, inverse_mass, inverse_inertia, dt):
+    """A row per limit a joint's coordinate is at or past (module docstring), along the
+    coordinate's increase at a lower limit and its decrease at an upper one: a hinge's spin
+    about its axis, a slider's anchors' relative velocity along it; its bias ``β C / dt``,
+    C <= 0 the coordinate past the limit."""
+    if not np.isfinite(joints.lower).any():  # no limits: no rows (and no coordinates read)
+        return _Limits(np.zeros((0, 1, 12)), np.zeros((0, 1, 12)), np.zeros((0, 1)), a_row[:0])
+    arm_a, arm_b, _, _, axis_a, _ = frames
+    coordinate = _coordinates(joints, quat, a_row, b_row, frames)
+    lower, upper = coordinate <= joints.lower, coordinate >= joints.upper
+    joint = np.concatenate([np.flatnonzero(lower), np.flatnonzero(upper)])
+    side = np.concatenate([np.ones(lower.sum()), -np.ones(upper.sum())])
+    past = np.concatenate([(coordinate - joints.lower)[lower], (joints.upper - coordinate)[upper]])
+    direction = side[:, None] * axis_a[joint]
+    slider = (np.array(JOINT_TYPES)[joints.kind] == "slider")[joint]
+    jacobian = np.zeros((joint.size, 1, 12))
+    jacobian[:, 0, 3:6] = np.where(slider[:, None], -cross(arm_a[joint], direction), -direction)
+    jacobian[:, 0, 9:12] = np.where(slider[:, None], cross(arm_b[joint], direction), direction)
+    jacobian[slider, 0, 0:3], jacobian[slider, 0, 6:9] = -direction[slider], direction[slider]
+    a, b = a_row[joint], b_row[joint]
+    response = _response(jacobian, a, b, inverse_mass, inverse_inertia)
+    return _Limits(jacobian, response, JOINT_BAUMGARTE * past[:, None] / dt, joint)
+
+
+def _scatter(rows_jacobian: np.ndarray, a_row, b_row, columns: int) -> np.ndarray:
+    """(j·r, columns) rows ``(j, r, 12)`` against the twists of bodies ``a_row``, ``b_row``
+    (each body's 6 entries at ``6 · row``)."""
+    count, per = rows_jacobian.shape[:2]
+    scattered = np.zeros((count * per, columns))
+    rows = np.arange(count * per).reshape(count, per)
     for side, rows_of in ((a_row, slice(0, 6)), (b_row, slice(6, 12))):
         cols = side[:, None] * 6 + np.arange(6)  # (j, 6): each joint's body's twist entries
-        jacobian[rows[:, :, None], cols[:, None, :]] += block.jacobian[:, :, rows_of]
-        response[rows[:, :, None], cols[:, None, :]] += block.response[:, :, rows_of]
-    k = jacobian @ response.T + np.diag(block.unused.reshape(-1).astype(float))
-    rate = jacobian @ twist.reshape(-1)
-    impulse = np.linalg.solve(k, -(rate + block.bias.reshape(-1)))
+        scattered[rows[:, :, None], cols[:, None, :]] += rows_jacobian[:, :, rows_of]
+    return scattered
+
+
+def _apply_impulses(block: _Block, limits: _Limits, a_row, b_row, twist: np.ndarray) -> None:
+    """Every joint's impulses at once, in place: the rows scattered into one ``J (6j + m,
+    6(n+1))`` and ``M⁻¹Jᵀ`` over the bodies' twists (the world's last, never moved),
+    ``K = J M⁻¹ Jᵀ`` with 1 on the padding rows' diagonal (their impulse is then 0),
+    ``λ = -K⁻¹ (J u + bias)``; the limit rows whose λ would pull (< 0) are dropped and the
+    rest solved again until none does."""
+    columns = twist.size
+    la, lb = a_row[limits.joint], b_row[limits.joint]
+    jacobian = np.vstack(
+        [
+            _scatter(block.jacobian, a_row, b_row, columns),
+            _scatter(limits.jacobian, la, lb, columns),
+        ]
+    )
+    response = np.vstack(
+        [
+            _scatter(block.response, a_row, b_row, columns),
+            _scatter(limits.response, la, lb, columns),
+        ]
+    )
+    padding = np.concatenate([block.unused.reshape(-1), np.zeros(limits.joint.size, dtype=bool)])
+    k = jacobian @ response.T + np.diag(padding.astype(float))
+    target = -(
+        jacobian @ twist.reshape(-1) + np.concatenate([block.bias.reshape(-1), limits.bias[:, 0]])
+    )
+    equalities = block.bias.size
+    active = np.ones(target.size, dtype=bool)
+    while True:
+        impulse = np.zeros(target.size)
+        impulse[active] = np.linalg.solve(k[np.ix_(active, active)], target[active])
+        pulling = impulse[equalities:] < 0.0
+        if not pulling.any():
+            break
+        active[equalities:][pulling] = False
     twist += (response.T @ impulse).reshape(twist.shape)
     twist[-1] = 0.0  # the world never moves (its response is zero; round-off stays out)
 

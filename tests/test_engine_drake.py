@@ -91,19 +91,27 @@ def test_observe_returns_every_body_in_scene_order_with_its_own_frame(text):
             sphere("ball", position=[-3.0, 0.0, 1.0], velocity=[0.0, 1.0, 0.0]),
         ],
     )
+    for name, errors in start_errors(text, scenario).items():
+        assert max(errors.values()) <= ROUND_OFF * 10, (name, errors)
+
+
+def start_errors(text: str, scenario: Scenario) -> dict[str, dict[str, float]]:
+    """Body name -> the largest component error of its pose and velocities as the adapter
+    observes them straight after ``load``, against the stated ones."""
     adapter = adapter_for(text, scenario)
     try:
         start = adapter.observe()
     finally:
         adapter.close()
-    for k, body in enumerate(scenario.bodies):
-        errors = {
+    return {
+        body.name: {
             "pos": np.abs(start.pos[k] - body.position).max(),
             "quat": np.abs(start.quat[k] - body.orientation).max(),
             "vel": np.abs(start.vel[k] - body.velocity).max(),
             "ang_vel": np.abs(start.ang_vel[k] - body.angular_velocity).max(),
         }
-        assert max(errors.values()) <= ROUND_OFF * 10, (body.name, errors)
+        for k, body in enumerate(scenario.bodies)
+    }
 
 
 def axis_angle_quat(vector: np.ndarray) -> np.ndarray:

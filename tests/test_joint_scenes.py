@@ -10,6 +10,7 @@ against the reference side's own joint-space DOP853 integration.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -82,15 +83,22 @@ SAMPLING = 0.5 * TURNING_ACCELERATION * (DT / 2) ** 2
 """rad: the nearest step to T/2 or T is up to dt/2 away, where the rate is 0: ½ α (dt/2)² =
 1.7e-6 rad."""
 
+DRAKE_ACCURACY = 1e-4
+"""Drake's continuous profile's default target accuracy (its ``SimulatorConfig``)."""
+
 ANGLE_TOLERANCE = {
     "mini": 1e-3,
     "mujoco": 1e-3,
     "mujoco(integrator=RK4)": 2 * SAMPLING,
+    "drake": 1e-3,
+    "drake(profile=continuous)": 2 * SAMPLING + DRAKE_ACCURACY * AMPLITUDE,
     "pybullet": 1e-3,
 }
 """rad at T/2 and T. First-order schemes add their phase error over the swing (measured 2.8e-5
-and 6e-5 rad in mini at dt = 1 ms, 4.3e-6 and 6.6e-7 in PyBullet's btMultiBody; the energy
-error, 1e-3 of the scale, bounds the period's); RK4 adds O(dt⁴), far below the sampling."""
+and 6e-5 rad in mini at dt = 1 ms, 4.3e-6 in Drake's discrete plant, 4.3e-6 and 6.6e-7 in
+PyBullet's btMultiBody; the energy error, 1e-3 of the scale, bounds the period's); RK4 adds
+O(dt⁴), far below the sampling; Drake's error-controlled RK3 holds each step's error to its
+accuracy relative to the swing (measured 1.3e-6)."""
 
 
 def recorded(engine: str, scenario: Scenario):
@@ -169,10 +177,13 @@ POSITION_TOLERANCE = {
     "mujoco": 5e-3,
     "mujoco(integrator=RK4)": 1e-6,
     "mini": 5e-3,
+    "drake": 5e-3,
+    "drake(profile=continuous)": DRAKE_ACCURACY * 0.6,
     "pybullet": 5e-3,
 }
 """m over 1 s against the reference's DOP853: first-order schemes drift by O(dt)·|a|·t
-(~|g|·1 s·1 ms = 1e-2 at most; measured below 5e-3, PyBullet 1.5e-3), RK4 by O(dt⁴)."""
+(~|g|·1 s·1 ms = 1e-2 at most; measured below 5e-3, Drake's discrete 1.5e-3, PyBullet 1.5e-3),
+RK4 by O(dt⁴), Drake's RK3 by its accuracy relative to the 0.6 m arm (measured 1.7e-8)."""
 
 
 @pytest.mark.parametrize("engine", sorted(POSITION_TOLERANCE))
@@ -249,3 +260,18 @@ def test_the_sweep_measures_jointed_scenes_against_the_joint_space_reference(tmp
     orders = rows[rows["metric"] == "convergence_order"]
     assert set(orders["expected_kind"]) == {"dop853"}, orders
     assert (abs(orders["value"] - 1.0) < ORDER_TOLERANCE).all(), orders[["engine", "value"]]
+
+
+def test_stability_finds_each_engines_largest_stable_step_on_the_stiff_chain(tmp_path):
+    """``physval stability`` on the library's stiff chain: MuJoCo's Euler loses energy control
+    between the probed steps and is unstable above them; the bisection brackets that step."""
+    import pandas as pd
+
+    from validation.cli import main
+
+    scene = Path(__file__).resolve().parents[1] / "scenarios" / "joints" / "stiff_chain.yaml"
+    out = tmp_path / "stability.csv"
+    assert main(["stability", str(scene), "--engines", "mujoco", "--out", str(out)]) == 0
+    row = pd.read_csv(out).iloc[0]
+    assert row["status"] == "ok" and row["stable_dt"] < row["unstable_dt"], row.to_dict()
+    assert row["unstable_dt"] - row["stable_dt"] < 0.02 * row["stable_dt"], row.to_dict()

@@ -305,3 +305,56 @@ def test_a_chain_falling_from_horizontal_keeps_its_energy():
     scale = links * G * 2 * half * links
     assert np.abs(energies - energies[0]).max() / scale < REFERENCE_TOLERANCE, energies
     assert q[-1, 0] > 0.5, "the chain did not fall"  # about +y: x toward -z is positive
+
+
+BABYBOOT_SPREAD_DEGREES = (1.9e-6, 1.3e-5)
+"""deg: how far apart the four published simulations of Drake's chaotic babyboot (MotionGenesis's
+Kutta-Merson at two settings and MATLAB's ode45, drake/multibody/benchmarks/chaotic_babyboot/MG/
+test/MG_chaotic_babyboot_test.cc) put q_A and q_B at 10 s; the reference must land within three
+times that spread of their expected values."""
+
+
+def test_the_reference_reproduces_drakes_chaotic_babyboot_at_10_seconds():
+    """A hinge inside a hinge, unstable: pendulum A (10 g at 7.5 cm, I_Ax = 50 g·cm²) about
+    world x, plate B (100 g at 20 cm, I_B = diag(2500, 500, 2000) g·cm²) about A's rod; from
+    q_A = 90°, q_B = 1° at rest. Published at 10 s: q_A = -61.312983340691°, q_B =
+    -929.47789677244° (the same scene is scenarios/joints/chaotic_babyboot.yaml)."""
+
+    def turn_x(angle):
+        c, s = math.cos(angle), math.sin(angle)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+    def turn_z(angle):
+        c, s = math.cos(angle), math.sin(angle)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    q_a, q_b = math.radians(90.0), math.radians(1.0)
+    pivot = np.array([0.0, 0.0, 2.0])
+    rod = turn_x(q_a) @ np.array([0.0, 0.0, -1.0])
+    frame_a = turn_x(q_a)
+    frame_b = turn_x(q_a) @ np.diag([1.0, -1.0, -1.0]) @ turn_z(q_b)  # z along the rod
+    pos = np.array([pivot + 0.075 * rod, pivot + 0.20 * rod])
+    quats = np.array([_quaternion(frame_a), _quaternion(frame_b)])
+    inertia = np.array([np.diag([5e-6] * 3), np.diag([2.5e-4, 5e-5, 2e-4])])
+    joints = [
+        StatedJoint("A", "hinge", WORLD, 0, pivot, X_AXIS),
+        StatedJoint("B", "hinge", 0, 1, pos[1], rod),
+    ]
+    tree = build_tree(joints, np.array([0.01, 0.1]), inertia, pos, quats, np.zeros(2, bool))
+    _, q, _ = reference_motion(tree, tree.zero(), np.zeros(2), no_loads(2), np.array([10.0]))
+    got = np.degrees(q[-1] + [q_a, q_b])
+    published = np.array([-61.312983340691, -929.47789677244])
+    assert np.all(np.abs(got - published) < 3 * np.array(BABYBOOT_SPREAD_DEGREES)), got - published
+
+
+def _quaternion(matrix: np.ndarray) -> np.ndarray:
+    """w x y z of a rotation matrix with trace > -1 (the babyboot's frames)."""
+    w = 0.5 * math.sqrt(1.0 + np.trace(matrix))
+    return np.array(
+        [
+            w,
+            (matrix[2, 1] - matrix[1, 2]) / (4 * w),
+            (matrix[0, 2] - matrix[2, 0]) / (4 * w),
+            (matrix[1, 0] - matrix[0, 1]) / (4 * w),
+        ]
+    )

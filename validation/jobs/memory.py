@@ -14,6 +14,9 @@ A scene's expectation lists (``bounce_heights``, ``impact_times``, ``flip_times`
 of any length) cost the command's process ``EXPECTED_VALUE_BYTES`` per listed value, once per
 scene: reading, validating and writing them (900,000 bounce heights: 1.9 GB).
 
+A tracker whose memory grows with the run (``expectations.GROWING_BYTES_PER_STATE``: a
+``period`` keeps its joint's coordinate at every step) adds its bytes per step to the worker.
+
 A run keeps at most ``impact_log.KEPT_IMPACTS_BOUND`` impact records (``IMPACT_BYTES``
 each), however many impacts it has: they are in the worker's estimate of every scene that
 can touch. The command's process holds each run's kept impacts too; its estimate leaves them
@@ -29,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from validation.jobs.plan import BadInputError, Plan
+from validation.measure.expectations import GROWING_BYTES_PER_STATE
 from validation.measure.impact_log import KEPT_IMPACTS_BOUND
 from validation.measure.recording import (
     MAX_KEPT_POSITIONS,
@@ -102,7 +106,11 @@ def job_estimate(scene: CompiledScene, spec: EngineSpec, sample_every: int) -> E
     impacts = KEPT_IMPACTS_BOUND * IMPACT_BYTES if scene.can_touch else 0
     per_body = ENGINE_BYTES_PER_BODY.get(spec.name, max(ENGINE_BYTES_PER_BODY.values()))
     batch = batch_size(scene) * bodies * BYTES_PER_BODY_STATE
-    worker = PROCESS_BYTES + bodies * per_body + batch + 2 * kept + impacts  # 2: concatenated
+    tracked = scene.scenario.steps * sum(
+        GROWING_BYTES_PER_STATE.get(e.kind, 0) for e in scene.scenario.expect
+    )
+    worker = PROCESS_BYTES + bodies * per_body + batch + 2 * kept + impacts + tracked
+    # 2 * kept: the kept samples and their concatenation
     return Estimate(scene, spec.label, worker, kept)
 
 

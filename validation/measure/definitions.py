@@ -90,13 +90,23 @@ EXPECTATION_DEFINITIONS: dict[str, str] = {
     "bounce_heights": "max over bounces of |apex height of the COM - expected| (m)",
     "precession_rate": "|fitted body-frame precession rate - expected| (rad/s)",
     "flips": "|number of sign changes of the body-axis angular velocity - expected|",
+    "joint_position_at": "|q(time) - expected| (rad or m; a ball: the distance between rotation "
+    "vectors, rad), q the joint's coordinate relative to t = 0 read from the observed poses of "
+    "its two bodies (a hinge's angle about its axis, continuous over the run; a slider's travel "
+    "along its axis; a ball's rotation vector in the parent's frame), between observed steps the "
+    "cubic through the four observed coordinates around the time, never across a contact change "
+    "of a body joined to it (the interpolation convention below)",
+    "period": "|mean interval between successive upward crossings of a hinge's or slider's "
+    "coordinate about its mean over the run - expected| (s), each crossing linearly "
+    "interpolated inside its step; not measured (error inf) with fewer than two crossings",
 }
-"""Expectation kind -> the definition of its metric (named ``<kind>.<body>``)."""
+"""Expectation kind -> the definition of its metric (named ``<kind>.<body>``, or
+``<kind>.<joint>`` for a joint's kinds)."""
 
 INTERPOLATION_BOUND = (
     "between observed steps: positions by the cubic Hermite of the observed positions and "
-    "velocities (error <= h⁴·max|x⁗|/384), velocities, angular velocities and energies by the "
-    "cubic through the four observed values around the time (<= 9h⁴·max|f⁗|/384), "
+    "velocities (error <= h⁴·max|x⁗|/384), velocities, angular velocities, energies and joint "
+    "coordinates by the cubic through the four observed values around the time (<= 9h⁴·max|f⁗|/384), "
     "orientations by the same Hermite on the rotation group with the observed ω; each exact "
     "for a constant acceleration (a constant ω); never across a step an impulse can act in (one "
     "that begins or ends where the body's contacts changed): only the observed states on the "

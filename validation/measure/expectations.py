@@ -3,9 +3,13 @@
 Every expectation kind has a tracker in ``TRACKERS``. The recording feeds each tracker every
 observed state of the run (a batch at a time, in order) and every impact event as it closes;
 the tracker keeps only what its answer needs (a bracketing pair of states, running sums, a
-sign), so memory does not grow with the run, and the answer does not depend on how many
-samples the trajectory keeps for plotting: a 6 s run and a 2.9 s run measure the same first
-bounce alike.
+sign), so memory does not grow with the run (but for ``period``, whose mean level is known
+only at the end: it keeps the joint's coordinate at every state, ``GROWING_BYTES_PER_STATE``),
+and the answer does not depend on how many samples the trajectory keeps for plotting: a 6 s
+run and a 2.9 s run measure the same first bounce alike.
+
+A joint's expectations (``joint_position_at``, ``period``) read its coordinate from the
+observed poses of its two bodies (``validation.reference.articulated.joint_coordinates``).
 
 Every answer is a ``Measurement`` whose ``value`` is the measured quantity, ``expected``
 the target and ``error`` their difference (for vectors: the norms and the distance).
@@ -22,6 +26,7 @@ import numpy as np
 from validation.engines.base import Trajectory
 from validation.measure.interpolation import INTERPOLANTS, rotation_vector_between
 from validation.measure.measurement import Measurement
+from validation.reference.articulated import Joint, JointTree, joint_coordinates
 from validation.reference.rotation import quat_to_matrix, rotation_angle
 from validation.scenario.compiled import (
     CompiledScene,
@@ -35,6 +40,11 @@ TIME_MATCH = 1e-9
 """Relative. An observed time within this of a requested time is that time: engines add dt
 to their clock every step (MuJoCo, mini), so after 10^4 steps of 1e-3 s the clock reads
 9.999999999998 for 10 s (round-off about 1e-13 relative, far below a step)."""
+
+GROWING_BYTES_PER_STATE = {"period": 4 * 8}
+"""Bytes per counted state of the trackers whose memory grows with the run, by kind:
+``Period`` keeps two float64 a state (the time and the coordinate) and its answer holds two
+more at once (the two concatenated, then the coordinate less its mean)."""
 
 NOT_MEASURED = math.inf
 """Error of an expectation the run never reached (it stopped early, or had no impact)."""
@@ -80,19 +90,26 @@ class _Tracker:
     scene: CompiledScene
     expectation: object
     body: int = field(init=False)
+    watched: np.ndarray = field(init=False)
+    """The bodies whose contact changes an interpolant may not span (``contact_steps``)."""
 
     def __post_init__(self) -> None:
+        self._locate()
+
+    def _locate(self) -> None:
+        """Find the expectation's subject among the scene's bodies."""
         self.body = next(
             i for i, b in enumerate(self.scene.scenario.bodies) if b.name == self.expectation.body
         )
+        self.watched = np.array([self.body])
 
     def mine(self, events) -> list:
         return [e for e in events if self.expectation.body in (e.body_a, e.body_b)]
 
     def contact_steps(self, t: np.ndarray, changed: np.ndarray) -> None:
         """Told before each ``update`` which of its states ``t (k,)`` end an observed step an
-        impulse can act in (``changed (k,)`` bool: the step begins or ends where the body's
-        contacts changed, ``recording``); only the trackers that read between steps
+        impulse can act in (``changed (k,)`` bool: the step begins or ends where the contacts of
+        a ``watched`` body changed, ``recording``); only the trackers that read between steps
         (``StateAt``) need it."""
 
 
@@ -412,6 +429,108 @@ class EnergyAt(StateAt):
         return _scalar(self.expectation, energy, self.expectation.value, f"{where}: {energy:.6g} J")
 
 
+def _articulation(tree: JointTree, joint: Joint) -> np.ndarray:
+    """The bodies joined to ``joint``'s child through joints (their root's subtree): an impulse
+    on any of them moves the joint."""
+    child_of = {j.child: k for k, j in enumerate(tree.joints)}
+    root = tree.joints.index(joint)
+    while tree.joints[root].parent in child_of:
+        root = child_of[tree.joints[root].parent]
+    return np.flatnonzero(tree.subtree[root])
+
+
+class _OfJoint:
+    """A tracker whose subject is a joint (``schema.JOINT_EXPECTATION_MODELS``): it reads the
+    joint's coordinate from the observed poses of its two bodies
+    (``articulated.joint_coordinates``), continuous over the run (a hinge's angle unwrapped
+    from batch to batch too), and watches the contacts of every body of its articulation."""
+
+    def _locate(self) -> None:
+        tree = self.scene.joint_tree
+        self.joint = next(j for j in tree.joints if j.name == self.expectation.joint)
+        self.body, self.watched = self.joint.child, _articulation(tree, self.joint)
+        self.last_coordinate: np.ndarray | None = None
+
+    def coordinate(self, states: Trajectory) -> np.ndarray:
+        """(s,) rad or m, or (s, 3) rad for a ball: the joint's coordinate at ``states``."""
+        found = joint_coordinates(self.scene.joint_tree, states.pos, quat_to_matrix(states.quat))
+        values = found[self.joint.name]
+        if self.joint.type == "hinge" and self.last_coordinate is not None:
+            turns = np.round((self.last_coordinate - values[0]) / (2 * math.pi))
+            values = values + 2 * math.pi * turns
+        self.last_coordinate = values[-1]
+        return values
+
+
+@dataclass
+class JointPositionAt(_OfJoint, StateAt):
+    """The joint's coordinate at ``time`` (the observed state there, or between the states
+    around it the cubic through four of them, ``validation.measure.interpolation``; never across
+    a contact change of its articulation): a hinge's or slider's a number (``_scalar``), a
+    ball's rotation vector (``_vector``)."""
+
+    quantity: str = "coordinate"
+
+    def update(self, states: Trajectory, events) -> None:
+        if self.after_t.size >= self.side or len(states) == 0:
+            return
+        self._bracket(states.t, {"coordinate": self.coordinate(states)})
+
+    def result(self) -> Measurement:
+        found = self.value_at()
+        if found is None:
+            return _missing(self.expectation, f"the run ended before t = {self.expectation.time} s")
+        value, where = found
+        if np.ndim(value):
+            return _vector(self.expectation, np.asarray(value), where)
+        unit = "m" if self.joint.type == "slider" else "rad"
+        message = f"{where}: {float(value):.6g} {unit}"
+        return _scalar(self.expectation, float(value), self.expectation.value, message)
+
+
+@dataclass
+class Period(_OfJoint, _Tracker):
+    """Mean time between successive upward crossings of the joint's coordinate about its mean
+    over the run, each crossing placed by linear interpolation inside the step that makes it
+    (``upward_crossings``). The mean is known only at the end: this tracker keeps the
+    coordinate of every counted state (two float64 a state, the time and the coordinate)."""
+
+    t: list[np.ndarray] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+
+    def update(self, states: Trajectory, events) -> None:
+        if len(states):
+            self.t.append(np.asarray(states.t, dtype=float))
+            self.values.append(self.coordinate(states))
+
+    def result(self) -> Measurement:
+        t = np.concatenate(self.t) if self.t else np.zeros(0)
+        values = np.concatenate(self.values) if self.values else np.zeros(0)
+        self.t, self.values = [t], [values]  # the batches' arrays freed
+        mean = float(values.mean()) if values.size else math.nan
+        crossings = upward_crossings(t, values - mean)
+        if crossings.size < 2:
+            message = (
+                f"{crossings.size} upward crossing(s) of the coordinate about its mean "
+                f"{mean:.6g}; a period needs two"
+            )
+            return _missing(self.expectation, message)
+        period = float(np.diff(crossings).mean())
+        message = (
+            f"{crossings.size} upward crossings about the mean {mean:.6g}, from t = "
+            f"{crossings[0]:.6g} to {crossings[-1]:.6g} s: mean interval {period:.6g} s"
+        )
+        return _scalar(self.expectation, period, self.expectation.value, message)
+
+
+def upward_crossings(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(c,) s: the times at which ``values (s,)`` at times ``t (s,)`` cross 0 upwards (from
+    below 0 to 0 or above), each linearly interpolated inside its step."""
+    k = np.flatnonzero((values[:-1] < 0.0) & (values[1:] >= 0.0))
+    fraction = values[k] / (values[k] - values[k + 1])
+    return t[k] + fraction * (t[k + 1] - t[k])
+
+
 @dataclass
 class _TimesOf(_Tracker):
     """Compares a list of event times with the expected list: ``value`` the worst event's
@@ -474,8 +593,11 @@ TRACKERS: dict[str, Callable[[CompiledScene, object], _Tracker]] = {
     "flip_times": FlipTimes,
     "impact_times": ImpactTimes,
     "energy_at": EnergyAt,
+    "joint_position_at": JointPositionAt,
+    "period": Period,
 }
-"""Expectation kind -> its tracker (metric ``<kind>.<body>``, or the expectation's ``name``)."""
+"""Expectation kind -> its tracker (metric ``<kind>.<body>`` or ``<kind>.<joint>``, or the
+expectation's ``name``)."""
 
 
 def trackers(scene: CompiledScene) -> list[_Tracker]:

@@ -6,7 +6,7 @@ reads the engine's motion there through one of ``INTERPOLANTS``, chosen by quant
 - a **position**: the cubic Hermite through the observed positions and velocities at both ends,
   ``(x0, v0)`` and ``(x1, v1)``. Exact when the acceleration is constant over the step; for a
   smooth motion its error is at most ``h⁴ max|x⁗| / 384``;
-- a **velocity**, an **angular velocity**, an **energy**: the cubic through the four observed
+- a **velocity**, an **angular velocity**, an **energy**, a **joint coordinate**: the cubic through the four observed
   values around ``t`` (two before, two at or after; fewer at the ends of a run: the polynomial
   through those). Exact for a cubic in t; at mid-step between equal steps its error is at most
   ``9 h⁴ max|f⁗| / 384``;
@@ -103,6 +103,7 @@ INTERPOLANTS: dict[str, tuple[tuple[str, ...], int, Callable[..., np.ndarray]]] 
     "vel": (("vel",), 2, cubic_through),
     "ang_vel": (("ang_vel",), 2, cubic_through),
     "energy": (("energy",), 2, cubic_through),
+    "coordinate": (("coordinate",), 2, cubic_through),
 }
 """Quantity -> (the observed arrays its interpolant takes, how many states it uses on each side
 of the time, the interpolant ``f(time, t, *arrays)``)."""

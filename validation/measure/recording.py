@@ -502,7 +502,7 @@ class _Measurer:
         judged = states.take(slice(0, counted + 1))
         changes = self._contact_steps(touching, counted + 1)
         for tracker in self.trackers:
-            tracker.contact_steps(judged.t, changes[:, tracker.body])
+            tracker.contact_steps(judged.t, changes[:, tracker.watched].any(axis=1))
             tracker.update(judged, new_events)
         keep = (step_index % self.sample_every == 0) | (step_index == final)
         if found is not None:

@@ -111,7 +111,7 @@ def baseline_table(results: pd.DataFrame, scene_hashes: dict[str, str]) -> pd.Da
     """The baseline record of a run's ``results`` (results.csv) with each scene's hash."""
     table = results.copy()
     table["outcome"] = [outcome_of(row) for _, row in table.iterrows()]
-    table["scene_sha256"] = table["scenario"].map(scene_hashes).fillna("")
+    table["scene_sha256"] = [scene_hashes.get(scene, "") for scene in table["scenario"]]
     return table.reindex(columns=list(BASELINE_COLUMNS))
 
 

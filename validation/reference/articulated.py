@@ -258,7 +258,7 @@ def _subtrees(joints: list[Joint], bodies: int) -> np.ndarray:
     for k in reversed(range(len(joints))):
         subtree[k, joints[k].child] = True
         parent = joints[k].parent
-        if parent != WORLD:
+        if parent in joint_of:  # not the world, nor a fixed body (no joint moves either)
             subtree[joint_of[parent]] |= subtree[k]
     return subtree
 

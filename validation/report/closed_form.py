@@ -75,7 +75,8 @@ CLOSED_FORMS: dict[str, ClosedForm] = {
     "flips": ClosedForm("body_ang_vel", "zero", "axis"),
 }
 """Expectation kind -> how it is charted. Kinds not listed (orientations, precession rates,
-energies, impact times) have no time trace that shows more than their row."""
+energies, impact times, and a joint's ``joint_position_at`` and ``period``: their subject is a
+joint, not a body) have no time trace that shows more than their row."""
 
 EXPECTATION_FIELDS = ("kind", "body", "name", "time", "value", "axis")
 """The fields of an expectation kept in provenance.json for the charts."""

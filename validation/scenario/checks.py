@@ -29,6 +29,7 @@ from validation.scenario.physics import body_inertia, pair_rule, symmetry_frame
 from validation.scenario.problems import Problem, path_text
 from validation.scenario.schema import (
     ANY_METRIC,
+    JOINT_EXPECTATION_MODELS,
     MAX_STEPS,
     METRIC_NAMES,
     BodySpec,
@@ -113,10 +114,20 @@ def pair_bodies(scenario: Scenario) -> Found:
 
 
 def expectations(scenario: Scenario) -> Found:
-    """Each expectation names a body, has a metric name of its own and a time within the run."""
+    """Each expectation names its subject (a body, or a joint for ``JOINT_EXPECTATION_MODELS``),
+    has a metric name of its own and a time within the run."""
     metrics = set(METRIC_NAMES)
+    joints = [joint.name for joint in scenario.joints]
     for i, expectation in enumerate(scenario.expect):
-        yield from _reference(scenario, expectation.body, ("expect", i, "body"), ())
+        if isinstance(expectation, JOINT_EXPECTATION_MODELS):
+            if expectation.joint not in joints:
+                yield (
+                    ("expect", i, "joint"),
+                    f"expected a joint name; got {expectation.joint!r}"
+                    f"{_hint(expectation.joint, joints) if joints else ' (the scene has no joints)'}",
+                )
+        else:
+            yield from _reference(scenario, expectation.body, ("expect", i, "body"), ())
         if expectation.metric in metrics:
             yield ("expect", i, "name"), f"metric name {expectation.metric!r} is already taken"
         metrics.add(expectation.metric)
@@ -220,13 +231,56 @@ def bounded_scales(scenario: Scenario) -> Found:
             )
 
 
+JOINT_VALUE_SHAPES = {
+    "hinge": "a number (rad)",
+    "slider": "a number (m)",
+    "ball": "a vector [x, y, z] rad (its rotation vector)",
+}
+"""Joint type -> what its ``joint_position_at`` value is (a fixed joint has no coordinate)."""
+
+OSCILLATING_JOINT_TYPES = ("hinge", "slider")
+"""Joint types with one coordinate, whose ``period`` is defined."""
+
+
+def joint_expectations_fit_their_joint(scenario: Scenario) -> Found:
+    """A joint's expectation fits its type: ``joint_position_at`` of a hinge or slider is a
+    number, of a ball a vector [x, y, z] (its rotation vector), of a fixed joint nothing (no
+    coordinate); ``period`` is of a hinge or slider (one coordinate)."""
+    types = {joint.name: joint.type for joint in scenario.joints}
+    for i, expectation in enumerate(scenario.expect):
+        kind, joint_type = expectation.kind, types.get(getattr(expectation, "joint", None))
+        if joint_type is None:
+            continue  # a body's expectation, or an unknown joint (``expectations``)
+        if kind == "period" and joint_type not in OSCILLATING_JOINT_TYPES:
+            yield (
+                ("expect", i, "joint"),
+                f"period is of one coordinate: expected a hinge or slider joint; "
+                f"{expectation.joint!r} is a {joint_type} joint",
+            )
+        elif kind == "joint_position_at" and joint_type not in JOINT_VALUE_SHAPES:
+            yield (
+                ("expect", i, "joint"),
+                f"expected a hinge, slider or ball joint; {expectation.joint!r} is a "
+                f"{joint_type} joint (it has no coordinate)",
+            )
+        elif kind == "joint_position_at":
+            vector = isinstance(expectation.value, tuple)
+            if vector != (joint_type == "ball"):
+                got = list(expectation.value) if vector else expectation.value
+                yield (
+                    ("expect", i, "value"),
+                    f"{expectation.joint!r} is a {joint_type} joint: expected "
+                    f"{JOINT_VALUE_SHAPES[joint_type]}; got {got}",
+                )
+
+
 def precession_needs_a_symmetry_axis(scenario: Scenario) -> Found:
     """``precession_rate`` is defined about a symmetry axis: the body needs two equal moments."""
     names = {b.name: b for b in scenario.bodies}
     for i, expectation in enumerate(scenario.expect):
-        body = names.get(expectation.body)
-        if expectation.kind != "precession_rate" or body is None:
+        if expectation.kind != "precession_rate" or expectation.body not in names:
             continue
+        body = names[expectation.body]
         inertia = finite_inertia(body)
         if inertia is not None and symmetry_frame(inertia) is None:
             yield (
@@ -359,6 +413,7 @@ RULES: tuple[Rule, ...] = (
     *JOINT_RULES,
     pair_bodies,
     expectations,
+    joint_expectations_fit_their_joint,
     precession_needs_a_symmetry_axis,
     loads_on_moving_bodies,
     known_findings,
@@ -453,6 +508,8 @@ EXPECTED_SIZE: dict[str, Callable] = {
     "precession_rate": _size,
     "flips": _size,
     "energy_at": _size,
+    "joint_position_at": _norm,
+    "period": _size,
 }
 """Expectation kind -> |expected| of its row: the error a reading of zero (an engine that did
 nothing: no flip, no precession, no turn) would have. A vector's norm; an orientation's angle

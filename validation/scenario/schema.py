@@ -397,6 +397,40 @@ class EnergyAt(_Expectation):
     value: Finite = Field(description="J")
 
 
+class _JointExpectation(_Strict):
+    """An expectation whose subject is a joint (``JOINT_EXPECTATION_MODELS``), not a body."""
+
+    name: Name | None = Field(default=None, description="metric name; default '<kind>.<joint>'")
+    joint: Name = Field(description="a joint name (its subject is a joint, not a body)")
+
+    @property
+    def metric(self) -> str:
+        return self.name or f"{self.kind}.{self.joint}"
+
+
+class JointPositionAt(_JointExpectation):
+    """The coordinate of ``joint`` at ``time``, relative to t = 0: a hinge's angle (continuous
+    over the run), a slider's travel, a ball's rotation vector (in the parent's frame, its angle
+    at most π)."""
+
+    kind: Literal["joint_position_at"]
+    time: NonNegative = Field(description="s")
+    value: Finite | Vec3 = Field(
+        description="rad (hinge) or m (slider); a ball: its rotation vector [x, y, z] rad"
+    )
+
+
+class Period(_JointExpectation):
+    """Mean time between successive upward crossings of a hinge or slider coordinate about its
+    mean over the run."""
+
+    kind: Literal["period"]
+    value: Positive = Field(description="s")
+
+
+JOINT_EXPECTATION_MODELS = (JointPositionAt, Period)
+"""The expectation kinds whose subject is a ``joint`` (the others' is a ``body``)."""
+
 EXPECTATION_MODELS = (
     VelocityAfterImpact,
     PositionAt,
@@ -410,6 +444,7 @@ EXPECTATION_MODELS = (
     FlipTimes,
     ImpactTimes,
     EnergyAt,
+    *JOINT_EXPECTATION_MODELS,
 )
 """Every expectation kind of format v1, one model each."""
 
@@ -425,7 +460,9 @@ Expectation = Annotated[
     | OrientationAt
     | FlipTimes
     | ImpactTimes
-    | EnergyAt,
+    | EnergyAt
+    | JointPositionAt
+    | Period,
     Field(discriminator="kind"),
 ]
 

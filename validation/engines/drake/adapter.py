@@ -20,6 +20,11 @@ Profiles (``declaration.PROFILES``):
 - ``continuous``: ``MultibodyPlant(time_step=0)`` under ``ResetIntegratorFromFlags(integrator,
   MAX_STEP_SIZE)`` with the target accuracy; dt is the observation interval.
 
+Joints (``joints``, engines-drake.md 9): a scene with joints has Drake's joints between frames
+that coincide at t = 0 (every coordinate 0 at the stated poses), its bodies' velocities set
+through Drake's Jacobians and its body states read through Drake's kinematics; a scene without
+joints takes the free-body path above, unchanged.
+
 Loads: springs are ``LinearSpringDamper`` force elements (a rest length of 0, which that
 element refuses, an isotropic ``LinearBushingRollPitchYaw`` when undamped); constant forces
 and torques are ``ExternallyAppliedSpatialForce`` values at each centre of mass, fixed on the
@@ -60,13 +65,20 @@ from pydrake.multibody.tree import (
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
 from validation.engines.drake.declaration import (
     CONTINUOUS,
     DEFAULT_INTEGRATOR,
     DISCRETE,
     accuracy_of,
     profile_of,
+)
+from validation.engines.drake.joints import (
+    add_joints,
+    filter_jointed_pairs,
+    joint_report,
+    joint_velocities,
+    kinematic_states,
 )
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import WORLD
@@ -179,8 +191,10 @@ class DrakeAdapter:
     Attributes (after ``load``):
         plant: the ``MultibodyPlant``. simulator: its ``Simulator``.
         bodies: (n,) the ``RigidBody`` of each scene body, None for a fixed one, scenario order.
-        position_index: (d, 7) int, each moving body's q (qw qx qy qz x y z) in the plant state.
-        velocity_index: (d, 6) int, its v (wx wy wz vx vy vz), offset by the plant's positions.
+        tree: the scene's ``JointTree`` (None without joints). joints: the Drake joints.
+        free: the free moving bodies (every moving one without joints).
+        position_index: (f, 7) int, each free body's q (qw qx qy qz x y z) in the plant state.
+        velocity_index: (f, 6) int, its v (wx wy wz vx vy vz), offset by the plant's positions.
     """
 
     precision = "float64"
@@ -212,6 +226,8 @@ class DrakeAdapter:
             )
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scenario.gravity, dtype=float))
         self.bodies = [self._create_body(k, b) for k, b in enumerate(scenario.bodies)]
+        self.tree = scene.joint_tree
+        self.joints = [] if self.tree is None else self._create_joints(scenario)
         if scenario.ground is not None:
             self._create_ground()
         self._create_springs()
@@ -219,6 +235,11 @@ class DrakeAdapter:
         with quiet_drake():
             plant.Finalize()
             self._filter_pairs(scene_graph, pair_geometry)
+            self.filtered_pairs = (
+                0
+                if self.tree is None
+                else filter_jointed_pairs(scene_graph, self.tree, self.geometry)
+            )
             self.diagram = builder.Build()
             self.simulator = Simulator(self.diagram)
         self.context = self.plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
@@ -254,6 +275,11 @@ class DrakeAdapter:
         found = plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
         self.geometry[index] = (body, RigidTransform(), shape, found)
         return body
+
+    def _create_joints(self, scenario: Scenario) -> list:
+        """The joint tree's joints (``joints.add_joints``) with the stated limits."""
+        limits = {j.name: tuple(j.limits) for j in scenario.joints if j.limits is not None}
+        return add_joints(self.plant, self.tree, self.bodies, scenario.gravity, limits)
 
     def _inertia(self, index: int) -> np.ndarray:
         """(3, 3) kg·m², body frame, about the centre of mass: the compiled scene's."""
@@ -329,22 +355,33 @@ class DrakeAdapter:
         )
 
     def _index_state(self) -> None:
+        """The moving bodies, the free ones among them (all of them without joints; with joints
+        the bodies that are no joint's child) and where each free body's q and v sit."""
         moving = dynamic_bodies(self.scene)
         positions = self.plant.num_positions()
         self.moving = moving
+        self.free = (
+            moving
+            if self.tree is None
+            else np.array([j.child for j in self.tree.joints if j.type == "free"], dtype=int)
+        )
         self.position_index = np.array(
-            [np.arange(7) + self.bodies[k].floating_positions_start() for k in moving], dtype=int
+            [np.arange(7) + self.bodies[k].floating_positions_start() for k in self.free],
+            dtype=int,
         ).reshape(-1, 7)
         self.velocity_index = np.array(
             [
                 np.arange(6) + positions + self.bodies[k].floating_velocities_start_in_v()
-                for k in moving
+                for k in self.free
             ],
             dtype=int,
         ).reshape(-1, 6)
 
     def _set_start(self, scenario: Scenario) -> None:
-        for k in self.moving:
+        """The free bodies' stated poses and velocities; with joints, every generalized
+        velocity from the stated body velocities (``joints.joint_velocities``; each joint's
+        coordinates are 0 at the stated poses)."""
+        for k in self.free:
             spec, body = scenario.bodies[k], self.bodies[k]
             self.plant.SetFreeBodyPose(self.context, body, pose(spec.position, spec.orientation))
             self.plant.SetFreeBodySpatialVelocity(
@@ -354,6 +391,12 @@ class DrakeAdapter:
                     np.asarray(spec.angular_velocity, dtype=float),
                     np.asarray(spec.velocity, dtype=float),
                 ),
+            )
+        if self.tree is not None:
+            stated = [(b.velocity, b.angular_velocity) for b in scenario.bodies]
+            self.plant.SetVelocities(
+                self.context,
+                joint_velocities(self.plant, self.context, self.bodies, self.moving, stated),
             )
         self._fixed_pose = (
             np.array([b.position for b in scenario.bodies], dtype=float).reshape(-1, 3),
@@ -456,7 +499,7 @@ class DrakeAdapter:
         """``steps`` advances of one dt, the raw state read after each, converted at the end;
         fewer when Drake refuses to go on from a non-finite state (its SceneGraph raises on a
         NaN pose, with a per-process source id in the message): the states up to that one."""
-        raw = np.empty((steps, self.position_index.shape[0], 13))
+        raw = np.empty((steps, self.plant.num_multibody_states()))
         for k in range(steps):
             try:
                 self.advance(1)
@@ -474,24 +517,28 @@ class DrakeAdapter:
     # -- reading back ----------------------------------------------------------------------
 
     def _raw_state(self) -> np.ndarray:
-        """(d, 13) of the moving bodies: position, quaternion w x y z, velocity, world ω."""
-        x = self.plant.GetPositionsAndVelocities(self.context)
-        q = x[self.position_index]
-        v = x[self.velocity_index]
-        return np.concatenate([q[:, 4:7], q[:, 0:4], v[:, 3:6], v[:, 0:3]], axis=1)
+        """(nq + nv,) the plant's state: positions, then velocities."""
+        return self.plant.GetPositionsAndVelocities(self.context)
 
     def _states(self, times: np.ndarray, raw: np.ndarray) -> Trajectory:
-        """The scene's conventions for ``raw (s, d, 13)``: every scene body in order, a fixed
-        body at its scene pose and at rest."""
+        """The scene's conventions for raw plant states ``raw (s, nq + nv)``: every scene body
+        in order, a fixed body at its scene pose and at rest; with joints through Drake's own
+        kinematics (``joints.kinematic_states``), else each free body's q (qw qx qy qz x y z)
+        and v (world ω, velocity) read as they are."""
+        if self.tree is not None:
+            return kinematic_states(
+                self.plant, self.bodies, self.moving, times, raw, self._fixed_pose
+            )
         s, n = raw.shape[0], len(self.scenario.bodies)
         pos = np.repeat(self._fixed_pose[0][None], s, axis=0)
         quat = np.repeat(self._fixed_pose[1][None], s, axis=0)
         vel, ang_vel = np.zeros((s, n, 3)), np.zeros((s, n, 3))
-        q = raw[..., 3:7]
-        pos[:, self.moving] = raw[..., 0:3]
-        quat[:, self.moving] = q / np.linalg.norm(q, axis=-1, keepdims=True)
-        vel[:, self.moving] = raw[..., 7:10]
-        ang_vel[:, self.moving] = raw[..., 10:13]
+        q = raw[:, self.position_index]
+        v = raw[:, self.velocity_index]
+        pos[:, self.moving] = q[..., 4:7]
+        quat[:, self.moving] = q[..., 0:4] / np.linalg.norm(q[..., 0:4], axis=-1, keepdims=True)
+        vel[:, self.moving] = v[..., 3:6]
+        ang_vel[:, self.moving] = v[..., 0:3]
         return Trajectory(np.asarray(times, dtype=float), pos, quat, vel, ang_vel)
 
     def observe(self) -> Snapshot:
@@ -543,6 +590,11 @@ class DrakeAdapter:
             angular_momentum=np.asarray(angular, dtype=float),
         )
 
+    def joint_report(self) -> JointReport:
+        """The joints Drake built, at the current state (``joints.joint_report``; the parity
+        gate calls it at t = 0)."""
+        return joint_report(self.plant, self.context, self.scenario, self.tree, self.bodies)
+
     # -- provenance ------------------------------------------------------------------------
 
     def _integrator_settings(self) -> dict[str, object]:
@@ -556,7 +608,8 @@ class DrakeAdapter:
         }
 
     def provenance(self) -> Provenance:
-        """drake's version, the plant's contact settings, the profile and what it set."""
+        """drake's version, the plant's contact settings, the profile and what it set; with
+        joints, Drake's joint types by name and the parent/child pairs collision-filtered."""
         plant = self.plant
         s = self.settings
         settings: dict[str, object] = {
@@ -572,6 +625,9 @@ class DrakeAdapter:
             "applied_spatial_forces": self.loads,
             "force_elements": plant.num_force_elements(),
         }
+        if self.joints:
+            settings["joints"] = {joint.name(): joint.type_name() for joint in self.joints}
+            settings["jointed_pairs_filtered"] = self.filtered_pairs
         if s.profile == CONTINUOUS:
             settings["integration"] = self._integrator_settings()
         return Provenance(

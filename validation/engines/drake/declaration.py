@@ -82,13 +82,22 @@ FEATURES = (
     "springs",
     "loads",
     "friction",
+    "joints",
 )
-"""Every scene feature but ``restitution``: the ground is a ``HalfSpace`` on the world body at
-the scene's pose (tilted too), fixed bodies are collision geometry of the world body, springs
-are ``LinearSpringDamper`` force elements (a rest length of 0, which Drake's element refuses,
-is an isotropic ``LinearBushingRollPitchYaw`` when undamped), constant loads are
-``ExternallyAppliedSpatialForce`` values fixed on the plant's applied spatial force port, and
-friction is ``CoulombFriction`` per geometry (Drake combines a pair by 2μ₁μ₂/(μ₁+μ₂))."""
+"""Every scene feature but ``restitution`` (and ``joint_limits``: ``DISCRETE_FEATURES``): the
+ground is a ``HalfSpace`` on the world body at the scene's pose (tilted too), fixed bodies are
+collision geometry of the world body, springs are ``LinearSpringDamper`` force elements (a rest
+length of 0, which Drake's element refuses, is an isotropic ``LinearBushingRollPitchYaw`` when
+undamped), constant loads are ``ExternallyAppliedSpatialForce`` values fixed on the plant's
+applied spatial force port, friction is ``CoulombFriction`` per geometry (Drake combines a pair
+by 2μ₁μ₂/(μ₁+μ₂)), and joints are Drake's ``RevoluteJoint``, ``PrismaticJoint``,
+``BallRpyJoint`` and ``WeldJoint`` (``validation.engines.drake.joints``)."""
+
+DISCRETE_FEATURES = ("joint_limits",)
+"""Features of the discrete profile only: its SAP solver enforces a hinge's or slider's limits
+as constraints (measured: a pendulum resting on its limit 1.6e-8 rad past it); the continuous
+plant ignores them (the same pendulum swings through to 3.14 rad), so that profile's scenes
+with limits are ``unsupported`` (docs/engines-drake.md 9)."""
 
 OPTIONS = (
     EngineOption(
@@ -156,7 +165,7 @@ def check_settings(settings: dict[str, object]) -> None:
 
 BASE = Capabilities(
     shapes=SHAPES,
-    features=frozenset(FEATURES),
+    features=frozenset({*FEATURES, *DISCRETE_FEATURES}),
     integrators=(DISCRETE_STEPPING, *INTEGRATORS),
     precision="float64",
 )
@@ -167,7 +176,9 @@ def capabilities_for(settings: dict[str, object]) -> Capabilities:
     advance(n) equals n x advance(1) to the stated accuracy."""
     if profile_of(settings) == DISCRETE:
         return Capabilities(
-            shapes=SHAPES, features=frozenset(FEATURES), integrators=(DISCRETE_STEPPING,)
+            shapes=SHAPES,
+            features=frozenset({*FEATURES, *DISCRETE_FEATURES}),
+            integrators=(DISCRETE_STEPPING,),
         )
     return Capabilities(
         shapes=SHAPES,

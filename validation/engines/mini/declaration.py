@@ -10,6 +10,7 @@ from mini_engine.settings import CHOICES, INTEGRATORS, Settings
 from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
+    JOINT_FEATURES,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -65,7 +66,7 @@ DECLARATION = EngineDeclaration(
         if item.name != "dt"
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, "joints"}), integrators=INTEGRATORS
-    ),  # joints by the documented impulse (mini_engine.joints); no limits yet
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}), integrators=INTEGRATORS
+    ),  # joints and their limits by the documented impulse (mini_engine.joints)
     check_settings=_check,
 )

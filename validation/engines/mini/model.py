@@ -84,6 +84,7 @@ def build_mini_model(scenario: Scenario) -> tuple[Model, State]:
             axis=(0.0, 0.0, 0.0) if j.axis is None else j.axis,
             damping=j.damping,
             name=j.name,
+            limits=j.limits,
         )
         for j in scenario.joints
     ]
