@@ -1,5 +1,5 @@
-"""PyBullet's joints (engines.md 2.7): every joint type in a btMultiBody rooted at the world
-and at a floating body against the reference side's joint-space DOP853, the joints held to
+"""PyBullet's joints (engines.md 2.7): every joint type in a btMultiBody rooted at the world,
+at a fixed body and at a floating body against the reference side's joint-space DOP853, the joints held to
 round-off, joint damping as btMultiBody applies it, and a joint's parent and child never in
 contact while every other pair of the scene still is.
 
@@ -101,6 +101,20 @@ def world_root_tree() -> Scenario:
     return moving(scenario, np.array([1.0, 0.0, 0.5, -0.3]))
 
 
+def fixed_root_tree() -> Scenario:
+    """``world_root_tree`` hung from a fixed post instead (the post a fixed base)."""
+    scenario = world_root_tree()
+    post = _box("post", (0.05, 0.05, 0.05), (0.0, 0.0, 2.0), fixed=True)
+    bodies = [type(scenario.bodies[0]).model_validate(post), *scenario.bodies]
+    joints = [
+        joint.model_copy(update={"parent": "post"}) if joint.parent == "world" else joint
+        for joint in scenario.joints
+    ]
+    return scenario.model_copy(
+        update={"name": "pybullet_fixed_root", "bodies": bodies, "joints": joints}
+    )
+
+
 def floating_root_tree() -> Scenario:
     """A free hub thrown up spinning about z, a paddle on a hinge about the hub's y axis."""
     scenario = _scenario(
@@ -167,7 +181,7 @@ def errors_against(motion, trajectory) -> np.ndarray:
     )
 
 
-@pytest.mark.parametrize("build", [world_root_tree, floating_root_tree])
+@pytest.mark.parametrize("build", [world_root_tree, fixed_root_tree, floating_root_tree])
 def test_every_joint_type_follows_the_joint_space_reference_and_holds(build):
     errors = []
     for dt in (DT, DT / 2):
