@@ -100,12 +100,13 @@ ANGLE_TOLERANCE = {
     "mujoco(integrator=RK4)": 2 * SAMPLING,
     "drake": 1e-3,
     "drake(profile=continuous)": 2 * SAMPLING + DRAKE_ACCURACY * AMPLITUDE,
+    "pybullet": 1e-3,
     "rapier": 1e-3 + FLOAT32_ANGLE_FLOOR,
     "rapier(joints=impulse)": 1e-2,
 }
 """rad at T/2 and T. First-order schemes add their phase error over the swing (measured 2.8e-5
-and 6e-5 rad in mini at dt = 1 ms, 4.3e-6 in Drake's discrete plant; the energy error, 1e-3 of
-the scale, bounds the period's); RK4 adds O(dt⁴), far below the sampling; Drake's
+and 6e-5 rad in mini at dt = 1 ms, 4.3e-6 in Drake's discrete plant, 4.3e-6 and 6.6e-7 in
+PyBullet's btMultiBody; the energy error, 1e-3 of the scale, bounds the period's); RK4 adds O(dt⁴), far below the sampling; Drake's
 error-controlled RK3 holds each step's error to its accuracy relative to the swing (measured
 1.3e-6). Rapier's multibody (symplectic Euler substeps in float32) takes the first-order bound
 plus its float32 floor (measured 3.3e-6 and 1.5e-6 rad). Rapier's impulse joints are an engine
@@ -205,11 +206,12 @@ POSITION_TOLERANCE = {
     "mini": 5e-3,
     "drake": 5e-3,
     "drake(profile=continuous)": DRAKE_ACCURACY * 0.6,
+    "pybullet": 5e-3,
     "rapier": 5e-3 + FLOAT32_POSITION_FLOOR,
     "rapier(joints=impulse)": 2.5e-2,
 }
 """m over 1 s against the reference's DOP853: first-order schemes drift by O(dt)·|a|·t
-(~|g|·1 s·1 ms = 1e-2 at most; measured below 5e-3, Drake's discrete 1.5e-3), RK4 by O(dt⁴),
+(~|g|·1 s·1 ms = 1e-2 at most; measured below 5e-3, Drake's discrete 1.5e-3, PyBullet 1.5e-3), RK4 by O(dt⁴),
 Drake's RK3 by its accuracy relative to the 0.6 m arm (measured 1.7e-8). Rapier's multibody: the
 first-order bound plus its float32 floor (measured 3.8e-4 m). Rapier's impulse joints: an engine
 finding at its measured size, 2.0e-2 m (they dissipate, engines-rapier.md 9)."""

@@ -26,6 +26,11 @@ Profiles (``ENGINE_OPTIONS["pybullet"]``):
 - ``defaults``: what a new user gets (a btMultiBody with Bullet's damping, clamps and
   contact settings), with the scene's masses, inertias, gravity, dt and contact values,
   on a ``GEOM_PLANE`` ground.
+
+Joints (engines.md 2.5): a scene's joint tree becomes one btMultiBody per tree (``trees``),
+whatever the ``bodies`` option; its bodies' states are read from PyBullet's own kinematics
+(``getLinkState``) and its joint velocities set from the stated body velocities through them.
+A scene without joints takes the path above untouched.
 """
 
 from __future__ import annotations
@@ -39,10 +44,12 @@ from types import ModuleType
 
 import numpy as np
 
-from validation.engines.base import ModelReport, Provenance, Snapshot, Trajectory
-from validation.engines.frames import principal_axes
+from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
+from validation.engines.frames import matrix_to_quat, principal_axes
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
+from validation.engines.pybullet.trees import BASE, Tree, plan_trees
 from validation.engines.reference import dynamic_bodies
+from validation.reference.articulated import WORLD
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import BodySpec, Scenario
@@ -92,10 +99,10 @@ shallower than this (default −0.04: only deeper than 4 cm). A large positive v
 splits, so penetration recovery never adds bounce velocity (engines.md 2.4 recipe)."""
 
 MULTIBODY_CONTACT_ERP = 0.0
-"""Matched profile with ``bodies=multibody``: btMultiBody ignores split impulse (engines.md
-2.4 [SRC]); its penetration recovery adds ≈0.08·depth/dt of bounce (up to +8 % in e). 0
-removes it (engines.md 2.4: cbt 1e-6 + contactERP 0 gave e = 0.498–0.502 and 1.002–1.005),
-as the scene's default ``position_correction: none`` does."""
+"""Matched profile with ``bodies=multibody`` or a joint tree (engines.md 2.5): btMultiBody
+ignores split impulse (engines.md 2.4 [SRC]); its penetration recovery adds ≈0.08·depth/dt of
+bounce (up to +8 % in e). 0 removes it (engines.md 2.4: cbt 1e-6 + contactERP 0 gave e =
+0.498–0.502 and 1.002–1.005), as the scene's default ``position_correction: none`` does."""
 
 MAX_JOINT_VELOCITY = 1e4
 """rad/s and m/s. btMultiBody clamps every base velocity component to ±100 even in free
@@ -276,6 +283,41 @@ SHAPE_KEYWORDS = {
 }
 """Scene shape type -> ``createCollisionShape`` keywords (same size conventions)."""
 
+PYBULLET_JOINT_TYPES = {
+    "hinge": pybullet.JOINT_REVOLUTE,
+    "slider": pybullet.JOINT_PRISMATIC,
+    "ball": pybullet.JOINT_SPHERICAL,
+    "fixed": pybullet.JOINT_FIXED,
+}
+"""Scene joint type -> PyBullet's link joint type (engines.md 2.5)."""
+
+JOINT_WORDS = {code: word for word, code in PYBULLET_JOINT_TYPES.items()}
+"""PyBullet's joint type -> the scene's word (``joint_report``)."""
+
+JOINT_DOFS = {"hinge": 1, "slider": 1, "ball": 3, "fixed": 0}
+"""Velocity coordinates of each joint type (``resetJointStateMultiDof``'s ``targetVelocity``)."""
+
+FLOATING_BASE_DOFS = 6
+"""A floating base's velocity coordinates: v and ω, world frame (``resetBaseVelocity``)."""
+
+JOINT_REST = {"hinge": [0.0], "slider": [0.0], "ball": [0.0, 0.0, 0.0, 1.0], "fixed": []}
+"""Each joint type's position at the scene's t = 0 (``targetValue``; a quaternion x y z w)."""
+
+JOINT_LIMIT_FORCE = 1e12
+"""N or N·m: the joint limit constraint's largest force (``jointLimitForce``). Bullet's default
+is too small to stop heavy bodies: a 1000 kg·m² wheel at 10 rad/s ran 0.5 rad past a 0.2 rad
+limit with it, and stopped at the limit with this (engines.md 2.5)."""
+
+JOINTS_NOTE = (
+    "joints: one btMultiBody per tree (Featherstone, reduced coordinates) whatever the bodies "
+    "option says (it sets the free bodies' mode); joint damping is btMultiBody's jointDamping, "
+    "an explicit torque -c·q̇ from the step's start velocity; PyBullet's default joint motors "
+    "are switched off; a joint's parent and child never collide (URDF_USE_SELF_COLLISION), "
+    "every other pair does; the world takes the multibody settings (contactERP 0), so maximal "
+    "free bodies do not push out of overlaps (engines.md 2.5)"
+)
+"""The provenance note of a scene with joints."""
+
 # --- frames ---------------------------------------------------------------------------------
 
 
@@ -305,7 +347,10 @@ class PybulletAdapter:
 
     Attributes (after ``load``):
         client: the PyBullet physics client id (pass it as ``physicsClientId``).
-        ids: (n,) PyBullet body ids of the scene's bodies, scenario order.
+        ids: (n,) PyBullet body ids of the scene's bodies, scenario order (a jointed body's
+            is its tree's multibody).
+        links: (n,) each body's link index in its multibody (-1: a base, every unjointed body).
+        trees: the scene's multibodies (``trees.plan_trees``; empty without joints).
         ground: PyBullet body id of the ground plane, or None.
     """
 
@@ -330,12 +375,22 @@ class PybulletAdapter:
         self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
+        self.trees = [] if scene.joint_tree is None else plan_trees(scene.joint_tree)
         self._set_up_world(scenario)
-        self.ids = [self._create_body(spec) for spec in scenario.bodies]
+        jointed = {body for tree in self.trees for body in tree.bodies}
+        self.ids = [
+            -1 if k in jointed else self._create_body(spec)
+            for k, spec in enumerate(scenario.bodies)
+        ]
+        self.links = [BASE] * len(self.ids)
+        for tree in self.trees:
+            self._create_tree(tree)
         self.ground = self._create_ground() if scenario.ground else None
         self._set_contact_values(scenario)
         self._filter_pairs(scenario)
         self._set_up_loads(scenario)
+        if self.trees:
+            self._set_joint_velocities(scenario)
 
     def _world_parameters(self, scenario: Scenario) -> dict[str, float | int]:
         parameters: dict[str, float | int] = {
@@ -344,7 +399,7 @@ class PybulletAdapter:
             "contactBreakingThreshold": self.profile.contact_breaking_threshold,
             **self.profile.world,
         }
-        if self.bodies_mode == "multibody":
+        if self.bodies_mode == "multibody" or self.trees:
             parameters.update(self.profile.multibody_world)
         if self.solver_iterations is not None:
             parameters["numSolverIterations"] = int(self.solver_iterations)
@@ -358,9 +413,7 @@ class PybulletAdapter:
     def _create_body(self, spec: BodySpec) -> int:
         """One scene body; its base pose is the COM with the principal axes (module docstring)."""
         moments, q_principal = principal_axes(body_inertia(spec))
-        shape = pybullet.createCollisionShape(
-            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), physicsClientId=self.client
-        )
+        shape = self._collision_shape(spec)
         body = pybullet.createMultiBody(
             baseMass=0.0 if spec.fixed else spec.mass,
             baseCollisionShapeIndex=shape,
@@ -381,21 +434,194 @@ class PybulletAdapter:
             )
         return body
 
-    def _set_mass_properties(self, body: int, mass: float, moments: np.ndarray) -> None:
+    def _collision_shape(self, spec: BodySpec, centre: np.ndarray | None = None) -> int:
+        """The body's shape; a link's placed at its ``centre`` in the link frame (PyBullet
+        puts a link's shape at the link frame's origin, the joint, engines.md 2.5)."""
+        placed = {} if centre is None else {"collisionFramePosition": centre.tolist()}
+        return pybullet.createCollisionShape(
+            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), **placed, physicsClientId=self.client
+        )
+
+    def _set_mass_properties(
+        self, body: int, mass: float, moments: np.ndarray, link: int = BASE
+    ) -> None:
         """Mass and principal moments in one call (engines.md 2.1: mass alone recomputes the
-        inertia from the shape; a diagonal alone zeroes a maximal body's mass); then the
-        profile's damping and velocity clamp."""
+        inertia from the shape; a diagonal alone zeroes a maximal body's mass); with a base's,
+        the profile's damping and velocity clamp (``_multibody_settings``: the whole
+        multibody's). A link's go alone: with any multibody-wide keyword in the call,
+        PyBullet gives the mass and moments to the base instead (engines.md 2.5)."""
+        extra = self._multibody_settings() if link == BASE else {}
+        pybullet.changeDynamics(
+            body,
+            link,
+            mass=mass,
+            localInertiaDiagonal=[float(m) for m in moments],
+            **extra,
+            physicsClientId=self.client,
+        )
+
+    def _multibody_settings(self) -> dict[str, float]:
+        """The profile's damping and velocity clamp, ``changeDynamics`` keywords."""
         extra: dict[str, float] = {}
         if self.profile.zero_damping:
             extra.update(linearDamping=0.0, angularDamping=0.0)
         if self.profile.lift_velocity_clamp:
             extra["maxJointVelocity"] = MAX_JOINT_VELOCITY
+        return extra
+
+    def _create_tree(self, tree: Tree) -> None:
+        """One multibody of ``trees.plan_trees`` (Featherstone, reduced coordinates): the base
+        (the world's massless, shapeless fixed base, or the root body: fixed massless, or
+        floating), then a link per jointed body at the frames of ``trees``'s docstring, each
+        with its mass, principal moments and joint damping and with PyBullet's default joint
+        motor switched off (engines.md 2.5). ``URDF_USE_SELF_COLLISION``: the tree's bodies
+        collide with each other except a joint's parent and child."""
+        bodies = self.scenario.bodies
+        root = None if tree.root == WORLD else bodies[tree.root]
+        base = {"baseMass": 0.0, "baseCollisionShapeIndex": -1}
+        if root is not None:
+            base = {
+                "baseMass": 0.0 if root.fixed else root.mass,
+                "baseCollisionShapeIndex": self._collision_shape(root),
+                "basePosition": list(root.position),
+                "baseOrientation": to_xyzw(np.asarray(root.orientation)),
+                "baseInertialFrameOrientation": to_xyzw(principal_axes(body_inertia(root))[1]),
+            }
+        specs = [bodies[link.body] for link in tree.links]
+        multibody = pybullet.createMultiBody(
+            **base,
+            linkMasses=[spec.mass for spec in specs],
+            linkCollisionShapeIndices=[
+                self._collision_shape(spec, link.centre)
+                for link, spec in zip(tree.links, specs, strict=True)
+            ],
+            linkVisualShapeIndices=[-1] * len(specs),
+            linkPositions=[link.position.tolist() for link in tree.links],
+            linkOrientations=[to_xyzw(matrix_to_quat(link.rotation)) for link in tree.links],
+            linkInertialFramePositions=[link.centre.tolist() for link in tree.links],
+            linkInertialFrameOrientations=[
+                to_xyzw(principal_axes(body_inertia(spec))[1]) for spec in specs
+            ],
+            linkParentIndices=[link.parent + 1 for link in tree.links],  # 0 is the base
+            linkJointTypes=[PYBULLET_JOINT_TYPES[link.type] for link in tree.links],
+            linkJointAxis=[link.axis.tolist() for link in tree.links],
+            flags=pybullet.URDF_USE_SELF_COLLISION,
+            physicsClientId=self.client,
+        )
+        if root is not None:
+            self.ids[tree.root] = multibody
+        if root is not None and not root.fixed:
+            moments = principal_axes(body_inertia(root))[0]
+            self._set_mass_properties(multibody, root.mass, moments)
+        else:
+            pybullet.changeDynamics(
+                multibody, BASE, **self._multibody_settings(), physicsClientId=self.client
+            )
+        for k, (link, spec) in enumerate(zip(tree.links, specs, strict=True)):
+            self.ids[link.body], self.links[link.body] = multibody, k
+            self._set_mass_properties(
+                multibody, spec.mass, principal_axes(body_inertia(spec))[0], k
+            )
+            pybullet.changeDynamics(
+                multibody, k, jointDamping=link.damping, physicsClientId=self.client
+            )
+            self._release_motor(multibody, k, link.type)
+            self._set_limits(multibody, k, link.joint)
+
+    def _set_joint_velocities(self, scenario: Scenario) -> None:
+        """The trees' joint velocities (and floating bases') from the bodies' stated
+        velocities, through PyBullet's own kinematics at the initial configuration
+        (``_tree_jacobian``): the least-squares solution of ``J ν = (v, ω)``, exact for the
+        velocities the scene's checks let through (the joints allow them), is set."""
+        moving, jacobian = self._tree_jacobian()
+        stated = np.array(
+            [[*scenario.bodies[b].velocity, *scenario.bodies[b].angular_velocity] for b in moving]
+        ).reshape(-1)
+        self.tree_velocities = np.linalg.lstsq(jacobian, stated, rcond=None)[0]
+        self._set_tree_velocities(self.tree_velocities)
+
+    def _tree_jacobian(self) -> tuple[list[int], np.ndarray]:
+        """(the trees' moving bodies, J (6 per body, velocity coordinates)): column k is every
+        such body's (v, ω), world frame, read back (``_link_state``) with velocity coordinate k
+        (``_set_tree_velocities``) at 1 and the others at 0 (body velocities are linear in
+        them). It leaves the trees' velocities at 0."""
+        bodies = self.scenario.bodies
+        moving = [b for tree in self.trees for b in tree.bodies if not bodies[b].fixed]
+        count = sum(self._velocity_sizes())
+        columns = []
+        for k in range(count):
+            self._set_tree_velocities(np.eye(count)[k])
+            columns.append(np.array(self._raw_state())[moving, 7:13].reshape(-1))
+        self._set_tree_velocities(np.zeros(count))
+        return moving, np.array(columns).reshape(count, -1).T
+
+    def _velocity_sizes(self) -> list[int]:
+        """The trees' velocity blocks in order: a floating base's 6, then each joint's."""
+        sizes = []
+        for tree in self.trees:
+            if tree.root != WORLD and not self.scenario.bodies[tree.root].fixed:
+                sizes.append(FLOATING_BASE_DOFS)
+            sizes += [JOINT_DOFS[link.type] for link in tree.links]
+        return sizes
+
+    def _set_tree_velocities(self, nu: np.ndarray) -> None:
+        """Every tree's velocity coordinates ``nu`` (``_velocity_sizes``' order): a floating
+        base's (v, ω) world frame by ``resetBaseVelocity``, each joint's by
+        ``resetJointStateMultiDof`` at its initial position."""
+        at = 0
+        for tree in self.trees:
+            if tree.root != WORLD and not self.scenario.bodies[tree.root].fixed:
+                base = nu[at : at + FLOATING_BASE_DOFS]
+                pybullet.resetBaseVelocity(
+                    self.ids[tree.root],
+                    linearVelocity=base[:3].tolist(),
+                    angularVelocity=base[3:].tolist(),
+                    physicsClientId=self.client,
+                )
+                at += FLOATING_BASE_DOFS
+            for link in tree.links:
+                size = JOINT_DOFS[link.type]
+                if size:
+                    pybullet.resetJointStateMultiDof(
+                        self.ids[link.body],
+                        self.links[link.body],
+                        targetValue=JOINT_REST[link.type],
+                        targetVelocity=nu[at : at + size].tolist(),
+                        physicsClientId=self.client,
+                    )
+                at += size
+
+    def _set_limits(self, multibody: int, link: int, joint: str) -> None:
+        """The scene joint's ``limits`` (rad or m from t = 0, PyBullet's joint coordinate 0):
+        btMultiBody's joint limit constraint, its impulse unbounded (``JOINT_LIMIT_FORCE``).
+        Measured (engines.md 2.5): an inelastic stop one step late, the limit passed by up to
+        the step's travel and then kept (``erp``, ``contactERP``, ``frictionERP`` 0.2 leave it)."""
+        stated = next(j for j in self.scenario.joints if j.name == joint)
+        if stated.limits is None:
+            return
+        lower, upper = stated.limits
         pybullet.changeDynamics(
-            body,
-            -1,
-            mass=mass,
-            localInertiaDiagonal=[float(m) for m in moments],
-            **extra,
+            multibody,
+            link,
+            jointLowerLimit=float(lower),
+            jointUpperLimit=float(upper),
+            jointLimitForce=JOINT_LIMIT_FORCE,
+            physicsClientId=self.client,
+        )
+
+    def _release_motor(self, multibody: int, link: int, joint_type: str) -> None:
+        """Switch off the velocity motor PyBullet puts on every joint it creates (engines.md
+        2.5: it holds a joint at rest, 1 rad/s -> 0 within a second): a zero-force motor."""
+        if joint_type == "fixed":
+            return
+        dofs = JOINT_DOFS[joint_type]
+        pybullet.setJointMotorControlMultiDof(
+            multibody,
+            link,
+            pybullet.POSITION_CONTROL,  # the one multi-DOF mode every joint type takes
+            targetPosition=JOINT_REST[joint_type],
+            targetVelocity=[0.0] * dofs,
+            force=[0.0] * dofs,
             physicsClientId=self.client,
         )
 
@@ -428,8 +654,10 @@ class PybulletAdapter:
             return {"shape": "GEOM_BOX", "halfExtents": ground_box(self.scene)[1].tolist()}
         return {"shape": "GEOM_PLANE"}
 
-    def _objects(self) -> list[int]:
-        return [*self.ids, *([self.ground] if self.ground is not None else [])]
+    def _objects(self) -> list[tuple[int, int]]:
+        """(PyBullet body id, link index) of each scene body, then of the ground."""
+        ground = [(self.ground, BASE)] if self.ground is not None else []
+        return [*zip(self.ids, self.links, strict=True), *ground]
 
     def _set_contact_values(self, scenario: Scenario) -> None:
         """Per-body restitution and friction whose products are the scene's pair values
@@ -467,10 +695,10 @@ class PybulletAdapter:
                 if quantity == "friction" and t > FRICTION_CAP
             ]
         self.notes += self._contact_notes()
-        for k, body in enumerate(self._objects()):
+        for k, (body, link) in enumerate(self._objects()):
             pybullet.changeDynamics(
                 body,
-                -1,
+                link,
                 restitution=self.contact_values["restitution"][k],
                 lateralFriction=self.contact_values["friction"][k],
                 rollingFriction=0.0,
@@ -510,8 +738,9 @@ class PybulletAdapter:
             if static[i] and static[j]
         ]
         for i, j in self.filtered_pairs:
+            (body_a, link_a), (body_b, link_b) = objects[i], objects[j]
             pybullet.setCollisionFilterPair(
-                objects[i], objects[j], -1, -1, 0, physicsClientId=self.client
+                body_a, body_b, link_a, link_b, 0, physicsClientId=self.client
             )
 
     def _set_up_loads(self, scenario: Scenario) -> None:
@@ -560,7 +789,7 @@ class PybulletAdapter:
         for body in np.flatnonzero(self.loaded):
             pybullet.applyExternalForce(
                 self.ids[body],
-                -1,
+                self.links[body],
                 force[body].tolist(),
                 pos[body].tolist(),
                 pybullet.WORLD_FRAME,
@@ -568,7 +797,7 @@ class PybulletAdapter:
             )
             pybullet.applyExternalTorque(
                 self.ids[body],
-                -1,
+                self.links[body],
                 torque[body].tolist(),
                 pybullet.WORLD_FRAME,
                 physicsClientId=self.client,
@@ -593,7 +822,8 @@ class PybulletAdapter:
         moving = dynamic_bodies(self.scene)
         pos, quat, vel, ang_vel = self._read_state()
         info = [
-            pybullet.getDynamicsInfo(self.ids[i], -1, physicsClientId=self.client) for i in moving
+            pybullet.getDynamicsInfo(self.ids[i], self.links[i], physicsClientId=self.client)
+            for i in moving
         ]
         mass = np.array([item[0] for item in info])
         moments = np.array([item[2] for item in info]).reshape(-1, 3)
@@ -652,15 +882,33 @@ class PybulletAdapter:
         self.steps_taken += 1
 
     def _raw_state(self) -> list[list[float]]:
-        """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω."""
+        """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω
+        (world frame); a link's from PyBullet's own kinematics (``_link_state``)."""
         rows = []
-        for body in self.ids:
+        for body, link in zip(self.ids, self.links, strict=True):
+            if link != BASE:
+                rows.append(self._link_state(body, link))
+                continue
             position, orientation = pybullet.getBasePositionAndOrientation(
                 body, physicsClientId=self.client
             )
             linear, angular = pybullet.getBaseVelocity(body, physicsClientId=self.client)
             rows.append([*position, *orientation, *linear, *angular])
         return rows
+
+    def _link_state(self, body: int, link: int) -> list[float]:
+        """A link's 13 numbers from ``getLinkState`` with forward kinematics and velocities
+        computed from the multibody's current joint state: ``linkWorldPosition`` and
+        ``linkWorldOrientation`` are its inertial frame (the centre of mass with the principal
+        axes, as a base's), ``worldLinkLinearVelocity`` the centre's velocity (engines.md 2.5)."""
+        state = pybullet.getLinkState(
+            body,
+            link,
+            computeLinkVelocity=1,
+            computeForwardKinematics=1,
+            physicsClientId=self.client,
+        )
+        return [*state[0], *state[1], *state[6], *state[7]]
 
     def _states(self, times: np.ndarray, raw: np.ndarray) -> Trajectory:
         """World COM positions, body-frame quaternions w x y z, COM velocities, world ω of
@@ -713,18 +961,130 @@ class PybulletAdapter:
             "contact_misses": self.contact_misses,
             "filtered_pairs": self.filtered_pairs,
         }
+        if self.trees:
+            settings["joint_trees"] = self._tree_settings()
         notes = list(self.notes)
         if self.bodies_mode == "maximal":
             notes.append(
                 "maximal bodies: getDynamicsInfo reports no inertial frame (measured: zeros "
                 "or stale memory); the principal axes passed at load convert orientations"
             )
+        if self.trees:
+            notes.append(JOINTS_NOTE)
         return Provenance(
             engine="pybullet",
             version=importlib.metadata.version("pybullet"),
             settings=settings,
             notes=notes,
         )
+
+    def joint_report(self) -> JointReport:
+        """The joints PyBullet built, read back at the current state (the parity gate's, at
+        t = 0), in the scene's joint order: ``getJointInfo``'s type, its joint point in the
+        parent's inertial frame (``parentFramePos``) and its axis in the child's, turned to the
+        world by the two frames' poses (``getLinkState``, the base's, or the world's for a tree
+        rooted at the world); and M(q0) of the trees (``_mass_matrix``). (A fixed link's
+        ``worldLinkFramePosition`` is float32-rounded, 7e-8 of the scene, engines.md 2.5.)"""
+        types, anchors, axes = [], [], []
+        names = [body.name for body in self.scenario.bodies]
+        pos, quat, _, _ = self._read_state()
+        inertial = quat_to_matrix(quat)
+        for joint in self.scenario.joints:
+            child, parent = names.index(joint.child), self._parent_body(joint.parent)
+            info = pybullet.getJointInfo(
+                self.ids[child], self.links[child], physicsClientId=self.client
+            )
+            origin, frame = (
+                (np.zeros(3), np.eye(3)) if parent is None else (pos[parent], inertial[parent])
+            )
+            types.append(JOINT_WORDS[info[2]])
+            anchors.append(origin + frame @ np.asarray(info[14]))
+            has_axis = joint.type in ("hinge", "slider")
+            axes.append(inertial[child] @ np.asarray(info[13]) if has_axis else np.zeros(3))
+        return JointReport(tuple(types), np.array(anchors), np.array(axes), self._mass_matrix())
+
+    def _parent_body(self, name: str) -> int | None:
+        """The scene index of a joint's parent body; None for the world."""
+        names = [body.name for body in self.scenario.bodies]
+        return names.index(name) if name in names else None
+
+    def _mass_matrix(self) -> np.ndarray:
+        """M(q0) in the joint tree's coordinates (``CompiledScene.joint_tree``'s ν) as
+        PyBullet's forward dynamics holds it: the kinetic energy's matrix Σ Jᵀ diag(m, I) J of
+        the trees' bodies as PyBullet moves them (``_tree_jacobian``, each body's mass and
+        principal moments from ``getDynamicsInfo`` in its inertial frame), a ball's coordinates
+        (its spin relative to its parent in the child's inertial frame) carried to the tree's
+        (the parent's frame); a free body in no tree adds its mass and world inertia. Read at
+        load (the parity gate's t = 0: the probing restores the velocities set then).
+        ``calculateMassMatrix`` is not used: it drops a ball joint's child offset from the
+        joints above it (engines.md 2.5)."""
+        tree = self.scene.joint_tree
+        matrix = np.zeros((tree.nv, tree.nv))
+        quat = self._read_state()[1]
+        inertial = quat_to_matrix(quat)
+        slices = {joint.child: joint.v_slice for joint in tree.joints}
+        in_trees = {body for plan in self.trees for body in plan.bodies}
+        for root in [j.child for j in tree.joints if j.type == "free" and j.child not in in_trees]:
+            mass, world = self._world_inertia(root, inertial)
+            block = np.block([[mass * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), world]])
+            matrix[slices[root], slices[root]] = block
+        moving, jacobian = self._tree_jacobian()
+        self._set_tree_velocities(self.tree_velocities)
+        own = np.zeros((jacobian.shape[1], jacobian.shape[1]))
+        for k, body in enumerate(moving):
+            mass, world = self._world_inertia(body, inertial)
+            linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
+            own += mass * linear.T @ linear + angular.T @ world @ angular
+        change = self._tree_coordinates(inertial, quat_to_matrix(self._body_quat(quat)))
+        return matrix + change.T @ own @ change
+
+    def _world_inertia(self, body: int, inertial: np.ndarray) -> tuple[float, np.ndarray]:
+        """A body's mass and world inertia as PyBullet holds them (``getDynamicsInfo``)."""
+        info = pybullet.getDynamicsInfo(
+            self.ids[body], self.links[body], physicsClientId=self.client
+        )
+        return info[0], inertial[body] @ np.diag(info[2]) @ inertial[body].T
+
+    def _tree_coordinates(self, inertial: np.ndarray, body_rot: np.ndarray) -> np.ndarray:
+        """T (the trees' velocity coordinates, the tree's ν): a floating base's (v, ω) and a
+        hinge's or slider's rate as they are; a ball's parent-frame spin into its child's
+        inertial frame, ``R_Cᵀ R_P``."""
+        tree = self.scene.joint_tree
+        slices = {joint.child: joint.v_slice for joint in tree.joints}
+        change = np.zeros((sum(self._velocity_sizes()), tree.nv))
+        at = 0
+        for plan in self.trees:
+            if plan.root != WORLD and not self.scenario.bodies[plan.root].fixed:
+                change[at : at + FLOATING_BASE_DOFS, slices[plan.root]] = np.eye(6)
+                at += FLOATING_BASE_DOFS
+            for link in plan.links:
+                size = JOINT_DOFS[link.type]
+                block = np.eye(size)
+                if link.type == "ball":
+                    parent = plan.root if link.parent == BASE else plan.links[link.parent].body
+                    turn = np.eye(3) if parent == WORLD else body_rot[parent]
+                    block = inertial[link.body].T @ turn
+                change[at : at + size, slices[link.body]] = block
+                at += size
+        return change
+
+    def _tree_settings(self) -> list[dict[str, object]]:
+        """Each multibody (provenance): its base and each link's body, joint, parent, damping
+        and limits."""
+        names = [body.name for body in self.scenario.bodies]
+        limits = {joint.name: joint.limits for joint in self.scenario.joints}
+        return [
+            {
+                "base": "world" if tree.root == WORLD else names[tree.root],
+                "links": [
+                    {"body": names[link.body], "joint": link.joint, "type": link.type,
+                     "parent_link": link.parent, "jointDamping": link.damping,
+                     "limits": limits[link.joint]}
+                    for link in tree.links
+                ],
+            }
+            for tree in self.trees
+        ]  # fmt: skip
 
     def close(self) -> None:
         """Disconnect this adapter's client (idempotent)."""

@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from validation.engine_api import API_VERSION, Capabilities, Count, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    BASE_FEATURES,
+    JOINT_FEATURES,
+    Capabilities,
+    Count,
+    EngineDeclaration,
+    EngineOption,
+)
 
 DECLARATION = EngineDeclaration(
     name="pybullet",
@@ -21,7 +29,8 @@ DECLARATION = EngineDeclaration(
         EngineOption(
             "bodies",
             str,
-            "btRigidBody (maximal) or btMultiBody; unset: maximal when matched, else multibody",
+            "btRigidBody (maximal) or btMultiBody; unset: maximal when matched, else multibody "
+            "(jointed bodies: always a btMultiBody per tree)",
             ("maximal", "multibody"),
         ),
         EngineOption(
@@ -33,5 +42,8 @@ DECLARATION = EngineDeclaration(
             20,
         ),
     ),
-    capabilities=Capabilities(integrators=("semi_implicit_euler",)),
+    capabilities=Capabilities(
+        integrators=("semi_implicit_euler",),
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}),
+    ),
 )
