@@ -311,3 +311,44 @@ def test_stability_finds_each_engines_largest_stable_step_on_the_stiff_chain(tmp
     row = pd.read_csv(out).iloc[0]
     assert row["status"] == "ok" and row["stable_dt"] < row["unstable_dt"], row.to_dict()
     assert row["unstable_dt"] - row["stable_dt"] < 0.02 * row["stable_dt"], row.to_dict()
+
+
+def test_the_joint_violation_row_is_the_worst_step_of_every_joint():
+    """The ``joint_violation`` row of mini's double pendulum (a maximal-coordinate engine, whose
+    joints drift) is the largest over every recorded step of each joint's anchor separation or
+    misalignment times its child's reach, read from the bodies' poses alone."""
+    from validation.measure.metrics import Context, joint_violation
+
+    scenario = double_pendulum(["mini"])
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec("mini"), keep="states")
+    assert run.status == "ok", run.message
+    row = joint_violation(Context(scene, run.recording))
+    trajectory = run.recording.trajectory
+    separation, misalignment, reach = joint_violations(
+        scene.joint_tree, trajectory.pos, quat_to_matrix(trajectory.quat)
+    )
+    worst = float(np.maximum(separation, misalignment * reach).max())
+    assert worst > 1e-8, worst  # mini's joints do drift here: the row can see it
+    assert math.isclose(row.value, worst, rel_tol=1e-12), (row.value, worst)
+
+
+def test_a_hinge_tilted_off_its_axis_about_its_anchor_reads_as_its_reach_times_the_angle():
+    """The compound pendulum's bar turned 1e-3 rad about x (off the hinge's y) about the pivot:
+    the anchor stays put, so the whole violation is the misalignment times the bar's reach."""
+    from validation.engines.base import Trajectory
+    from validation.measure.states import joint_violation as violation_of
+
+    scene = compile_scene(compound_pendulum(["mini"], duration=0.1))
+    start = scene.start
+    tilt = 1e-3
+    turn = np.array([math.cos(tilt / 2), math.sin(tilt / 2), 0.0, 0.0])
+    from validation.reference.rotation import quat_multiply
+
+    pivot = np.array(PIVOT)
+    arm = start.pos[0, 0] - pivot
+    pos = (pivot + quat_to_matrix(turn) @ arm)[None, None]
+    quat = quat_multiply(turn, start.quat[0, 0])[None, None]
+    still = np.zeros((1, 1, 3))
+    moved = Trajectory(np.zeros(1), pos, quat, still, still)
+    assert math.isclose(float(violation_of(scene, moved)[0]), tilt * BAR_HALF, rel_tol=1e-6)
