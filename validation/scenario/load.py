@@ -35,6 +35,7 @@ from validation.scenario.problems import (
 from validation.scenario.schema import (
     Scenario,
 )
+from validation.scenario.urdf import expand_models
 from validation.scenario.yaml_source import (
     BYTES_PER_VALUE,
     MAX_BYTES,
@@ -63,6 +64,12 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     data = {**data, "source": file}
     if data.get("name") is None:
         data["name"] = path.stem
+    data, found = expand_models(data, path)
+    if found:
+        return None, [
+            Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)))
+            for loc, message in found
+        ]
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:

@@ -69,7 +69,12 @@ NonNegative = Annotated[float, Strict(), AllowInfNan(False), Field(ge=0)]
 UnitInterval = Annotated[float, Strict(), AllowInfNan(False), Field(ge=0, le=1)]
 Vec3 = tuple[Finite, Finite, Finite]
 PositiveVec3 = tuple[Positive, Positive, Positive]
-Name = Annotated[str, Strict(), Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")]
+Word = Annotated[str, Strict(), Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")]
+"""A scene's or model's name: letters, digits, ``_ . -``."""
+Name = Annotated[
+    str, Strict(), Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)?$")
+]
+"""A body's or joint's name: a ``Word``, or ``<model>/<word>`` for a model's (``ModelSpec``)."""
 
 
 class _Strict(BaseModel):
@@ -276,6 +281,42 @@ class JointSpec(_Strict):
                 f"starts at 0, inside them); got {list(value)}"
             )
         return value
+
+
+class ModelSpec(_Strict):
+    """A robot model read from a URDF file and expanded, at load, into the scene's bodies and
+    joints (``validation/scenario/urdf.py``), each named ``<name>/<link or joint>``."""
+
+    name: Word = Field(
+        description="the prefix of its bodies and joints: arm/link3, arm/joint2"
+    )
+    file: Annotated[str, Strict(), Field(min_length=1)] = Field(
+        description="a URDF: a path relative to the scene, or pkg:PACKAGE/path inside an "
+        "installed Python package"
+    )
+    position: Vec3 = Field(default=(0.0, 0.0, 0.0), description="m, the model's base in the world")
+    orientation: tuple[Finite, Finite, Finite, Finite] = Field(
+        default=(1.0, 0.0, 0.0, 0.0), description="unit quaternion w x y z, base to world"
+    )
+    fixed_base: Annotated[bool, Strict()] = Field(
+        default=True, description="true: the root link is fixed to the world; false: free"
+    )
+    joint_positions: dict[str, Finite] = Field(
+        default={}, description="rad or m at t = 0, by prefixed joint name; others 0"
+    )
+    joint_velocities: dict[str, Finite] = Field(
+        default={}, description="rad/s or m/s at t = 0, by prefixed joint name; others 0"
+    )
+    collisions: Annotated[bool, Strict()] = Field(
+        default=False,
+        description="true: the model's collision shapes take part in contacts (not read yet: "
+        "refused)",
+    )
+
+    @field_validator("orientation")
+    @classmethod
+    def _unit_quaternion(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        return BodySpec._unit_quaternion(value)
 
 
 class PairSpec(_Strict):
@@ -512,7 +553,7 @@ class Scenario(_Strict):
     """A scene, version 1. Defaults are the documented ones below each field."""
 
     version: Literal[1] = FORMAT_VERSION
-    name: Name | None = Field(default=None, description="default: the file name without .yaml")
+    name: Word | None = Field(default=None, description="default: the file name without .yaml")
     description: str = Field(default="", description="what the scene stresses and why")
     dt: Positive = Field(description="s, the fixed step")
     duration: Positive = Field(description="s, >= dt")
@@ -529,6 +570,10 @@ class Scenario(_Strict):
     springs: list[SpringSpec] = []
     joints: list[JointSpec] = Field(
         default=[], description="joints between bodies, or a body and the world (a tree)"
+    )
+    models: list[ModelSpec] = Field(
+        default=[],
+        description="robot models (URDF) whose links and joints join bodies and joints at load",
     )
     pairs: list[PairSpec] = Field(default=[], description="per-pair restitution/friction overrides")
     expect: list[Expectation] = Field(default=[], description="analytic expectations")
