@@ -37,7 +37,6 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import ValidationError
-from scipy.spatial.transform import Rotation
 
 from validation.scenario.schema import ModelSpec
 
@@ -119,6 +118,14 @@ class Robot:
     children: dict[str, list[Joint]] = field(default_factory=dict)
 
 
+def _rotation():
+    """SciPy's ``Rotation``, imported when a model is read (``physval check`` of a scene
+    without models loads no SciPy: ``tests/test_architecture.py``)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
+
+
 # --- reading ------------------------------------------------------------------------------
 
 
@@ -136,7 +143,7 @@ def _origin(element: ElementTree.Element | None) -> Frame:
     if origin is None:
         return IDENTITY
     rpy = _numbers(origin.get("rpy"), 3)
-    return Frame(Rotation.from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3))
+    return Frame(_rotation().from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3))
 
 
 def _link(element: ElementTree.Element) -> Link:
@@ -222,7 +229,7 @@ def model_path(file: str, scene: Path) -> Path:
 def _motion(joint: Joint, q: float) -> Frame:
     """The child link's frame in the joint frame at coordinate ``q``."""
     if JOINT_KINDS[joint.kind] == "hinge":
-        return Frame(Rotation.from_rotvec(joint.axis * q).as_matrix(), np.zeros(3))
+        return Frame(_rotation().from_rotvec(joint.axis * q).as_matrix(), np.zeros(3))
     if JOINT_KINDS[joint.kind] == "slider":
         return Frame(np.eye(3), joint.axis * q)
     return IDENTITY
@@ -239,7 +246,7 @@ class _Placed:
 
 
 def _quaternion(rotation: np.ndarray) -> list[float]:
-    x, y, z, w = Rotation.from_matrix(rotation).as_quat()
+    x, y, z, w = _rotation().from_matrix(rotation).as_quat()
     return [float(w), float(x), float(y), float(z)]
 
 
@@ -256,7 +263,7 @@ class _Expansion:
 
     def run(self) -> None:
         base = Frame(
-            Rotation.from_quat(
+            _rotation().from_quat(
                 [*self.model.orientation[1:], self.model.orientation[0]]
             ).as_matrix(),
             np.array(self.model.position, dtype=float),
