@@ -228,6 +228,7 @@ def test_every_loader_refusal_is_one_line_at_its_field(tmp_path, case):
         load_scenario(write_scene(tmp_path, fields))
     (problem,) = raised.value.problems
     assert problem.path == where and what in problem.message, str(problem)
+    assert problem.line is not None, str(problem)  # placed at its line of the scene file
     assert "\n" not in str(problem)
 
 
@@ -235,3 +236,10 @@ def test_a_model_refusal_exits_2_from_physval_check(tmp_path, capsys):
     path = write_scene(tmp_path, {"file": "nowhere.urdf"})
     assert main(["check", str(path)]) == 2
     assert "models[0].file: no such file" in capsys.readouterr().err
+
+
+def test_a_model_the_schema_refuses_is_its_only_problem(tmp_path):
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(write_scene(tmp_path, {"orientation": (2.0, 0.0, 0.0, 0.0)}))
+    (problem,) = raised.value.problems
+    assert problem.path == "models[0].orientation" and problem.line == 7, str(problem)

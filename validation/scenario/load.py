@@ -75,9 +75,16 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     except ValidationError as error:
         problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
         problems = merged(problems) + raw_engine_problems(data, file, source)
+        problems = [p for p in problems if not _filled_by_models(p, data)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
     problems = document_problems(scenario, file, source)
     return (None if any(not p.warning for p in problems) else scenario), problems
+
+
+def _filled_by_models(problem: Problem, data: dict) -> bool:
+    """A missing ``bodies`` in a scene whose ``models`` the schema refused: the models would
+    have given it bodies (their own problems say what to fix)."""
+    return problem.path == "bodies" and "bodies" not in data and bool(data.get("models"))
 
 
 def raw_engine_problems(data: dict, file: str, source: SourceMap) -> list[Problem]:

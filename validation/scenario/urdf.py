@@ -263,9 +263,9 @@ class _Expansion:
 
     def run(self) -> None:
         base = Frame(
-            _rotation().from_quat(
-                [*self.model.orientation[1:], self.model.orientation[0]]
-            ).as_matrix(),
+            _rotation()
+            .from_quat([*self.model.orientation[1:], self.model.orientation[0]])
+            .as_matrix(),
             np.array(self.model.position, dtype=float),
         )
         root = self.robot.links[self.robot.root]
