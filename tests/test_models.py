@@ -243,3 +243,29 @@ def test_a_model_the_schema_refuses_is_its_only_problem(tmp_path):
         load_scenario(write_scene(tmp_path, {"orientation": (2.0, 0.0, 0.0, 0.0)}))
     (problem,) = raised.value.problems
     assert problem.path == "models[0].orientation" and problem.line == 7, str(problem)
+
+
+BROKEN = {
+    "floating": (TWO_LINKS.replace('type="revolute"', 'type="floating"'), "is 'floating'"),
+    "unknown link": (TWO_LINKS.replace('<child link="tip"/>', '<child link="top"/>'), "no link"),
+    "bad number": (TWO_LINKS.replace('value="2"', 'value="two"'), "two"),
+    "not XML": ("<robot", "cannot read"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_urdf_physval_cannot_read_is_one_line_at_file(tmp_path, case):
+    text, what = BROKEN[case]
+    (tmp_path / "two.urdf").write_text(text)
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(write_scene(tmp_path, {"file": "two.urdf"}))
+    (problem,) = raised.value.problems
+    assert problem.path == "models[0].file" and what in problem.message, str(problem)
+    assert "\n" not in str(problem)
+
+
+def test_the_loader_reports_a_models_problem_with_the_files_others(tmp_path):
+    path = write_scene(tmp_path, {"file": "nowhere.urdf"}, extra="gravity: [0, 0]\n")
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    assert sorted(p.path for p in raised.value.problems) == ["gravity[2]", "models[0].file"]

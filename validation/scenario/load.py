@@ -65,25 +65,26 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     if data.get("name") is None:
         data["name"] = path.stem
     data, found = expand_models(data, path)
-    if found:
-        return None, [
-            Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)))
-            for loc, message in found
-        ]
+    model_problems = [
+        Problem(file, path_text(loc), message, *(source.locate(loc) or (None, None)))
+        for loc, message in found
+    ]
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:
         problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
-        problems = merged(problems) + raw_engine_problems(data, file, source)
+        problems = merged(problems) + raw_engine_problems(data, file, source) + model_problems
         problems = [p for p in problems if not _filled_by_models(p, data)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
+    if model_problems:
+        return None, model_problems
     problems = document_problems(scenario, file, source)
     return (None if any(not p.warning for p in problems) else scenario), problems
 
 
 def _filled_by_models(problem: Problem, data: dict) -> bool:
-    """A missing ``bodies`` in a scene whose ``models`` the schema refused: the models would
-    have given it bodies (their own problems say what to fix)."""
+    """A missing ``bodies`` in a scene whose ``models`` were refused: the models would have
+    given it bodies (their own problems say what to fix)."""
     return problem.path == "bodies" and "bodies" not in data and bool(data.get("models"))
 
 

@@ -193,15 +193,21 @@ def read_urdf(path: Path) -> Robot:
     except (OSError, ElementTree.ParseError) as error:
         raise ValueError(f"cannot read {path}: {error}") from None
     try:
-        links = {e.get("name", ""): _link(e) for e in root.iter("link")}
-        joints = [_joint(e) for e in root.iter("joint")]
-    except (AttributeError, TypeError) as error:
-        raise ValueError(f"{path} is not a URDF physval can read: {error}") from None
+        links = {e.get("name", ""): _link(e) for e in root.findall("link")}
+        joints = [_joint(e) for e in root.findall("joint")]
+    except (AttributeError, TypeError, ValueError) as error:
+        raise ValueError(f"{path.name}: {error}") from None
     robot = Robot(links, joints)
-    children = {j.child for j in joints}
+    for joint in joints:
+        unknown = {joint.parent, joint.child} - set(links)
+        if unknown:
+            raise ValueError(f"{path.name}: joint {joint.name!r} names no link {unknown.pop()!r}")
+    children = [j.child for j in joints]
+    if len(children) != len(set(children)):
+        raise ValueError(f"{path.name}: a link is the child of two joints (not a tree)")
     roots = [name for name in links if name not in children]
     if len(roots) != 1:
-        raise ValueError(f"{path}: expected one root link; found {roots}")
+        raise ValueError(f"{path.name}: expected one root link; found {roots}")
     robot.root = roots[0]
     for joint in joints:
         robot.children.setdefault(joint.parent, []).append(joint)
@@ -429,4 +435,6 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
             continue
         bodies += more_bodies
         joints += more_joints
+    if problems:
+        return data, problems  # the scene as written: its own problems are reported with these
     return {**data, "bodies": bodies, "joints": joints}, problems
