@@ -141,27 +141,63 @@ def _multiply(a, b):
     )
 
 
+CHAIN = """<robot name="chain">
+  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
+  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1"/></joint>
+  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
+    <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
+    <limit lower="-0.5" upper="0.5"/></joint>
+</robot>
+"""
+"""A hinge and a slider on an off-axis axis, every origin and inertial frame turned."""
+
+CASES = {
+    "kuka": (KUKA, POSE, RATES),
+    "chain": ("chain.urdf", {"arm/pin": 0.4, "arm/rail": 0.15}, {"arm/pin": -0.8, "arm/rail": 0.6}),
+}
+
+
 @pytest.mark.skipif(bool(not_installed("pybullet")), reason="PyBullet is not installed")
-def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path):
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, case):
     import pybullet as p
 
-    scenario = kuka(tmp_path, joint_velocities=RATES)
+    file, pose, rates = CASES[case]
+    (tmp_path / "chain.urdf").write_text(CHAIN)
+    scenario = kuka(tmp_path, file=file, joint_positions=pose, joint_velocities=rates)
+    bodies = {b.name: b for b in scenario.bodies}
     client = p.connect(p.DIRECT)
     try:
         robot = p.loadURDF(
-            model_path(KUKA, tmp_path / "x.yaml").as_posix(),
+            model_path(file, tmp_path / "x.yaml").as_posix(),
             basePosition=BASE,
             baseOrientation=[*BASE_TURN[1:], BASE_TURN[0]],
             useFixedBase=True,
             physicsClientId=client,
         )
         for index in range(p.getNumJoints(robot, physicsClientId=client)):
-            name = "arm/" + p.getJointInfo(robot, index, physicsClientId=client)[1].decode()
+            info = p.getJointInfo(robot, index, physicsClientId=client)
+            name = "arm/" + info[1].decode()
             p.resetJointState(
-                robot, index, POSE.get(name, 0.0), RATES.get(name, 0.0), physicsClientId=client
+                robot, index, pose.get(name, 0.0), rates.get(name, 0.0), physicsClientId=client
             )
-        for index, body in enumerate(scenario.bodies):
-            state = p.getLinkState(robot, index, computeLinkVelocity=1, physicsClientId=client)
+        for index in range(p.getNumJoints(robot, physicsClientId=client)):
+            info = p.getJointInfo(robot, index, physicsClientId=client)
+            body = bodies["arm/" + info[12].decode()]
+            state = p.getLinkState(
+                robot,
+                index,
+                computeLinkVelocity=1,
+                computeForwardKinematics=1,
+                physicsClientId=client,
+            )
             assert np.allclose(body.position, state[0], atol=KINEMATICS_TOLERANCE, rtol=0), (
                 body.name
             )
@@ -173,6 +209,9 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path):
             assert np.allclose(
                 body.angular_velocity, state[7], atol=KINEMATICS_TOLERANCE, rtol=0
             ), body.name
+        if "arm/base" in bodies:
+            centre, _ = p.getBasePositionAndOrientation(robot, physicsClientId=client)
+            assert np.allclose(bodies["arm/base"].position, centre, atol=KINEMATICS_TOLERANCE)
     finally:
         p.disconnect(client)
 
