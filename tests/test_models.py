@@ -304,6 +304,8 @@ BROKEN = {
     "unknown link": (TWO_LINKS.replace('<child link="tip"/>', '<child link="top"/>'), "no link"),
     "bad number": (TWO_LINKS.replace('value="2"', 'value="two"'), "two"),
     "not XML": ("<robot", "cannot read"),
+    "empty limits": (TWO_LINKS.replace('lower="-1" upper="1"', 'lower="0" upper="0"'), "lower <"),
+    "negative mass": (TWO_LINKS.replace('value="2"', 'value="-2"'), "negative mass"),
 }
 
 
@@ -323,3 +325,13 @@ def test_the_loader_reports_a_models_problem_with_the_files_others(tmp_path):
     with pytest.raises(ScenarioError) as raised:
         load_scenario(path)
     assert sorted(p.path for p in raised.value.problems) == ["gravity[2]", "models[0].file"]
+
+
+def test_two_models_of_one_name_are_refused_at_the_second(tmp_path):
+    path = write_scene(tmp_path, {})
+    text = path.read_text()
+    path.write_text(text + text[text.index("  - name") :])
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    (problem,) = raised.value.problems
+    assert problem.path == "models[1].name" and "unique" in problem.message, str(problem)

@@ -151,6 +151,8 @@ def _link(element: ElementTree.Element) -> Link:
     if inertial is None:
         return Link(element.get("name", ""), IDENTITY, 0.0, np.zeros((3, 3)))
     mass = float(inertial.find("mass").get("value", "0"))
+    if mass < 0:
+        raise ValueError(f"link {element.get('name')!r} has a negative mass {mass}")
     values = inertial.find("inertia")
     get = (lambda key: float(values.get(key, "0"))) if values is not None else (lambda key: 0.0)
     xx, yy, zz, xy, xz, yz = (get(k) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz"))
@@ -173,6 +175,8 @@ def _joint(element: ElementTree.Element) -> Joint:
     limits = None
     if kind in LIMITED_KINDS and limit is not None:
         limits = (float(limit.get("lower", "0")), float(limit.get("upper", "0")))
+        if not limits[0] < limits[1]:
+            raise ValueError(f"joint {name!r} has limits {list(limits)}: expected lower < upper")
     dynamics = element.find("dynamics")
     return Joint(
         name,
@@ -428,6 +432,11 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
     joints = list(data.get("joints") or [])
     problems = []
     for i, model in enumerate(models):
+        if any(other.name == model.name for other in models[:i]):
+            problems.append(
+                (("models", i, "name"), f"expected a unique model name; {model.name!r} is taken")
+            )
+            continue
         try:
             more_bodies, more_joints = expand_model(model, scene)
         except ModelError as error:
