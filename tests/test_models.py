@@ -14,6 +14,7 @@ import pytest
 
 from validation.cli import main
 from validation.measure.runner import run_engine
+from validation.reference.rotation import quat_multiply
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import not_installed, parse_engine_spec
 from validation.scenario.load import load_scenario
@@ -94,54 +95,6 @@ def test_masses_and_inertias_are_the_urdfs(tmp_path):
     )
 
 
-def test_a_fixed_base_with_mass_is_held_by_a_fixed_joint_and_a_free_one_is_not(tmp_path):
-    urdf = tmp_path / "two.urdf"
-    urdf.write_text(TWO_LINKS)
-    fixed = load_scenario(write_scene(tmp_path, {"file": "two.urdf"}))
-    assert [(j.name, j.type, j.parent) for j in fixed.joints] == [
-        ("arm/fixed_base", "fixed", "world"),
-        ("arm/pin", "hinge", "arm/base"),
-    ]
-    free = load_scenario(write_scene(tmp_path, {"file": "two.urdf", "fixed_base": False}))
-    assert [(j.name, j.parent) for j in free.joints] == [("arm/pin", "arm/base")]
-
-
-TWO_LINKS = """<robot name="two">
-  <link name="base"><inertial><origin xyz="0 0 0.1" rpy="0 0 0"/><mass value="2"/>
-    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="tip"><inertial><origin xyz="0.2 0 0" rpy="0 0.7 0"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
-  <joint name="pin" type="revolute"><parent link="base"/><child link="tip"/>
-    <origin xyz="0 0 0.3" rpy="0.3 0 0"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1"/></joint>
-</robot>
-"""
-
-
-def test_a_rotated_inertial_frame_turns_the_body_not_the_inertia(tmp_path):
-    (tmp_path / "two.urdf").write_text(TWO_LINKS)
-    tip = load_scenario(write_scene(tmp_path, {"file": "two.urdf"})).body("arm/tip")
-    assert tip.inertia_matrix[0, 1] == 0.001  # the URDF's matrix, about the inertial axes
-    # the body's orientation: the joint origin's roll 0.3 about x, then the inertial pitch 0.7
-    w, x, y, z = tip.orientation
-    roll, pitch = 0.3, 0.7
-    expected = _multiply(
-        (np.cos(roll / 2), np.sin(roll / 2), 0, 0), (np.cos(pitch / 2), 0, np.sin(pitch / 2), 0)
-    )
-    assert np.allclose((w, x, y, z), expected, atol=1e-12)
-
-
-def _multiply(a, b):
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
 CHAIN = """<robot name="chain">
   <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
     <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
@@ -158,6 +111,37 @@ CHAIN = """<robot name="chain">
 </robot>
 """
 """A hinge and a slider on an off-axis axis, every origin and inertial frame turned."""
+
+
+def test_a_fixed_base_with_mass_is_held_by_a_fixed_joint_and_a_free_one_is_not(tmp_path):
+    (tmp_path / "chain.urdf").write_text(CHAIN)
+    fixed = load_scenario(write_scene(tmp_path, {"file": "chain.urdf"}))
+    assert [(j.name, j.type, j.parent) for j in fixed.joints] == [
+        ("arm/fixed_base", "fixed", "world"),
+        ("arm/pin", "hinge", "arm/base"),
+        ("arm/rail", "slider", "arm/arm"),
+    ]
+    free = load_scenario(write_scene(tmp_path, {"file": "chain.urdf", "fixed_base": False}))
+    assert [j.name for j in free.joints] == ["arm/pin", "arm/rail"]
+
+
+def test_a_rotated_inertial_frame_turns_the_body_not_the_inertia(tmp_path):
+    (tmp_path / "chain.urdf").write_text(CHAIN)
+    arm = load_scenario(write_scene(tmp_path, {"file": "chain.urdf"})).body("arm/arm")
+    assert arm.inertia_matrix[0, 1] == 0.001  # the URDF's matrix, about the inertial axes
+    # the body's orientation: the joint origin's rpy (0.3, 0, 0.5), then the inertial (0, 0.7, 0.1)
+    expected = turn("z", 0.5)
+    for axis, angle in (("x", 0.3), ("z", 0.1), ("y", 0.7)):
+        expected = quat_multiply(expected, turn(axis, angle))
+    assert np.allclose(arm.orientation, expected, atol=1e-12)
+
+
+def turn(axis: str, angle: float) -> np.ndarray:
+    """The unit quaternion (w x y z) of ``angle`` rad about the coordinate ``axis``."""
+    quaternion = np.zeros(4)
+    quaternion[0], quaternion[1 + "xyz".index(axis)] = np.cos(angle / 2), np.sin(angle / 2)
+    return quaternion
+
 
 CASES = {
     "kuka": (KUKA, POSE, RATES),
@@ -300,21 +284,21 @@ def test_a_model_the_schema_refuses_is_its_only_problem(tmp_path):
 
 
 BROKEN = {
-    "floating": (TWO_LINKS.replace('type="revolute"', 'type="floating"'), "is 'floating'"),
-    "unknown link": (TWO_LINKS.replace('<child link="tip"/>', '<child link="top"/>'), "no link"),
-    "bad number": (TWO_LINKS.replace('value="2"', 'value="two"'), "two"),
+    "floating": (CHAIN.replace('type="revolute"', 'type="floating"'), "is 'floating'"),
+    "unknown link": (CHAIN.replace('<child link="arm"/>', '<child link="top"/>'), "no link"),
+    "bad number": (CHAIN.replace('value="2"', 'value="two"'), "two"),
     "not XML": ("<robot", "cannot read"),
-    "empty limits": (TWO_LINKS.replace('lower="-1" upper="1"', 'lower="0" upper="0"'), "lower <"),
-    "negative mass": (TWO_LINKS.replace('value="2"', 'value="-2"'), "negative mass"),
+    "empty limits": (CHAIN.replace('lower="-1" upper="1"', 'lower="0" upper="0"'), "lower <"),
+    "negative mass": (CHAIN.replace('value="2"', 'value="-2"'), "negative mass"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BROKEN))
 def test_a_urdf_physval_cannot_read_is_one_line_at_file(tmp_path, case):
     text, what = BROKEN[case]
-    (tmp_path / "two.urdf").write_text(text)
+    (tmp_path / "chain.urdf").write_text(text)
     with pytest.raises(ScenarioError) as raised:
-        load_scenario(write_scene(tmp_path, {"file": "two.urdf"}))
+        load_scenario(write_scene(tmp_path, {"file": "chain.urdf"}))
     (problem,) = raised.value.problems
     assert problem.path == "models[0].file" and what in problem.message, str(problem)
     assert "\n" not in str(problem)
