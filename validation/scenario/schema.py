@@ -287,9 +287,7 @@ class ModelSpec(_Strict):
     """A robot model read from a URDF file and expanded, at load, into the scene's bodies and
     joints (``validation/scenario/urdf.py``), each named ``<name>/<link or joint>``."""
 
-    name: Word = Field(
-        description="the prefix of its bodies and joints: arm/link3, arm/joint2"
-    )
+    name: Word = Field(description="the prefix of its bodies and joints: arm/link3, arm/joint2")
     file: Annotated[str, Strict(), Field(min_length=1)] = Field(
         description="a URDF: a path relative to the scene, or pkg:PACKAGE/path inside an "
         "installed Python package"
