@@ -62,9 +62,6 @@ POSITION_DIMENSIONS = {"hinge": 1, "slider": 1, "ball": 4, "fixed": 0, "free": 7
 VELOCITY_DIMENSIONS = {"hinge": 1, "slider": 1, "ball": 3, "fixed": 0, "free": 6}
 """Numbers of position and velocity coordinates of each joint type (the table above)."""
 
-JOINT_TYPES = ("hinge", "slider", "ball", "fixed")
-"""The joint types a scene can state (``free`` is a floating root's, never stated)."""
-
 AXIS_TYPES = ("hinge", "slider")
 """Joint types with an axis."""
 

@@ -29,6 +29,7 @@ from validation.scenario.physics import body_inertia, pair_rule, symmetry_frame
 from validation.scenario.problems import Problem, path_text
 from validation.scenario.schema import (
     ANY_METRIC,
+    AXIS_JOINT_TYPES,
     JOINT_EXPECTATION_MODELS,
     MAX_STEPS,
     METRIC_NAMES,
@@ -238,10 +239,6 @@ JOINT_VALUE_SHAPES = {
 }
 """Joint type -> what its ``joint_position_at`` value is (a fixed joint has no coordinate)."""
 
-OSCILLATING_JOINT_TYPES = ("hinge", "slider")
-"""Joint types with one coordinate, whose ``period`` is defined."""
-
-
 def joint_expectations_fit_their_joint(scenario: Scenario) -> Found:
     """A joint's expectation fits its type: ``joint_position_at`` of a hinge or slider is a
     number, of a ball a vector [x, y, z] (its rotation vector), of a fixed joint nothing (no
@@ -251,7 +248,7 @@ def joint_expectations_fit_their_joint(scenario: Scenario) -> Found:
         kind, joint_type = expectation.kind, types.get(getattr(expectation, "joint", None))
         if joint_type is None:
             continue  # a body's expectation, or an unknown joint (``expectations``)
-        if kind == "period" and joint_type not in OSCILLATING_JOINT_TYPES:
+        if kind == "period" and joint_type not in AXIS_JOINT_TYPES:
             yield (
                 ("expect", i, "joint"),
                 f"period is of one coordinate: expected a hinge or slider joint; "

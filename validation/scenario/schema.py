@@ -230,11 +230,9 @@ class SpringSpec(_Strict):
     )
 
 
-JOINT_TYPES = ("hinge", "slider", "ball", "fixed")
-"""Every joint type of the format (``JointSpec.type``)."""
-
 AXIS_JOINT_TYPES = ("hinge", "slider")
-"""Joint types with an axis (and optional limits)."""
+"""Joint types with an axis, one coordinate (whose ``period`` is defined) and optional limits;
+the others of ``JointSpec.type`` are ball and fixed."""
 
 UNIT_AXIS_TOLERANCE = UNIT_QUATERNION_TOLERANCE
 """A joint axis within this of unit length is normalised; further away it is an error (a typo,
