@@ -90,6 +90,33 @@ class EngineOption:
 SHAPES = ("sphere", "box", "capsule")
 """Every body shape of the scenario format."""
 
+MODEL_LOADERS = ("native", "physval")
+"""How an engine gets a scene's ``models`` (issue 36): ``native``, its own loader reads the file
+(MuJoCo's compiler, PyBullet's ``loadURDF``/``loadMJCF``, Drake's ``Parser``), so what each
+loader makes of the file is judged; ``physval``, the bodies and joints physval expanded the file
+into, so only the solver differs."""
+
+MODEL_LOADER_OPTION = EngineOption(
+    "model_loader",
+    str,
+    "native: the engine's own loader reads a scene's models; physval: physval's reading of them",
+    MODEL_LOADERS,
+    "native",
+)
+"""The option of engines with a native loader (MuJoCo, PyBullet, Drake); an engine without
+it builds models from physval's reading (mini, Rapier, plugins)."""
+
+
+def model_loader(engine: str, settings: dict) -> str:
+    """The loader an engine spec chooses: its ``model_loader`` setting, else its declaration's
+    default, else ``physval`` (an engine without the option)."""
+    if "model_loader" in settings:
+        return str(settings["model_loader"])
+    options = {option.name: option for option in declaration_of(engine).options}
+    option = options.get(MODEL_LOADER_OPTION.name)
+    return str(option.default) if option is not None else "physval"
+
+
 BASE_FEATURES: dict[str, str] = {
     "ground": "a static ground plane",
     "tilted_ground": "a ground plane whose normal is not +z",

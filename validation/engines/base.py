@@ -186,6 +186,34 @@ class JointReport:
     anchors: np.ndarray
     axes: np.ndarray
     mass_matrix: np.ndarray | None = None
+    limits: np.ndarray | None = None
+    """(j, 2) rad or m, relative to t = 0 as the scene states them (lower <= 0 <= upper);
+    NaN rows for joints without limits; None: not reported (model tier 1 then skips limits)."""
+    damping: np.ndarray | None = None
+    """(j,) N·m·s/rad or N·s/m; None: not reported."""
+    armature: np.ndarray | None = None
+    """(j,) kg·m² or kg, the reflected inertia added to a joint's diagonal of M; None: not
+    reported (physval's scenes have none: 0)."""
+
+
+@dataclass(frozen=True)
+class ModelProbe:
+    """A jointed scene's bodies and dynamics at one joint state, as the engine computes them
+    (the model tiers 2 and 3, ``validation.measure.tiers``); optional ``model_probe``.
+
+    Attributes:
+        pos: (n, 3) m, world frame: every scene body's centre of mass.
+        quat: (n, 4) w x y z, every scene body's orientation (the scene's body axes).
+        mass_matrix: (nv, nv) M(q) in ``CompiledScene.joint_tree``'s coordinates, or None
+            when the engine does not expose it.
+        bias: (nv,) the bias forces C(q, ν)ν + g(q) in the same coordinates (sign: M ν̇ +
+            bias = τ, MuJoCo's ``qfrc_bias``), or None when the engine does not expose it.
+    """
+
+    pos: np.ndarray
+    quat: np.ndarray
+    mass_matrix: np.ndarray | None = None
+    bias: np.ndarray | None = None
 
 
 @dataclass
@@ -232,6 +260,13 @@ class EngineAdapter(Protocol):
 
     # Required of an engine that declares ``joints``: ``joint_report() -> JointReport``, the
     # joints it built (``validation.engines.joint_parity`` compares them with the scene's).
+
+    # Optional: ``model_probe(q, nu) -> ModelProbe``, the engine set to the joint state (q, ν)
+    # of ``CompiledScene.joint_tree``'s coordinates (relative to t = 0) without stepping, and
+    # its bodies, M(q) and bias read back (the model tiers). Without it the tiers load the
+    # scene again at each probed state and take M and the bias from one-step finite
+    # differences (stated as such in the row). Called after ``load``; the engine may be left
+    # at the probed state (the runner loads the scene again before recording).
 
     def observe(self) -> Snapshot:
         """The current state, in the scene's conventions."""

@@ -239,6 +239,7 @@ JOINT_VALUE_SHAPES = {
 }
 """Joint type -> what its ``joint_position_at`` value is (a fixed joint has no coordinate)."""
 
+
 def joint_expectations_fit_their_joint(scenario: Scenario) -> Found:
     """A joint's expectation fits its type: ``joint_position_at`` of a hinge or slider is a
     number, of a ball a vector [x, y, z] (its rotation vector), of a fixed joint nothing (no

@@ -41,6 +41,7 @@ from validation.scenario.physics import (
     scene_springs,
 )
 from validation.scenario.schema import Scenario
+from validation.scenario.urdf import ModelLayout, model_layouts
 
 # --- the invariants, one definition each -------------------------------------------------
 
@@ -168,6 +169,20 @@ class CompiledScene:
         without joints: built once, the structure every engine adapter and the reference side
         read (each joint placed in its parent's frame)."""
         return joint_tree(self.scenario)
+
+    @cached_property
+    def models(self) -> tuple[ModelLayout, ...]:
+        """Each of the scene's ``models`` as its file maps onto the scene's bodies and joints
+        (``validation.scenario.urdf.ModelLayout``): empty without models. What a native loader
+        reads; the bodies and joints themselves are already in the scenario."""
+        return model_layouts(self.scenario) if self.scenario.models else ()
+
+    def model_of(self, body: str) -> ModelLayout | None:
+        """The model whose expansion gave the body (or joint) named ``body``, or None."""
+        for layout in self.models:
+            if body in layout.bodies or body in layout.joints:
+                return layout
+        return None
 
     def __getstate__(self) -> dict:
         """Pickled for worker processes without the inertia cache (rebuilt on demand)."""

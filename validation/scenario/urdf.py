@@ -126,6 +126,52 @@ def _rotation():
     return Rotation
 
 
+@dataclass(frozen=True)
+class ModelLayout:
+    """How one ``models`` entry maps onto the scene: what a native loader (an engine reading
+    the file itself, ``model_loader=native``) needs to name and place its own bodies and
+    joints in the scene's terms. Rebuilt from the file by ``model_layouts``; the same reading
+    as the expansion.
+
+    Attributes:
+        name: the model's name, the prefix of its bodies and joints.
+        path: the model file, resolved. format: ``"urdf"`` or ``"mjcf"``.
+        spec: the scene's entry (position, orientation, fixed_base, joint_positions,
+            joint_velocities, collisions).
+        bodies: the scene's body names from this model, in scene order.
+        links: the file's link (URDF ``<link>``, MJCF ``<body>``) of each body.
+        body_in_link: each body's frame (origin at its centre of mass, axes the scene body's)
+            in its link's frame: a native engine's link pose times this is the scene body's.
+        joints: the scene's joint names from this model, in scene order.
+        file_joints: each one's name in the file; None for the weld of a fixed base.
+        root_link: the file's root link.
+        package_paths: ``(NAME, DIR)`` pairs that resolve ``package://NAME/...`` in the file
+            (the run's ``--package-path``), beside the file's own folder.
+    """
+
+    name: str
+    path: Path
+    format: str
+    spec: ModelSpec
+    bodies: tuple[str, ...]
+    links: tuple[str, ...]
+    body_in_link: tuple[Frame, ...]
+    joints: tuple[str, ...]
+    file_joints: tuple[str | None, ...]
+    root_link: str
+    package_paths: tuple[tuple[str, str], ...] = ()
+
+    def initial_position(self, file_joint: str) -> float:
+        """The file joint's coordinate at t = 0 (rad or m, the file's convention): the scene's
+        ``joint_positions`` entry, else 0. A tree coordinate (``CompiledScene.joint_tree``,
+        relative to t = 0) is the file's coordinate minus this."""
+        return float(self.spec.joint_positions.get(f"{self.name}/{file_joint}", 0.0))
+
+    def initial_velocity(self, file_joint: str) -> float:
+        """The file joint's rate at t = 0 (rad/s or m/s): ``joint_velocities``, else 0."""
+        return float(self.spec.joint_velocities.get(f"{self.name}/{file_joint}", 0.0))
+
+
 # --- reading ------------------------------------------------------------------------------
 
 
@@ -265,8 +311,12 @@ class _Expansion:
 
     def __init__(self, model: ModelSpec, robot: Robot):
         self.model, self.robot = model, robot
+        self.path = Path()
         self.bodies: list[dict] = []
         self.joints: list[dict] = []
+        self.links: list[str] = []
+        self.body_in_link: list[Frame] = []
+        self.file_joints: list[str | None] = []
 
     def name(self, text: str) -> str:
         return f"{self.model.name}/{text}"
@@ -283,6 +333,7 @@ class _Expansion:
         if root.mass > 0:
             self.add_body(root, placed)
             if self.model.fixed_base:
+                self.file_joints.append(None)
                 self.joints.append(
                     {
                         "name": self.name(FIXED_BASE_JOINT),
@@ -318,6 +369,8 @@ class _Expansion:
             }
         )
         placed.body = self.name(link.name)
+        self.links.append(link.name)
+        self.body_in_link.append(link.inertial)
 
     def descend(self, parent: str, above: _Placed) -> None:
         for joint in self.robot.children.get(parent, []):
@@ -370,6 +423,7 @@ class _Expansion:
         if limits is not None:
             record["limits"] = list(limits)
         self.joints.append(record)
+        self.file_joints.append(joint.name)
         self.descend(link.name, placed)
 
 
@@ -380,6 +434,11 @@ def _movable_joints(model: ModelSpec, robot: Robot) -> list[str]:
 def expand_model(model: ModelSpec, scene: Path) -> tuple[list[dict], list[dict]]:
     """The bodies and joints of ``model`` (a scene's ``models`` entry, read relative to the
     scene file ``scene``), as scene entries; ``ModelError`` at the field that is wrong."""
+    expansion = _expanded(model, scene)
+    return expansion.bodies, expansion.joints
+
+
+def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
     if model.collisions:
         raise ModelError(
             "collisions",
@@ -413,8 +472,9 @@ def expand_model(model: ModelSpec, scene: Path) -> tuple[list[dict], list[dict]]
                 + ", ".join(movable),
             )
     expansion = _Expansion(model, robot)
+    expansion.path = path
     expansion.run()
-    return expansion.bodies, expansion.joints
+    return expansion
 
 
 def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]]]:
@@ -447,3 +507,58 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
     if problems:
         return data, problems  # the scene as written: its own problems are reported with these
     return {**data, "bodies": bodies, "joints": joints}, problems
+
+
+PACKAGE_PATHS: dict[str, str] = {}
+"""``package://NAME`` -> DIR, the run's ``--package-path`` flags (set by the command before any
+scene is loaded; carried to the workers in each ``ModelLayout``)."""
+
+
+def model_layouts(scenario) -> tuple[ModelLayout, ...]:
+    """Each of the scenario's ``models`` as a ``ModelLayout`` (the file read again, as the
+    scene's load read it: a scene that loaded reads the same)."""
+    scene = Path(scenario.source or ".")
+    layouts = []
+    for model in scenario.models:
+        expansion = _expanded(model, scene)
+        layouts.append(
+            ModelLayout(
+                name=model.name,
+                path=expansion.path,
+                format=expansion.path.suffix.lower().lstrip(".").replace("xml", "mjcf"),
+                spec=model,
+                bodies=tuple(b["name"] for b in expansion.bodies),
+                links=tuple(expansion.links),
+                body_in_link=tuple(expansion.body_in_link),
+                joints=tuple(j["name"] for j in expansion.joints),
+                file_joints=tuple(expansion.file_joints),
+                root_link=expansion.robot.root,
+                package_paths=tuple(sorted(PACKAGE_PATHS.items())),
+            )
+        )
+    return tuple(layouts)
+
+
+def with_joint_state(scenario, positions: dict[str, float], velocities: dict[str, float]):
+    """The scenario with its models re-expanded at other joint positions and velocities
+    (prefixed joint names -> rad or m, rad/s or m/s; a model joint not named keeps its
+    stated value): the same scene at another configuration, for the tiers' probes of engines
+    that cannot be set to a state (``validation.measure.tiers``)."""
+    from validation.scenario.schema import Scenario
+
+    layouts = model_layouts(scenario)
+    owned_bodies = {name for layout in layouts for name in layout.bodies}
+    owned_joints = {name for layout in layouts for name in layout.joints}
+    data = scenario.model_dump()
+    data["bodies"] = [b for b in data["bodies"] if b["name"] not in owned_bodies]
+    data["joints"] = [j for j in data["joints"] if j["name"] not in owned_joints]
+    for entry in data["models"]:
+        prefix = entry["name"] + "/"
+        for key, stated in (("joint_positions", positions), ("joint_velocities", velocities)):
+            mine = {k: v for k, v in stated.items() if k.startswith(prefix)}
+            entry[key] = {**entry[key], **mine}
+    expanded, problems = expand_models(data, Path(scenario.source or "."))
+    if problems:
+        location, message = problems[0]
+        raise ModelError(str(location[-1]), message)
+    return Scenario.model_validate({**expanded, "source": scenario.source})
