@@ -1,0 +1,205 @@
+"""``physval sim2sim MODEL_FILE`` (issue 36): a model file, the Kuka of pybullet_data or a
+user's own URDF, becomes a scene in the run folder, runs through ``physval run``'s machinery
+and prints the first disagreeing tier per engine pair; every bad input is one line and exit 2
+before any work. ``--package-path NAME=DIR`` on run, check and sim2sim."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from validation.cli import main
+from validation.contract import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, RESULTS_FILE, SCENE_FILE
+from validation.jobs import sim2sim
+from validation.scenario import load_scenario, urdf
+from validation.scenario.engine_spec import not_installed
+
+KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
+SHORT = ["--duration", "0.05", "--jobs", "1"]
+"""A 50-step swing: the tests check the command's plumbing, not the physics."""
+
+ARM_URDF = """<?xml version="1.0"?>
+<robot name="two_link">
+  <link name="base"/>
+  <link name="upper">
+    <inertial><origin xyz="0 0 0.15"/><mass value="1.0"/>
+      <inertia ixx="0.008" iyy="0.008" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="fore">
+    <inertial><origin xyz="0 0 0.1"/><mass value="0.5"/>
+      <inertia ixx="0.002" iyy="0.002" izz="0.0005" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="shoulder" type="revolute">
+    <parent link="base"/><child link="upper"/><origin xyz="0 0 0.05"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="10" velocity="5"/>
+  </joint>
+  <joint name="elbow" type="revolute">
+    <parent link="upper"/><child link="fore"/><origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="{lower}" upper="2.5" effort="10" velocity="5"/>
+  </joint>
+</robot>
+"""
+
+
+def arm(folder: Path, lower: float = -2.5, name: str = "arm.urdf") -> Path:
+    """A user's two-link arm: shoulder and elbow hinges about y; the elbow's lower limit
+    ``lower``."""
+    path = folder / name
+    path.write_text(ARM_URDF.format(lower=lower))
+    return path
+
+
+def sim2sim_run(capsys, *args) -> tuple[int, str, str]:
+    code = main(["sim2sim", *map(str, args)])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def verdict_lines(out: str) -> list[str]:
+    return out.split(sim2sim.VERDICT_TITLE + "\n", 1)[1].splitlines()
+
+
+def test_the_kuka_runs_in_mini_and_rapier_and_gets_a_verdict(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, printed, _ = sim2sim_run(
+        capsys, KUKA, "--engines", "mini", "rapier", "--out", out, *SHORT
+    )
+    assert code == EXIT_OK
+    assert verdict_lines(printed) == ["mini vs rapier: " + sim2sim.AGREEING]
+    scene = load_scenario(out / SCENE_FILE)
+    assert scene.engines == ["mini", "rapier"]
+    assert [j.name for j in scene.joints] == [f"model/lbr_iiwa_joint_{i}" for i in range(1, 8)]
+    model = scene.models[0]
+    assert (model.name, model.file, model.fixed_base, model.collisions) == (
+        "model",
+        KUKA,
+        True,
+        False,
+    )
+    assert model.joint_positions == {}  # 0 is inside every limit of the Kuka
+    assert set(model.joint_velocities.values()) == {sim2sim.SWING_VELOCITY}
+    rows = pd.read_csv(out / RESULTS_FILE)
+    assert set(rows["engine"]) == {"mini", "rapier"}
+    assert set(rows["scenario"]) == {"sim2sim-model"}
+
+
+@pytest.mark.skipif(bool(not_installed("mujoco")), reason="MuJoCo is not installed")
+def test_the_kuka_runs_in_mujoco(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, printed, _ = sim2sim_run(
+        capsys, KUKA, "--engines", "mujoco", "mini", "--out", out, *SHORT
+    )
+    assert code == EXIT_OK
+    assert verdict_lines(printed) == ["mujoco vs mini: " + sim2sim.AGREEING]
+
+
+def test_a_users_urdf_runs_without_yaml(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a relative path, as a user types it
+    arm(tmp_path)
+    code, printed, _ = sim2sim_run(
+        capsys, "arm.urdf", "--engines", "mini", "rapier", "--out", "run", *SHORT
+    )
+    assert code == EXIT_OK, printed
+    assert verdict_lines(printed) == ["mini vs rapier: " + sim2sim.AGREEING]
+    scene = load_scenario(tmp_path / "run" / SCENE_FILE)
+    assert scene.models[0].file == str(tmp_path / "arm.urdf")  # absolute: the scene moves
+    assert [j.name for j in scene.joints] == ["arm/shoulder", "arm/elbow"]
+
+
+def test_a_joint_whose_limits_exclude_zero_starts_mid_range(tmp_path, capsys):
+    code, _, _ = sim2sim_run(
+        capsys, arm(tmp_path, lower=0.5), "--engines", "mini", "--out", tmp_path / "run", *SHORT
+    )
+    assert code == EXIT_OK
+    model = load_scenario(tmp_path / "run" / SCENE_FILE).models[0]
+    assert model.joint_positions == {"arm/elbow": pytest.approx(1.5)}  # (0.5 + 2.5) / 2
+
+
+def test_a_failed_tier_is_named_with_its_rows_message(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sim2sim.SIM2SIM_CHECKS, "joint_violation", 1e-12)  # mini's is ~1e-6
+    out = tmp_path / "run"
+    code, printed, _ = sim2sim_run(
+        capsys, KUKA, "--engines", "mini", "rapier", "--out", out, *SHORT
+    )
+    assert code == EXIT_FAILED
+    rows = pd.read_csv(out / RESULTS_FILE, dtype=str, keep_default_na=False)
+    failed = rows[(rows["metric"] == "joint_violation") & (rows["passed"] == "False")]
+    assert not failed.empty
+    first = failed.iloc[0]
+    expected = f"tier 4 (joint_violation): {first['engine']}: {first['message']}"
+    assert verdict_lines(printed) == [f"mini vs rapier: {expected}"]
+
+
+def test_the_first_tier_wins_over_later_ones():
+    rows = pd.DataFrame(
+        [
+            ("mini", "joint_violation", "failed", "joint arm/j1 pulled apart", ""),
+            ("rapier", "model_fields", "failed", "link arm/l3: inertia differs", ""),
+            ("rapier", "fk_error", "passed", "", ""),
+        ],
+        columns=["engine", "metric", "outcome", "message", "value_text"],
+    )
+    assert sim2sim.pair_verdict(rows, "mini", "rapier") == (
+        "tier 1 (model_fields): rapier: link arm/l3: inertia differs"
+    )
+    assert sim2sim.pair_verdict(rows[rows["metric"] != "model_fields"], "mini", "rapier") == (
+        "tier 4 (joint_violation): mini: joint arm/j1 pulled apart"
+    )
+
+
+def test_the_scene_loads_with_physval_check(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *SHORT)[0] == EXIT_OK
+    assert main(["check", str(out / SCENE_FILE)]) == EXIT_OK
+    assert "1 valid, 0 invalid" in capsys.readouterr().out
+
+
+def test_a_rerun_replaces_its_own_run_folder(tmp_path, capsys):
+    out = tmp_path / "run"
+    for _ in range(2):  # the scene file is one of a run folder's files
+        assert sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *SHORT)[0] == EXIT_OK
+
+
+BAD_INPUTS = {
+    "missing file": (["nowhere.urdf"], "nowhere.urdf: no such file"),
+    "not a model": (["notes.txt"], "expected a URDF (.urdf) or MJCF (.xml) model file"),
+    "unreadable": (["broken.urdf"], "broken.urdf: cannot be read"),
+    "no package": (["pkg:no_such_package/x.urdf"], "no installed Python package"),
+    "unknown engine": ([KUKA, "--engines", "nosuch"], "--engines:"),
+    "engine twice": ([KUKA, "--engines", "mini", "mini"], "--engines: an engine is listed twice"),
+    "package path syntax": ([KUKA, "--package-path", "robots"], "expected NAME=DIR"),
+    "package path missing": ([KUKA, "--package-path", "r=/no/such/dir"], "is not a folder"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_INPUTS)
+def test_bad_input_is_one_line_and_exit_2(case, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "notes.txt").write_text("not a robot")
+    (tmp_path / "broken.urdf").write_text("<robot><link name='a'>")
+    args, expected = BAD_INPUTS[case]
+    code, _, err = sim2sim_run(capsys, *args, "--out", "run", *SHORT)
+    assert code == EXIT_BAD_INPUT
+    assert len(err.strip().splitlines()) == 1 and expected in err, err
+    assert "Traceback" not in err
+    assert not (tmp_path / "run").exists()  # before any work
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_package_path_is_checked_on_run_and_check(command, tmp_path, capsys):
+    assert main([command, "--package-path", "nothing", str(tmp_path)]) == EXIT_BAD_INPUT
+    assert capsys.readouterr().err.strip() == (
+        "--package-path nothing: expected NAME=DIR (a package name, '=', its folder)"
+    )
+
+
+def test_package_path_sets_the_resolvers_folders(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(urdf, "PACKAGE_PATHS", {})
+    (tmp_path / "robots").mkdir()
+    out = tmp_path / "run"
+    flags = ["--package-path", f"robots={tmp_path / 'robots'}", "--package-path", "x=."]
+    assert sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *flags, *SHORT)[0] == 0
+    expected = {"robots": str(tmp_path / "robots"), "x": str(Path.cwd())}
+    assert dict(urdf.PACKAGE_PATHS) == expected
