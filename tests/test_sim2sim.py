@@ -12,6 +12,7 @@ import pytest
 
 from validation.cli import main
 from validation.contract import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, RESULTS_FILE, SCENE_FILE
+from validation.engine_api import MODEL_LOADER_OPTION, declarations
 from validation.jobs import sim2sim
 from validation.scenario import load_scenario, urdf
 from validation.scenario.engine_spec import not_installed
@@ -203,3 +204,26 @@ def test_package_path_sets_the_resolvers_folders(tmp_path, capsys, monkeypatch):
     assert sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *flags, *SHORT)[0] == 0
     expected = {"robots": str(tmp_path / "robots"), "x": str(Path.cwd())}
     assert dict(urdf.PACKAGE_PATHS) == expected
+
+
+def test_the_default_engines_are_every_installed_engine_with_joints_native_loaders_first():
+    engines = sim2sim.model_engines()
+    installed = {
+        name
+        for name, declaration in declarations().items()
+        if "joints" in declaration.capabilities.features and not not_installed(name)
+    }
+    assert set(engines) == installed and "mini" in engines
+    native = [bool(declarations()[name].option(MODEL_LOADER_OPTION.name)) for name in engines]
+    assert native == sorted(native, reverse=True), engines
+
+
+def test_the_readmes_sim2sim_command_runs(tmp_path, capsys):
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    (line,) = [x for x in readme.splitlines() if x.strip().startswith("physval sim2sim pkg:")]
+    argv = line.split("#", 1)[0].split()[1:]
+    out = tmp_path / "run"
+    code = main([*argv, "--engines", "mini", "--out", str(out), *SHORT])
+    assert code == EXIT_OK
+    assert (out / SCENE_FILE).is_file()
+    assert sim2sim.VERDICT_TITLE in capsys.readouterr().out
