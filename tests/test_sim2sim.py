@@ -284,3 +284,16 @@ def test_the_readmes_sim2sim_command_runs(tmp_path, capsys):
     assert code == EXIT_OK
     assert (out / SCENE_FILE).is_file()
     assert sim2sim.VERDICT_TITLE in capsys.readouterr().out
+
+
+def test_an_out_folder_of_the_users_is_refused_and_left_as_it_was(tmp_path, capsys):
+    """``--out`` follows ``physval run``'s rules: a folder holding the user's files is not
+    replaced (one line, exit 2, before any work), whatever the scene written for the model."""
+    out = tmp_path / "thesis"
+    out.mkdir()
+    (out / "chapter1.tex").write_text("precious")
+    code, _, err = sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *SHORT)
+    assert code == EXIT_BAD_INPUT
+    assert err.strip().startswith(f"--out {out}:") and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in out.iterdir()) == ["chapter1.tex"]
+    assert (out / "chapter1.tex").read_text() == "precious"
