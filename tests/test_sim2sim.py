@@ -72,9 +72,10 @@ TIER_LINE = re.compile(
 
 def assert_verdicts_follow_the_rows(out: Path, printed: str, engines: list[str]) -> None:
     """Each engine pair has one line, and it names the pair's first failed row in the tier
-    order with that row's message, or says the pair agrees when neither has one."""
+    order with that row's message, or says the pair agrees when neither has one (and both
+    runs ended ok)."""
     rows = pd.read_csv(out / RESULTS_FILE, dtype=str, keep_default_na=False)
-    failed = rows[rows["outcome"].isin(sim2sim.NOT_AGREEING_OUTCOMES)]
+    failed = rows[rows["passed"] == "False"]
     order = [metric for tier in sim2sim.TIERS for metric in tier]
     lines = verdict_lines(printed)
     assert len(lines) == len(engines) * (len(engines) - 1) // 2, lines
@@ -84,6 +85,7 @@ def assert_verdicts_follow_the_rows(out: Path, printed: str, engines: list[str])
         mine = failed[failed["engine"].isin([a, b]) & failed["metric"].isin(order)]
         if verdict == sim2sim.AGREEING:
             assert mine.empty, (line, mine)
+            assert set(rows[rows["engine"].isin([a, b])]["status"]) == {"ok"}, line
             continue
         found = TIER_LINE.match(line)
         assert found, line
@@ -190,20 +192,38 @@ def test_a_failed_tier_is_named_with_its_rows_message(tmp_path, capsys, monkeypa
     assert_verdicts_follow_the_rows(out, printed, engines)
 
 
+VERDICT_ROWS = pd.DataFrame(
+    [
+        ("mini", "joint_violation", False, "ok", "joint arm/j1 pulled apart"),
+        ("rapier", "model_fields", False, "unstable", "link arm/l3: inertia differs"),
+        ("rapier", "fk_error", True, "unstable", ""),
+        ("rapier", "status", False, "unstable", "deep_penetration at t = 0.2 s"),
+        ("drake", "model_fields", None, "unsupported", ""),
+        ("drake", "status", None, "unsupported", "drake cannot represent: joints"),
+    ],
+    columns=["engine", "metric", "passed", "status", "message"],
+).assign(value_text="")
+"""Rows of three engines: mini failed a tier-4 check; Rapier's run went unstable after its
+tier-1 row failed; Drake could not run the model."""
+
+
 def test_the_first_tier_wins_over_later_ones():
-    rows = pd.DataFrame(
-        [
-            ("mini", "joint_violation", "failed", "joint arm/j1 pulled apart", ""),
-            ("rapier", "model_fields", "failed", "link arm/l3: inertia differs", ""),
-            ("rapier", "fk_error", "passed", "", ""),
-        ],
-        columns=["engine", "metric", "outcome", "message", "value_text"],
-    )
+    rows = VERDICT_ROWS
     assert sim2sim.pair_verdict(rows, "mini", "rapier") == (
-        "tier 1 (model_fields): rapier: link arm/l3: inertia differs"
+        "tier 1 (model_fields): rapier (unstable): link arm/l3: inertia differs"
     )
     assert sim2sim.pair_verdict(rows[rows["metric"] != "model_fields"], "mini", "rapier") == (
         "tier 4 (joint_violation): mini: joint arm/j1 pulled apart"
+    )
+
+
+def test_a_run_that_did_not_end_ok_is_no_agreement():
+    rows = VERDICT_ROWS[VERDICT_ROWS["engine"] != "mini"]
+    assert sim2sim.pair_verdict(rows[rows["metric"] != "model_fields"], "rapier", "drake") == (
+        "no tier row failed, but rapier's run is unstable: deep_penetration at t = 0.2 s"
+    )
+    assert sim2sim.pair_verdict(rows[rows["engine"] == "drake"], "drake", "rapier") == (
+        "no tier row failed, but drake's run is unsupported: drake cannot represent: joints"
     )
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from validation.contract import BAD_STATUSES, EXIT_BAD_INPUT, RESULTS_FILE, SCENE_FILE
+from validation.contract import EXIT_BAD_INPUT, RESULTS_FILE, SCENE_FILE
 from validation.engine_api import MODEL_LOADER_OPTION, declarations
 from validation.jobs.plan import BadInputError, use_package_paths
 from validation.scenario import Scenario, ScenarioError, load_scenario
@@ -122,9 +122,9 @@ left out of the written scene."""
 AGREEING = "agree on every tier"
 VERDICT_TITLE = "sim2sim: the first tier where each engine pair disagrees"
 
-NOT_AGREEING_OUTCOMES = (*BAD_STATUSES, "unsupported", "not_installed")
-"""A row with one of these outcomes (results.csv's ``outcome``) is a disagreement at its tier:
-a failed check, or an engine that could not run the model."""
+RUN_STATUS_METRIC = "status"
+"""The row an engine's run writes when it did not end ``ok`` (``measure.comparator``): its
+status (unstable, error, unsupported, ...) and why."""
 
 
 def model_engines() -> list[str]:
@@ -328,23 +328,38 @@ def write_scene(folder: Path, model: str, engines: list[str], duration: float, d
     return scene
 
 
+def _run_status(rows, engine: str) -> tuple[str, str] | None:
+    """(status, why) when ``engine``'s run did not end ``ok``, else None."""
+    found = rows[(rows["engine"] == engine) & (rows["metric"] == RUN_STATUS_METRIC)]
+    return None if found.empty else (found.iloc[0]["status"], found.iloc[0]["message"])
+
+
 def _failed(rows, engine: str, metric: str):
-    """The row of ``engine``'s ``metric`` when it disagrees (``NOT_AGREEING_OUTCOMES``), else
-    None."""
+    """The row of ``engine``'s ``metric`` when its value is beyond its tolerance (``passed``
+    False, whatever the run's status), else None."""
     found = rows[(rows["engine"] == engine) & (rows["metric"] == metric)]
-    bad = found[found["outcome"].isin(NOT_AGREEING_OUTCOMES)]
+    bad = found[found["passed"].map(lambda passed: passed is False)]
     return None if bad.empty else bad.iloc[0]
 
 
 def pair_verdict(rows, a: str, b: str) -> str:
-    """``a`` and ``b``'s first tier where one of them disagrees, with the row's message."""
+    """``a`` and ``b``'s first tier (``TIERS``) where a row of one of them failed, with the
+    row's message (and the run's status when it did not end ``ok``); else, when a run did not
+    end ``ok`` (it could not run the model, or not to the end), that status; else
+    ``AGREEING``."""
     for number, tier in enumerate(TIERS, start=1):
         for metric in tier:
             for engine in (a, b):
                 row = _failed(rows, engine, metric)
                 if row is not None:
-                    why = row["message"] or f"{row['outcome']}: {metric} {row['value_text']}"
-                    return f"tier {number} ({metric}): {engine}: {why}"
+                    run = _run_status(rows, engine)
+                    status = f" ({run[0]})" if run else ""
+                    why = row["message"] or f"{metric} {row['value_text']}"
+                    return f"tier {number} ({metric}): {engine}{status}: {why}"
+    for engine in (a, b):
+        run = _run_status(rows, engine)
+        if run is not None:
+            return f"no tier row failed, but {engine}'s run is {': '.join(filter(None, run))}"
     return AGREEING
 
 
