@@ -5,6 +5,7 @@ before any work. ``--package-path NAME=DIR`` on run, check and sim2sim."""
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from validation.scenario import load_scenario, urdf
 from validation.scenario.engine_spec import not_installed
 
 KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
+MJCF = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
 SHORT = ["--duration", "0.05", "--jobs", "1"]
 """A 50-step swing: the tests check the command's plumbing, not the physics."""
 
@@ -65,8 +67,8 @@ def verdict_lines(out: str) -> list[str]:
 
 
 TIER_LINE = re.compile(
-    r"^(?P<a>\S+) vs (?P<b>\S+): tier (?P<n>\d) \((?P<metric>\w+)\): "
-    r"(?P<engine>\S+): (?P<message>.*)$"
+    r"^(?P<a>\S+)(?: vs (?P<b>\S+))?: tier (?P<n>\d) \((?P<metric>\w+)\): "
+    r"(?P<engine>\S+?)(?: \((?P<status>\w+)\))?: (?P<message>.*)$"
 )
 
 
@@ -78,14 +80,16 @@ def assert_verdicts_follow_the_rows(out: Path, printed: str, engines: list[str])
     failed = rows[rows["passed"] == "False"]
     order = [metric for tier in sim2sim.TIERS for metric in tier]
     lines = verdict_lines(printed)
-    assert len(lines) == len(engines) * (len(engines) - 1) // 2, lines
+    assert len(lines) == max(1, len(engines) * (len(engines) - 1) // 2), lines
     for line in lines:
         pair, _, verdict = line.partition(": ")
         a, _, b = pair.partition(" vs ")
+        b = b or a  # one engine: its own verdict
         mine = failed[failed["engine"].isin([a, b]) & failed["metric"].isin(order)]
-        if verdict == sim2sim.AGREEING:
+        runs = rows[rows["engine"].isin([a, b]) & (rows["metric"] == "status")]
+        if verdict == sim2sim.AGREEING or verdict.startswith("no tier row failed"):
             assert mine.empty, (line, mine)
-            assert set(rows[rows["engine"].isin([a, b])]["status"]) == {"ok"}, line
+            assert runs.empty == (verdict == sim2sim.AGREEING), (line, runs)
             continue
         found = TIER_LINE.match(line)
         assert found, line
@@ -93,6 +97,8 @@ def assert_verdicts_follow_the_rows(out: Path, printed: str, engines: list[str])
         assert order.index(found["metric"]) == first, (line, mine)
         row = mine[(mine["engine"] == found["engine"]) & (mine["metric"] == found["metric"])]
         assert found["message"] in set(row["message"]), (line, row)
+        run = runs[runs["engine"] == found["engine"]]
+        assert found["status"] == (None if run.empty else run.iloc[0]["status"]), (line, run)
 
 
 def test_the_kuka_runs_in_mini_and_rapier_and_gets_a_verdict(tmp_path, capsys):
@@ -153,6 +159,13 @@ def test_a_joint_whose_limits_exclude_zero_starts_mid_range(tmp_path, capsys):
     assert code == EXIT_OK
     model = load_scenario(tmp_path / "run" / SCENE_FILE).models[0]
     assert model.joint_positions == {"arm/elbow": pytest.approx(1.5)}  # (0.5 + 2.5) / 2
+
+
+def test_one_engine_gets_its_own_verdict(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, printed, _ = sim2sim_run(capsys, KUKA, "--engines", "mujoco", "--out", out, *SHORT)
+    assert code == EXIT_OK
+    assert verdict_lines(printed) == ["mujoco: " + sim2sim.AGREEING]
 
 
 def test_the_model_hangs_below_its_base(tmp_path, capsys):
@@ -317,3 +330,54 @@ def test_an_out_folder_of_the_users_is_refused_and_left_as_it_was(tmp_path, caps
     assert err.strip().startswith(f"--out {out}:") and len(err.strip().splitlines()) == 1
     assert sorted(p.name for p in out.iterdir()) == ["chapter1.tex"]
     assert (out / "chapter1.tex").read_text() == "precious"
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("validation.scenario.mjcf") is None,
+    reason="physval's MJCF reader (validation/scenario/mjcf.py, issue 36) is not on this branch",
+)
+def test_an_mjcf_model_runs(tmp_path, capsys):
+    out = tmp_path / "run"
+    engines = ["mujoco", "pybullet"]
+    code, printed, _ = sim2sim_run(capsys, MJCF, "--engines", *engines, "--out", out, *SHORT)
+    assert code in (EXIT_OK, EXIT_FAILED), printed
+    assert_verdicts_follow_the_rows(out, printed, engines)
+    scene = load_scenario(out / SCENE_FILE)
+    assert scene.models[0].name == "inverted_double_pendulum"
+    assert {j.type for j in scene.joints} >= {"slider", "hinge"}
+
+
+def test_package_path_on_check_sets_the_resolvers_folders(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(urdf, "PACKAGE_PATHS", {})
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(
+        "dt: 0.01\nduration: 0.1\nbodies:\n  - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0}\n"
+    )
+    assert main(["check", str(scene), "--package-path", f"robots={tmp_path}"]) == EXIT_OK
+    assert dict(urdf.PACKAGE_PATHS) == {"robots": str(tmp_path)}
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("validation.scenario.packages") is None,
+    reason="package:// resolution (validation/scenario/packages.py, issue 36) is not on this branch",
+)
+def test_package_path_finds_a_users_meshes(tmp_path, capsys):
+    """A URDF whose mesh is ``package://desc/...``, away from its package folder: one line
+    naming the mesh and exit 2 without ``--package-path``, a run with it."""
+    meshes = tmp_path / "ws" / "desc" / "meshes"
+    meshes.mkdir(parents=True)
+    (meshes / "fore.stl").write_text("solid fore\nendsolid fore\n")
+    mesh = '<visual><geometry><mesh filename="package://desc/meshes/fore.stl"/></geometry></visual>'
+    urdf_file = arm(tmp_path)
+    urdf_file.write_text(
+        urdf_file.read_text().replace('<link name="fore">', '<link name="fore">' + mesh)
+    )
+    args = [urdf_file, "--engines", "mini", "--out", tmp_path / "run", *SHORT]
+    code, _, err = sim2sim_run(capsys, *args)
+    assert code == EXIT_BAD_INPUT and len(err.strip().splitlines()) == 1
+    assert "package://desc/meshes/fore.stl" in err and "Traceback" not in err
+    code, printed, _ = sim2sim_run(
+        capsys, *args, "--package-path", f"desc={tmp_path / 'ws' / 'desc'}"
+    )
+    assert code in (EXIT_OK, EXIT_FAILED), printed  # it ran
+    assert_verdicts_follow_the_rows(tmp_path / "run", printed, ["mini"])

@@ -364,11 +364,15 @@ def pair_verdict(rows, a: str, b: str) -> str:
 
 
 def verdicts(results: Path) -> list[str]:
-    """One line per engine pair of the run folder's results: ``a vs b: <pair_verdict>``."""
+    """One line per engine pair of the run folder's results, ``a vs b: <pair_verdict>``; for
+    a run in one engine, that engine's own (``a: <verdict>``: tiers 1 to 3 are against the
+    reference side)."""
     from validation.report.read import read_results
 
     rows = read_results(results)
     engines = list(dict.fromkeys(rows["engine"]))
+    if len(engines) == 1:
+        return [f"{engines[0]}: {pair_verdict(rows, engines[0], engines[0])}"]
     return [
         f"{a} vs {b}: {pair_verdict(rows, a, b)}" for a, b in itertools.combinations(engines, 2)
     ]
