@@ -201,11 +201,23 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
         p.disconnect(client)
 
 
+def copied_model(file: str, folder: Path, name: str) -> tuple[Path, str]:
+    """Where a copy of the model ``file`` goes in ``folder`` and its text, its relative mesh
+    references made absolute (the copy's folder has no meshes; they must exist at load)."""
+    original = model_path(file, folder / "x.yaml")
+    text = re.sub(
+        r'filename="(?!package://|/)([^"]+)"',
+        lambda found: f'filename="{(original.parent / found[1]).as_posix()}"',
+        original.read_text(),
+    )
+    return folder / name, text
+
+
 def undamped_kuka(folder: Path) -> Path:
     """The Kuka with its joints' damping removed (its energy then stays), written in ``folder``."""
-    text = model_path(KUKA, folder / "x.yaml").read_text()
-    (folder / "kuka.urdf").write_text(re.sub(r"<dynamics[^>]*/>", "", text))
-    return folder / "kuka.urdf"
+    path, text = copied_model(KUKA, folder, "kuka.urdf")
+    path.write_text(re.sub(r"<dynamics[^>]*/>", "", text))
+    return path
 
 
 RUNS = {
@@ -243,7 +255,7 @@ def test_the_model_runs_in_every_engine_with_joints_and_keeps_its_energy(tmp_pat
 REFUSALS = {
     "missing file": ({"file": "nowhere.urdf"}, "models[0].file", "no such file"),
     "no package": ({"file": "pkg:no_such_package_x/a.urdf"}, "models[0].file", "no installed"),
-    "MJCF": ({"file": "pkg:pybullet_data/mjcf/humanoid.xml"}, "models[0].file", "MJCF"),
+    "other format": ({"file": "pkg:pybullet_data/kuka_iiwa/model.sdf"}, "models[0].file", "MJCF"),
     "unknown joint": (
         {"joint_positions": {"arm/elbow": 1.0}},
         "models[0].joint_positions",
