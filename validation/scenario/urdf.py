@@ -164,7 +164,9 @@ def _origin(element: ElementTree.Element | None) -> Frame:
     if origin is None:
         return IDENTITY
     rpy = _numbers(origin.get("rpy"), 3)
-    return Frame(rotation_class().from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3))
+    return Frame(
+        rotation_class().from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3)
+    )
 
 
 def _link(element: ElementTree.Element) -> Link:
@@ -440,9 +442,7 @@ def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
     except ValueError as error:
         raise ModelError("file", str(error)) from None
     if path.suffix.lower() not in READERS:
-        raise ModelError(
-            "file", f"expected a URDF (.urdf) or MJCF (.xml) file; got {path.name!r}"
-        )
+        raise ModelError("file", f"expected a URDF (.urdf) or MJCF (.xml) file; got {path.name!r}")
     if not path.is_file():
         raise ModelError("file", f"no such file: {path}")
     try:
