@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from tests.test_models import write_scene
 from validation.scenario.compiled import compile_scene
 from validation.scenario.load import load_scenario
+from validation.scenario.problems import ScenarioError
 from validation.scenario.urdf import model_path
 
 PENDULUM = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
@@ -209,3 +210,97 @@ def test_masses_inertias_and_poses_equal_mujocos_compiled_model(tmp_path, case):
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, index, velocity, 0)
         assert np.allclose(mine.angular_velocity, velocity[:3], atol=POSE_TOLERANCE), link
         assert np.allclose(mine.velocity, velocity[3:], atol=POSE_TOLERANCE), link
+
+
+SMALL = """<mujoco>
+  <default><joint damping="0.05"/></default>
+  <worldbody>
+    <body name="cart">
+      <joint name="slider" type="slide" axis="1 0 0" range="-1 1"/>
+      <geom type="box" size="0.1 0.1 0.1"/>
+      <body name="pole">
+        <joint name="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.6" size="0.045"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+"""A cart and pole that loads; each case of ``BROKEN`` breaks one rule of the subset."""
+
+POLE_JOINT = '<joint name="hinge" axis="0 1 0"/>'
+POLE_GEOM = '<geom type="capsule" fromto="0 0 0 0 0 0.6" size="0.045"/>'
+
+BROKEN = {
+    "not MJCF": ("<robot/>", "expected a <mujoco> root"),
+    "not XML": ("<mujoco", "cannot read"),
+    "include": (SMALL.replace("<worldbody>", '<include file="more.xml"/><worldbody>'), "<include>"),
+    "equality": (SMALL.replace("</mujoco>", "<equality/></mujoco>"), "<equality>"),
+    "frame": (SMALL.replace(POLE_GEOM, f"<frame>{POLE_GEOM}</frame>"), "<frame> in body 'pole'"),
+    "ball joint": (SMALL.replace(POLE_JOINT, '<joint name="hinge" type="ball"/>'), "'ball'"),
+    "free joint inside": (
+        SMALL.replace(POLE_JOINT, '<freejoint name="loose"/>'),
+        "'free': inside the tree",
+    ),
+    "two joints": (
+        SMALL.replace(POLE_JOINT, POLE_JOINT + '<joint name="twist" axis="0 0 1"/>'),
+        "body 'pole' has 2 joints",
+    ),
+    "mesh mass": (
+        SMALL.replace(POLE_GEOM, '<geom type="mesh" mesh="pole"/>'),
+        "a mesh geom in body 'pole' would give it mass",
+    ),
+    "armature": (SMALL.replace('axis="0 1 0"', 'axis="0 1 0" armature="0.1"'), "armature=0.1"),
+    "global coordinates": (
+        SMALL.replace("<default>", '<compiler coordinate="global"/><default>'),
+        "local only",
+    ),
+    "unknown class": (SMALL.replace('name="hinge"', 'name="hinge" class="stiff"'), "'stiff'"),
+    "unnamed body": (SMALL.replace('<body name="pole">', "<body>"), "without a name"),
+    "unnamed joint": (SMALL.replace(POLE_JOINT, '<joint axis="0 1 0"/>'), "has no name"),
+    "empty range": (SMALL.replace('range="-1 1"', 'range="1 1"'), "lower < upper"),
+    "massless moving body": (SMALL.replace(POLE_GEOM, ""), "'pole' has no mass but moves"),
+    "free beside others": (
+        SMALL.replace("</worldbody>", '<body name="ball"><freejoint/></body></worldbody>'),
+        "free joint beside other top-level bodies",
+    ),
+    "missing mesh": (
+        SMALL.replace("<worldbody>", '<asset><mesh file="pole.stl"/></asset><worldbody>'),
+        "mesh 'pole.stl' not found",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_an_mjcf_outside_the_subset_is_one_line_at_file(tmp_path, case):
+    text, what = BROKEN[case]
+    (tmp_path / "small.xml").write_text(SMALL)
+    load_scenario(write_scene(tmp_path, {"file": "small.xml"}))  # the unbroken file loads
+    (tmp_path / "small.xml").write_text(text)
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(write_scene(tmp_path, {"file": "small.xml"}))
+    (problem,) = raised.value.problems
+    assert problem.path == "models[0].file" and what in problem.message, str(problem)
+    assert "\n" not in str(problem)
+
+
+def test_a_free_base_needs_a_top_level_freejoint(tmp_path):
+    (tmp_path / "small.xml").write_text(SMALL)
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(write_scene(tmp_path, {"file": "small.xml", "fixed_base": False}))
+    (problem,) = raised.value.problems
+    assert problem.path == "models[0].fixed_base" and "<freejoint/>" in problem.message
+
+
+def test_the_one_top_level_body_with_a_freejoint_is_the_root(tmp_path):
+    free = SMALL.replace('<body name="cart">', '<body name="cart"><freejoint name="base"/>')
+    (tmp_path / "free.xml").write_text(free.replace('<joint name="slider"', '<site name="s"'))
+    held = load_scenario(write_scene(tmp_path, {"file": "free.xml"}))
+    assert [(j.name, j.parent) for j in held.joints] == [
+        ("arm/fixed_base", "world"),
+        ("arm/hinge", "arm/cart"),
+    ]
+    loose = load_scenario(write_scene(tmp_path, {"file": "free.xml", "fixed_base": False}))
+    assert [j.name for j in loose.joints] == ["arm/hinge"]
+    (layout,) = compile_scene(loose).models
+    assert layout.root_link == "cart"

@@ -143,10 +143,22 @@ def turn(axis: str, angle: float) -> np.ndarray:
     return quaternion
 
 
+A1 = "pkg:pybullet_data/a1/a1.urdf"
+CARTPOLE = "pkg:pybullet_data/cartpole.urdf"
+
 CASES = {
     "kuka": (KUKA, POSE, RATES),
     "chain": ("chain.urdf", {"arm/pin": 0.4, "arm/rail": 0.15}, {"arm/pin": -0.8, "arm/rail": 0.6}),
+    "a1": (
+        A1,
+        {"arm/FR_lower_joint": -1.2, "arm/FL_upper_joint": 0.6, "arm/RR_hip_joint": 0.3},
+        {"arm/RL_upper_joint": 0.5, "arm/FR_hip_joint": -0.4, "arm/FL_lower_joint": 0.9},
+    ),
+    "cartpole": (CARTPOLE, {"arm/cart_to_pole": 0.7}, {"arm/slider_to_cart": 0.5}),
 }
+"""Off-axis origins and inertial frames (the Kuka, the chain), the A1's fixed joints and the
+knees whose limits exclude 0 (they start at their nearest limit, ``ModelLayout.starts``), the
+cartpole's massless root."""
 
 
 @pytest.mark.skipif(bool(not_installed("pybullet")), reason="PyBullet is not installed")
@@ -158,6 +170,7 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
     (tmp_path / "chain.urdf").write_text(CHAIN)
     scenario = kuka(tmp_path, file=file, joint_positions=pose, joint_velocities=rates)
     bodies = {b.name: b for b in scenario.bodies}
+    (layout,) = compile_scene(scenario).models
     client = p.connect(p.DIRECT)
     try:
         robot = p.loadURDF(
@@ -171,7 +184,11 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
             info = p.getJointInfo(robot, index, physicsClientId=client)
             name = "arm/" + info[1].decode()
             p.resetJointState(
-                robot, index, pose.get(name, 0.0), rates.get(name, 0.0), physicsClientId=client
+                robot,
+                index,
+                layout.initial_position(info[1].decode()),
+                rates.get(name, 0.0),
+                physicsClientId=client,
             )
         for index in range(p.getNumJoints(robot, physicsClientId=client)):
             info = p.getJointInfo(robot, index, physicsClientId=client)
