@@ -319,6 +319,10 @@ BROKEN = {
     "not XML": ("<robot", "cannot read"),
     "empty limits": (CHAIN.replace('lower="-1" upper="1"', 'lower="0" upper="0"'), "lower <"),
     "negative mass": (CHAIN.replace('value="2"', 'value="-2"'), "negative mass"),
+    "impossible inertia": (
+        CHAIN.replace('iyy="0.1" izz="0.1"', 'iyy="0.1" izz="0.5"'),
+        "link 'base': inertia: principal moments",
+    ),
 }
 
 

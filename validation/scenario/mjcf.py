@@ -68,11 +68,17 @@ from validation.scenario.robot import (
     translation,
 )
 
+ANGLE_UNITS = {"degree": math.pi / 180.0, "radian": 1.0}
+"""``<compiler angle>`` -> rad per unit of the file's angles (MJCF's default: degree)."""
+
 WORLD = "world"
 """The link the worldbody becomes (MuJoCo's name for it too)."""
 
 WELD_SUFFIX = ".weld"
 """A body without joints is held to its parent by the scene joint ``<body>.weld``."""
+
+WELD_AXIS = np.array([0.0, 0.0, 1.0])
+"""A weld's axis (unused: a fixed joint has none)."""
 
 DEFAULT_CLASS = "main"
 """The top-level ``<default>``'s class."""
@@ -87,6 +93,8 @@ JOINT_KINDS = {"hinge": "hinge", "slide": "slider"}
 """MJCF joint type -> physval joint type; ``free`` is the root's (below), others refused."""
 
 FREE = "free"
+DEFAULT_JOINT = "hinge"
+"""A joint's type when it states none."""
 
 READ_TOP = ("compiler", "default", "worldbody", "asset")
 IGNORED_TOP = (
@@ -139,7 +147,7 @@ SIZE_COUNTS = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "ellipsoid": 
 class _Compiler:
     """The ``<compiler>`` settings this reader uses."""
 
-    angle_unit: float = math.pi / 180.0  # rad per unit of the file's angles
+    angle_unit: float = ANGLE_UNITS["degree"]  # rad per unit of the file's angles
     inertia_from_geom: str = "auto"
     euler_sequence: str = "xyz"
     auto_limits: bool = True
@@ -207,10 +215,11 @@ def _compiler(element: ElementTree.Element, compiler: _Compiler) -> None:
     for name in REFUSED_COMPILER:
         if name in element.attrib:
             raise ValueError(f"<compiler {name}> is outside the MJCF subset physval reads")
-    angle = element.get("angle", "degree")
-    if angle not in ("degree", "radian"):
-        raise ValueError(f"<compiler angle={angle!r}>: expected degree or radian")
-    compiler.angle_unit = math.pi / 180.0 if angle == "degree" else 1.0
+    angle = element.get("angle")
+    if angle is not None:
+        if angle not in ANGLE_UNITS:
+            raise ValueError(f"<compiler angle={angle!r}>: expected degree or radian")
+        compiler.angle_unit = ANGLE_UNITS[angle]
     if element.get("coordinate", "local") != "local":
         raise ValueError("<compiler coordinate='global'> is outside the subset (local only)")
     compiler.inertia_from_geom = element.get("inertiafromgeom", compiler.inertia_from_geom)
@@ -219,7 +228,7 @@ def _compiler(element: ElementTree.Element, compiler: _Compiler) -> None:
     compiler.euler_sequence = element.get("eulerseq", compiler.euler_sequence)
     if len(compiler.euler_sequence) != 3 or set(compiler.euler_sequence) - set("xyzXYZ"):
         raise ValueError(f"<compiler eulerseq={compiler.euler_sequence!r}>: expected 3 of xyzXYZ")
-    compiler.auto_limits = element.get("autolimits", "true") == "true"
+    compiler.auto_limits = element.get("autolimits", str(compiler.auto_limits).lower()) == "true"
     compiler.mesh_folder = element.get("meshdir", element.get("assetdir", compiler.mesh_folder))
 
 
@@ -258,8 +267,6 @@ def _floats(values: dict, key: str, count: int, default: str | None = None) -> n
 
 # --- frames -------------------------------------------------------------------------------
 
-ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
-
 
 def _turn(axis: np.ndarray, angle: float) -> np.ndarray:
     return rotation_class().from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
@@ -283,29 +290,37 @@ def _euler(angles: np.ndarray, sequence: str) -> np.ndarray:
     return rotation
 
 
+def _from_quat(numbers: np.ndarray, compiler: _Compiler) -> np.ndarray:
+    w, x, y, z = numbers
+    return rotation_class().from_quat([x, y, z, w]).as_matrix()  # normalized, as MuJoCo does
+
+
+def _from_xyaxes(numbers: np.ndarray, compiler: _Compiler) -> np.ndarray:
+    x = numbers[:3] / np.linalg.norm(numbers[:3])
+    y = numbers[3:] - (numbers[3:] @ x) * x
+    y /= np.linalg.norm(y)
+    return np.column_stack([x, y, np.cross(x, y)])
+
+
+ORIENTATIONS = {
+    "quat": (4, _from_quat),
+    "axisangle": (4, lambda n, compiler: _turn(n[:3], n[3] * compiler.angle_unit)),
+    "euler": (3, lambda n, compiler: _euler(n * compiler.angle_unit, compiler.euler_sequence)),
+    "xyaxes": (6, _from_xyaxes),
+    "zaxis": (3, lambda n, compiler: _z_to(n)),
+}
+"""MJCF's ways to state an element's orientation: attribute -> (numbers, their rotation)."""
+
+
 def _orientation(values: dict, compiler: _Compiler) -> np.ndarray:
-    """The rotation an element's orientation attributes state (identity when none)."""
+    """The rotation an element's orientation attribute states (identity when none)."""
     given = [key for key in ORIENTATIONS if key in values]
     if len(given) > 1:
         raise ValueError(f"both {given[0]} and {given[1]} given")
     if not given:
         return np.eye(3)
-    key = given[0]
-    if key == "quat":
-        w, x, y, z = _floats(values, key, 4)
-        return rotation_class().from_quat([x, y, z, w]).as_matrix()
-    if key == "axisangle":
-        numbers = _floats(values, key, 4)
-        return _turn(numbers[:3], numbers[3] * compiler.angle_unit)
-    if key == "euler":
-        return _euler(_floats(values, key, 3) * compiler.angle_unit, compiler.euler_sequence)
-    if key == "zaxis":
-        return _z_to(_floats(values, key, 3))
-    numbers = _floats(values, key, 6)
-    x = numbers[:3] / np.linalg.norm(numbers[:3])
-    y = numbers[3:] - (numbers[3:] @ x) * x
-    y /= np.linalg.norm(y)
-    return np.column_stack([x, y, np.cross(x, y)])
+    count, rotation = ORIENTATIONS[given[0]]
+    return rotation(_floats(values, given[0], count), compiler)
 
 
 def _frame(values: dict, compiler: _Compiler) -> Frame:
@@ -374,18 +389,22 @@ def _body(
 
 
 def _joint(
-    elements: list, body: ElementTree.Element, parent: str, placed: Frame, reading, childclass
+    elements: list[ElementTree.Element],
+    body: ElementTree.Element,
+    parent: str,
+    placed: Frame,
+    reading: _Reading,
+    childclass: str,
 ) -> Joint:
     """The joint that carries ``body`` on ``parent``: its one joint element, or a weld."""
     name = body.get("name")
     if not elements:
         return Joint(
-            name + WELD_SUFFIX, "fixed", parent, name, placed, np.array([0.0, 0.0, 1.0]),
-            None, 0.0, in_file=False,
-        )  # fmt: skip
+            name + WELD_SUFFIX, "fixed", parent, name, placed, WELD_AXIS, None, 0.0, in_file=False
+        )
     element = elements[0]
     values = _attributes(element, reading, childclass)
-    kind = "free" if element.tag == "freejoint" else values.get("type", "hinge")
+    kind = FREE if element.tag == "freejoint" else values.get("type", DEFAULT_JOINT)
     if kind not in JOINT_KINDS:
         where = "inside the tree" if kind == FREE else "outside the subset"
         raise ValueError(f"joint of body {name!r} is {kind!r}: {where} (hinge and slide only)")
@@ -491,9 +510,8 @@ def _solid(body: str, values: dict, compiler: _Compiler) -> tuple[float, Frame, 
         frame = Frame(_z_to(axis), (ends[:3] + ends[3:]) / 2)
         sizes = [sizes[0], np.linalg.norm(axis) / 2]
     volume, unit_inertia = SOLIDS[kind](*sizes[: SIZE_COUNTS[kind]])
-    mass = float(values["mass"]) if "mass" in values else (
-        float(values.get("density", DEFAULT_DENSITY)) * volume
-    )  # fmt: skip
+    density = float(values.get("density", DEFAULT_DENSITY))
+    mass = float(values["mass"]) if "mass" in values else density * volume
     return mass, frame, unit_inertia * mass
 
 

@@ -54,7 +54,7 @@ from validation.scenario.robot import (
     Robot,
     rotation_class,
 )
-from validation.scenario.schema import ModelSpec
+from validation.scenario.schema import BodySpec, ModelSpec
 
 PLACEHOLDER_RADIUS = 0.01
 """m: the sphere each model body is given (its inertia is the link's, stated explicitly); a
@@ -280,6 +280,20 @@ def _quaternion(rotation: np.ndarray) -> list[float]:
     return [float(w), float(x), float(y), float(z)]
 
 
+def _valid_body(link: Link, body: dict) -> dict:
+    """``body`` (a link's scene entry) when the schema takes it; else ``ModelError`` at
+    ``file`` naming the link (a URDF's inertia no rigid body has, say), not the expanded
+    ``bodies[k]`` the scene file does not show."""
+    try:
+        BodySpec.model_validate(body)
+    except ValidationError as error:
+        first = error.errors(include_url=False)[0]
+        reason = first["ctx"]["error"] if "ctx" in first else first["msg"]
+        field = ".".join(str(part) for part in first["loc"])
+        raise ModelError("file", f"link {link.name!r}: {field}: {reason}") from None
+    return body
+
+
 def start(joint: Joint, stated: float | None) -> float:
     """A movable joint's coordinate at t = 0: ``stated`` (the scene's ``joint_positions``),
     else 0 moved into the joint's limits (the limit nearest 0 when they exclude it)."""
@@ -340,16 +354,19 @@ class _Expansion:
             placed.angular_velocity, frame.translation - placed.frame.translation
         )
         self.bodies.append(
-            {
-                "name": self.name(link.name),
-                "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
-                "mass": link.mass,
-                "inertia": link.inertia.tolist(),
-                "position": frame.translation.tolist(),
-                "orientation": _quaternion(frame.rotation),
-                "velocity": centre_velocity.tolist(),
-                "angular_velocity": placed.angular_velocity.tolist(),
-            }
+            _valid_body(
+                link,
+                {
+                    "name": self.name(link.name),
+                    "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
+                    "mass": link.mass,
+                    "inertia": link.inertia.tolist(),
+                    "position": frame.translation.tolist(),
+                    "orientation": _quaternion(frame.rotation),
+                    "velocity": centre_velocity.tolist(),
+                    "angular_velocity": placed.angular_velocity.tolist(),
+                },
+            )
         )
         placed.body = self.name(link.name)
         self.links.append(link.name)
