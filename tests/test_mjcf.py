@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tests.test_models import write_scene
+from tests.test_models import DT, ENERGY_RATE, ENGINES, write_scene
+from validation.measure.runner import run_engine
 from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import not_installed, parse_engine_spec
 from validation.scenario.load import load_scenario
 from validation.scenario.problems import ScenarioError
 from validation.scenario.urdf import model_path
@@ -304,3 +306,30 @@ def test_the_one_top_level_body_with_a_freejoint_is_the_root(tmp_path):
     assert [j.name for j in loose.joints] == ["arm/hinge"]
     (layout,) = compile_scene(loose).models
     assert layout.root_link == "cart"
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_undamped_pendulum_runs_in_every_engine_with_joints_and_keeps_its_energy(
+    tmp_path, engine
+):
+    if not_installed(engine):
+        pytest.skip(not_installed(engine))
+    text = model_path(PENDULUM, tmp_path / "x.yaml").read_text()
+    (tmp_path / "pendulum.xml").write_text(text.replace('<joint damping="0.05"/>', ""))
+    scenario = load_scenario(
+        write_scene(
+            tmp_path,
+            {"file": "pendulum.xml", "joint_positions": {"arm/hinge": 0.3, "arm/hinge2": -0.2}},
+        )
+    )
+    assert {j.damping for j in scenario.joints} == {0.0}
+    scene = compile_scene(scenario)
+    run = run_engine(scene, parse_engine_spec(engine))
+    assert run.status == "ok", (engine, run.status, run.message)
+    t = run.recording.trajectory
+    energy = scene.energy(t.pos, t.quat, t.vel, t.ang_vel)
+    scale = np.abs(scene.kinetic_energy(t.quat, t.vel, t.ang_vel)).max() + np.ptp(
+        scene.gravitational_energy(t.pos)
+    )
+    drift = np.abs(energy - energy[0]).max() / scale
+    assert drift < ENERGY_RATE * DT, (engine, drift)

@@ -352,3 +352,28 @@ def test_two_models_of_one_name_are_refused_at_the_second(tmp_path):
         load_scenario(path)
     (problem,) = raised.value.problems
     assert problem.path == "models[1].name" and "unique" in problem.message, str(problem)
+
+
+def test_the_a1_hangs_from_its_fixed_base_with_its_knees_at_their_nearest_limit(tmp_path):
+    scenario = kuka(tmp_path, file=A1, joint_positions={})
+    joints = {j.name: j for j in scenario.joints}
+    assert len(scenario.bodies) == 22 and joints["arm/fixed_base"].child == "arm/trunk"
+    fixed = [n for n, j in joints.items() if j.type == "fixed"]
+    assert len(fixed) == 10  # the base, the IMU, each leg's shoulder and toe
+    assert sum(j.type == "hinge" for j in joints.values()) == 12
+    # a1.urdf's knees: lower -2.69653369433, upper -0.916297857297 (0 is outside)
+    (layout,) = compile_scene(scenario).models
+    assert layout.initial_position("FR_lower_joint") == -0.916297857297
+    assert joints["arm/FR_lower_joint"].limits == pytest.approx(
+        (-2.69653369433 + 0.916297857297, 0)
+    )
+    assert layout.initial_position("FR_upper_joint") == 0.0
+
+
+def test_the_cartpoles_massless_rail_is_folded_into_the_world(tmp_path):
+    scenario = kuka(tmp_path, file=CARTPOLE, joint_positions={})
+    assert [(j.name, j.type, j.parent) for j in scenario.joints] == [
+        ("arm/slider_to_cart", "slider", "world"),
+        ("arm/cart_to_pole", "hinge", "arm/cart"),
+    ]
+    assert [b.mass for b in scenario.bodies] == [1.0, 0.1]
