@@ -257,6 +257,12 @@ def test_the_model_runs_in_every_engine_with_joints_and_keeps_its_energy(tmp_pat
     undamped_kuka(tmp_path)
     (tmp_path / "chain.urdf").write_text(CHAIN)
     scenario = kuka(tmp_path, **RUNS[model])
+    assert_energy_kept(scenario, engine)
+
+
+def assert_energy_kept(scenario, engine: str) -> None:
+    """The scenario runs ``ok`` in ``engine`` and its energy drifts less than ENERGY_RATE · dt
+    of its scale (the largest kinetic energy plus the range of the potential)."""
     scene = compile_scene(scenario)
     run = run_engine(scene, parse_engine_spec(engine))
     assert run.status == "ok", (engine, run.status, run.message)
@@ -330,8 +336,14 @@ BROKEN = {
 def test_a_urdf_physval_cannot_read_is_one_line_at_file(tmp_path, case):
     text, what = BROKEN[case]
     (tmp_path / "chain.urdf").write_text(text)
+    assert_refused_at_file(tmp_path, "chain.urdf", what)
+
+
+def assert_refused_at_file(folder: Path, file: str, what: str) -> None:
+    """The scene of the model ``file`` (in ``folder``) is refused by one line at
+    ``models[0].file`` that says ``what``."""
     with pytest.raises(ScenarioError) as raised:
-        load_scenario(write_scene(tmp_path, {"file": "chain.urdf"}))
+        load_scenario(write_scene(folder, {"file": file}))
     (problem,) = raised.value.problems
     assert problem.path == "models[0].file" and what in problem.message, str(problem)
     assert "\n" not in str(problem)

@@ -368,7 +368,8 @@ def _body(
     subtree."""
     name = element.get("name")
     if not name:
-        raise ValueError(f"a <body> without a name (inside {parent!r})")
+        where = "the <worldbody>" if parent in (None, WORLD) else f"body {parent!r}"
+        raise ValueError(f"a <body> without a name in {where}: physval names bodies by it")
     if name in reading.links:
         raise ValueError(f"two bodies named {name!r}")
     childclass = element.get("childclass", childclass)

@@ -32,9 +32,6 @@ class Frame:
             self.rotation @ other.rotation, self.rotation @ other.translation + self.translation
         )
 
-    def inverse(self) -> Frame:
-        return Frame(self.rotation.T, -self.rotation.T @ self.translation)
-
 
 IDENTITY = Frame(np.eye(3), np.zeros(3))
 

@@ -294,7 +294,7 @@ def _valid_body(link: Link, body: dict) -> dict:
     return body
 
 
-def start(joint: Joint, stated: float | None) -> float:
+def _start(joint: Joint, stated: float | None) -> float:
     """A movable joint's coordinate at t = 0: ``stated`` (the scene's ``joint_positions``),
     else 0 moved into the joint's limits (the limit nearest 0 when they exclude it)."""
     if stated is not None:
@@ -383,7 +383,7 @@ class _Expansion:
         name = self.name(joint.name)
         q = 0.0
         if joint.kind != "fixed":
-            q = self.starts[joint.name] = start(joint, self.model.joint_positions.get(name))
+            q = self.starts[joint.name] = _start(joint, self.model.joint_positions.get(name))
         rate = self.model.joint_velocities.get(name, 0.0)
         at_joint = above.frame * joint.origin
         pivot = at_joint * _motion(joint, q)
