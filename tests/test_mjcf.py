@@ -85,7 +85,7 @@ def test_the_pendulums_masses_and_inertias_are_the_hand_computed_capsules(tmp_pa
 
 
 RICH = """<mujoco model="rich">
-  <compiler angle="degree" eulerseq="zYx"/>
+  <compiler eulerseq="zYx"/>
   <option gravity="0 0 -9.81"/>
   <default>
     <joint damping="0.2"/>
@@ -154,7 +154,7 @@ def test_the_rich_file_reads_its_classes_welds_and_units(tmp_path):
         ("arm/spin", "hinge"),
     ]
     assert joints["arm/rail"].damping == 0.2  # "heavy" inherits main's joint damping
-    # range="-60 45" in degrees, relative to the initial 0.3 rad
+    # range="-60 45" in degrees (MJCF's default angle unit), relative to the initial 0.3 rad
     assert joints["arm/swing"].limits == pytest.approx(
         (math.radians(-60) - 0.3, math.radians(45) - 0.3)
     )
@@ -279,6 +279,17 @@ def test_an_mjcf_outside_the_subset_is_one_line_at_file(tmp_path, case):
     load_scenario(write_scene(tmp_path, {"file": "small.xml"}))  # the unbroken file loads
     (tmp_path / "small.xml").write_text(text)
     assert_refused_at_file(tmp_path, "small.xml", what)
+
+
+@pytest.mark.parametrize("unit, factor", [("degree", math.pi / 180), ("radian", 1.0)])
+def test_a_hinges_range_is_in_the_compilers_angle_unit(tmp_path, unit, factor):
+    text = SMALL.replace("<default>", f'<compiler angle="{unit}"/><default>')
+    (tmp_path / "small.xml").write_text(
+        text.replace(POLE_JOINT, POLE_JOINT[:-2] + ' range="-1 2"/>')
+    )
+    joints = load_scenario(write_scene(tmp_path, {"file": "small.xml"})).joints
+    assert joints[0].limits == (-1.0, 1.0)  # the slide's range: metres in either unit
+    assert joints[1].limits == pytest.approx((-factor, 2 * factor))
 
 
 def test_a_free_base_needs_a_top_level_freejoint(tmp_path):
