@@ -105,3 +105,17 @@ def test_an_mjcf_mesh_resolves_under_its_meshdir(tmp_path):
     assert "mesh 'assets/hull.stl' not found" in refusal(tmp_path, tmp_path / "shell.xml")
     touch(tmp_path / "assets" / "hull.stl")
     assert [j.name for j in load(tmp_path, tmp_path / "shell.xml").joints] == ["arm/turn"]
+
+
+def test_a_loaded_scene_is_read_again_without_its_package_paths(tmp_path, monkeypatch):
+    """A worker process reads the model again (``CompiledScene.models``, ``with_joint_state``)
+    where ``--package-path`` was never set: the meshes were checked when the scene loaded."""
+    file = robot(tmp_path, "package://gripper_parts/meshes/finger.stl")
+    touch(tmp_path / "elsewhere" / "meshes" / "finger.stl")
+    monkeypatch.setitem(urdf.PACKAGE_PATHS, "gripper_parts", str(tmp_path / "elsewhere"))
+    scenario = load(tmp_path, file)
+    monkeypatch.delitem(urdf.PACKAGE_PATHS, "gripper_parts")
+    (layout,) = compile_scene(scenario).models
+    assert layout.bodies == ("arm/base",) and layout.package_paths == ()
+    moved = urdf.with_joint_state(scenario, {}, {})
+    assert [b.name for b in moved.bodies] == ["arm/base"]

@@ -440,14 +440,18 @@ def _movable_joints(model: ModelSpec, robot: Robot) -> list[str]:
     return [model.name + "/" + j.name for j in robot.joints if j.kind != "fixed"]
 
 
-def expand_model(model: ModelSpec, scene: Path) -> tuple[list[dict], list[dict]]:
+def expand_model(
+    model: ModelSpec, scene: Path, meshes: bool = True
+) -> tuple[list[dict], list[dict]]:
     """The bodies and joints of ``model`` (a scene's ``models`` entry, read relative to the
-    scene file ``scene``), as scene entries; ``ModelError`` at the field that is wrong."""
-    expansion = _expanded(model, scene)
+    scene file ``scene``), as scene entries; ``ModelError`` at the field that is wrong.
+    ``meshes``: check that the mesh files the model names exist (False: a scene that loaded,
+    read again where the run's ``--package-path`` may not be set, as in a worker)."""
+    expansion = _expanded(model, scene, meshes)
     return expansion.bodies, expansion.joints
 
 
-def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
+def _expanded(model: ModelSpec, scene: Path, meshes: bool) -> _Expansion:
     if model.collisions:
         raise ModelError(
             "collisions",
@@ -466,7 +470,7 @@ def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
         robot = READERS[path.suffix.lower()][1](path)
     except ValueError as error:
         raise ModelError("file", str(error)) from None
-    missing = missing_file(robot.meshes, path, PACKAGE_PATHS)
+    missing = missing_file(robot.meshes, path, PACKAGE_PATHS) if meshes else None
     if missing:
         raise ModelError("file", f"{path.name}: {missing}")
     movable = _movable_joints(model, robot)
@@ -487,10 +491,12 @@ def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
     return expansion
 
 
-def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]]]:
+def expand_models(
+    data: dict, scene: Path, meshes: bool = True
+) -> tuple[dict, list[tuple[tuple, str]]]:
     """``data`` (a scene document) with its ``models`` expanded into ``bodies`` and
     ``joints``, and the problems found (location, message). Entries the schema refuses are
-    left for the schema to report."""
+    left for the schema to report; ``meshes`` as in ``expand_model``."""
     entries = data.get("models")
     if not isinstance(entries, list) or not entries:
         return data, []
@@ -508,7 +514,7 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
             )
             continue
         try:
-            more_bodies, more_joints = expand_model(model, scene)
+            more_bodies, more_joints = expand_model(model, scene, meshes)
         except ModelError as error:
             problems.append((("models", i, error.field), f"{error}"))
             continue
@@ -525,7 +531,7 @@ def model_layouts(scenario) -> tuple[ModelLayout, ...]:
     scene = Path(scenario.source or ".")
     layouts = []
     for model in scenario.models:
-        expansion = _expanded(model, scene)
+        expansion = _expanded(model, scene, meshes=False)
         layouts.append(
             ModelLayout(
                 name=model.name,
@@ -563,7 +569,7 @@ def with_joint_state(scenario, positions: dict[str, float], velocities: dict[str
         for key, stated in (("joint_positions", positions), ("joint_velocities", velocities)):
             mine = {k: v for k, v in stated.items() if k.startswith(prefix)}
             entry[key] = {**entry[key], **mine}
-    expanded, problems = expand_models(data, Path(scenario.source or "."))
+    expanded, problems = expand_models(data, Path(scenario.source or "."), meshes=False)
     if problems:
         location, message = problems[0]
         raise ModelError(str(location[-1]), message)
