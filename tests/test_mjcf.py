@@ -26,7 +26,9 @@ DENSITY = 1000.0
 """kg/m³: MJCF's default geom density (the pendulum's geoms state none)."""
 
 MASS_TOLERANCE = 1e-12
-"""Relative: the same closed forms in double precision on both sides (round-off ~1e-16)."""
+"""Relative: the same closed forms in double precision on both sides. Measured against MuJoCo
+4.0.1: masses 1.7e-16, inertias 7.8e-15 of the largest moment (the rich file's turned
+geoms), centres 1.1e-16 m: MuJoCo's capsule (and other solid) formulas are the exact ones."""
 
 POSE_TOLERANCE = 1e-9
 """m and unit-quaternion components: physval's forward kinematics against MuJoCo's for links
