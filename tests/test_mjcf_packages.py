@@ -53,6 +53,10 @@ def refusal(folder: Path, file: Path) -> str:
     return problem.message
 
 
+def message_end(message: str) -> str:
+    return message.rpartition(", ")[2]
+
+
 def test_a_package_uri_resolves_in_the_model_files_folder_tree(tmp_path):
     file = robot(tmp_path, "package://robot_description/meshes/base.stl")
     assert "mesh 'package://robot_description/meshes/base.stl' not found" in refusal(tmp_path, file)
@@ -75,7 +79,11 @@ def test_a_package_path_flag_resolves_a_package_elsewhere(tmp_path, monkeypatch)
     file = robot(tmp_path, "package://gripper_parts/meshes/finger.stl")
     mesh = touch(tmp_path / "elsewhere" / "meshes" / "finger.stl")
     message = refusal(tmp_path, file)
-    assert "looked at" in message and "--package-path gripper_parts=DIR" in message
+    assert f"looked for gripper_parts/meshes/finger.stl in {file.parent} and each folder" in message
+    assert message.endswith("; give --package-path gripper_parts=DIR")
+    monkeypatch.setitem(urdf.PACKAGE_PATHS, "gripper_parts", str(tmp_path / "wrong"))
+    wrong = tmp_path / "wrong" / "meshes" / "finger.stl"
+    assert message_end(refusal(tmp_path, file)) == f"and at {wrong} (--package-path gripper_parts)"
     monkeypatch.setitem(urdf.PACKAGE_PATHS, "gripper_parts", str(tmp_path / "elsewhere"))
     (layout,) = compile_scene(load(tmp_path, file)).models
     assert layout.package_paths == (("gripper_parts", str(tmp_path / "elsewhere")),)

@@ -49,13 +49,16 @@ def missing_file(
     for; None when every one exists."""
     for reference in references:
         if resolve(reference, model_file, package_paths) is None:
-            places = candidates(reference, model_file, package_paths)
-            where = ", ".join(str(p) for p in places[:3])
-            more = f" (and {len(places) - 3} folders above)" if len(places) > 3 else ""
-            hint = (
-                f"; give --package-path {reference[len(PACKAGE_URI) :].partition('/')[0]}=DIR"
-                if reference.startswith(PACKAGE_URI)
-                else ""
-            )
-            return f"mesh {reference!r} not found: looked at {where}{more}{hint}"
+            return f"mesh {reference!r} not found: {_looked(reference, model_file, package_paths)}"
     return None
+
+
+def _looked(reference: str, model_file: Path, package_paths: Mapping[str, str]) -> str:
+    """Where ``reference`` was looked for, in words."""
+    if not reference.startswith(PACKAGE_URI):
+        return f"looked at {candidates(reference, model_file, package_paths)[0]}"
+    name, _, inside = reference[len(PACKAGE_URI) :].partition("/")
+    tree = f"looked for {name}/{inside} in {model_file.resolve().parent} and each folder above it"
+    if name in package_paths:
+        return f"{tree}, and at {Path(package_paths[name]) / inside} (--package-path {name})"
+    return f"{tree}; give --package-path {name}=DIR"
