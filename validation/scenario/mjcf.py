@@ -5,7 +5,10 @@ Why a plain ``xml.etree`` reader and not MuJoCo's own parser (``MjSpec``/``MjMod
 MuJoCo's compiler is one of the loaders the ``model_fields`` tier judges, so the reference it
 is judged against must not be it (a MuJoCo quirk would then agree with itself); and the scene
 side imports no engine (``tests/test_architecture.py``). The subset is small enough to read
-by hand, and ``tests/test_mjcf.py`` compares the reading with MuJoCo's compiled model.
+by hand, and ``tests/test_mjcf.py`` compares the reading with MuJoCo's compiled model
+(measured with MuJoCo 4.0.1 on pybullet_data's inverted double pendulum and a file using
+every part of the subset: masses agree to 1.7e-16, inertias to 7.8e-15 of the largest moment,
+centres of mass and poses to 1e-15 m: its solid formulas, the capsule's included, are exact).
 
 The subset:
 
@@ -66,6 +69,7 @@ from validation.scenario.robot import (
     Robot,
     rotation_class,
     translation,
+    xml_root,
 )
 
 ANGLE_UNITS = {"degree": math.pi / 180.0, "radian": 1.0}
@@ -167,10 +171,7 @@ class _Reading:
 
 def read_mjcf(path: Path) -> Robot:
     """The links and joints of the MJCF file at ``path``; ValueError naming what is wrong."""
-    try:
-        root = ElementTree.parse(path).getroot()
-    except (OSError, ElementTree.ParseError) as error:
-        raise ValueError(f"cannot read {path}: {error}") from None
+    root = xml_root(path)
     try:
         robot = _read(root)
     except (TypeError, ValueError) as error:

@@ -15,7 +15,9 @@ origin: a hinge then turns the child about the pivot, not about the child's orig
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -113,3 +115,11 @@ def rotation_class():
     from scipy.spatial.transform import Rotation
 
     return Rotation
+
+
+def xml_root(path: Path) -> ElementTree.Element:
+    """The root element of the XML file at ``path``; ValueError when it cannot be read."""
+    try:
+        return ElementTree.parse(path).getroot()
+    except (OSError, ElementTree.ParseError) as error:
+        raise ValueError(f"cannot read {path}: {error}") from None

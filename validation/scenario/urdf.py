@@ -53,6 +53,7 @@ from validation.scenario.robot import (
     Link,
     Robot,
     rotation_class,
+    xml_root,
 )
 from validation.scenario.schema import BodySpec, ModelSpec
 
@@ -215,10 +216,7 @@ def _joint(element: ElementTree.Element) -> Joint:
 
 def read_urdf(path: Path) -> Robot:
     """The links and joints of the URDF at ``path``; ValueError saying what is wrong."""
-    try:
-        root = ElementTree.parse(path).getroot()
-    except (OSError, ElementTree.ParseError) as error:
-        raise ValueError(f"cannot read {path}: {error}") from None
+    root = xml_root(path)
     try:
         links = {e.get("name", ""): _link(e) for e in root.findall("link")}
         joints = [_joint(e) for e in root.findall("joint")]
