@@ -39,6 +39,7 @@ import importlib
 import importlib.metadata
 import os
 import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from types import ModuleType
 
@@ -1172,10 +1173,27 @@ class PybulletAdapter:
             matrix[np.ix_(at, at)] = pybullet.calculateMassMatrix(
                 body, positions, physicsClientId=self.client
             )
-            bias[at] = pybullet.calculateInverseDynamics(
-                body, positions, velocities, [0.0] * len(rows), physicsClientId=self.client
-            )
+            with self._gravity_in_base_frame(body):
+                bias[at] = pybullet.calculateInverseDynamics(
+                    body, positions, velocities, [0.0] * len(rows), physicsClientId=self.client
+                )
         return matrix, bias
+
+    @contextmanager
+    def _gravity_in_base_frame(self, body: int):
+        """The world's gravity turned into the fixed base's frame meanwhile (``R_baseᵀ g``):
+        ``calculateInverseDynamics`` puts a fixed base at the world's axes, whatever its
+        orientation (docs/engines.md 2.6: a Kuka turned 0.6 rad about x got its upright
+        gravity torques), so gravity is handed to it in the frame it assumes."""
+        rotation = quat_to_matrix(
+            from_xyzw(pybullet.getBasePositionAndOrientation(body, physicsClientId=self.client)[1])
+        )
+        gravity = np.asarray(self.scenario.gravity, dtype=float)
+        pybullet.setGravity(*(rotation.T @ gravity), physicsClientId=self.client)
+        try:
+            yield
+        finally:
+            pybullet.setGravity(*gravity, physicsClientId=self.client)
 
     def model_probe(self, q: np.ndarray, nu: np.ndarray) -> ModelProbe:
         """The scene's multibodies at the tree state (q, ν) (``CompiledScene.joint_tree``'s

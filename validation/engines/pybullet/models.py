@@ -30,7 +30,7 @@ import numpy as np
 from validation.engines.frames import matrix_to_quat
 from validation.engines.pybullet.trees import BASE
 from validation.reference.rotation import quat_to_matrix
-from validation.scenario.urdf import Frame, ModelLayout
+from validation.scenario.urdf import IDENTITY, Frame, ModelLayout
 
 NO_COLLISIONS = (0, 0)
 """``setCollisionFilterGroupMask``'s group and mask of a model link that collides with
@@ -271,7 +271,9 @@ class HeldJoint:
 
 
 def held_joint(joint: FileJoint, client: int) -> HeldJoint:
-    """``getJointInfo``'s type, axis (in the child link's frame), limits and damping, the
+    """``getJointInfo``'s type, axis (in the child's *inertial* frame: measured on the A1,
+    whose hips' inertial frames Bullet rotates to diagonalize the file's inertia), limits and
+    damping, the
     anchor the child link frame's origin (the URDF joint frame's, where the joint is); a fixed
     base's weld: a fixed joint at the base link frame's origin."""
     pybullet = _pybullet()
@@ -284,7 +286,8 @@ def held_joint(joint: FileJoint, client: int) -> HeldJoint:
     kind, lower, upper = info[2], info[8], info[9]
     moving = kind in (pybullet.JOINT_REVOLUTE, pybullet.JOINT_PRISMATIC)
     limits = np.array([lower, upper]) - joint.initial if moving and lower <= upper else unlimited
-    axis = frame.rotation @ np.asarray(info[13]) if moving else np.zeros(3)
+    inertial = inertial_state(Part(joint.body, joint.index, IDENTITY, False), client)[1]
+    axis = inertial @ np.asarray(info[13]) if moving else np.zeros(3)
     return HeldJoint(kind, frame.translation, axis, limits, float(info[6]))
 
 
