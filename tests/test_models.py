@@ -202,9 +202,11 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
 
 
 def undamped_kuka(folder: Path) -> Path:
-    """The Kuka with its joints' damping removed (its energy then stays), written in ``folder``."""
-    text = model_path(KUKA, folder / "x.yaml").read_text()
-    (folder / "kuka.urdf").write_text(re.sub(r"<dynamics[^>]*/>", "", text))
+    """The Kuka with its joints' damping removed (its energy then stays), written in ``folder``
+    beside a link to its meshes."""
+    original = model_path(KUKA, folder / "x.yaml")
+    (folder / "kuka.urdf").write_text(re.sub(r"<dynamics[^>]*/>", "", original.read_text()))
+    (folder / "meshes").symlink_to(original.parent / "meshes")  # PyBullet's loadURDF reads them
     return folder / "kuka.urdf"
 
 

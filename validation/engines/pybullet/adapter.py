@@ -329,6 +329,14 @@ JOINTS_NOTE = (
 )
 """The provenance note of a scene with joints."""
 
+MODELS_NOTE = (
+    "models loaded natively (model_loader=native, engines.md 2.6): PyBullet's own loadURDF or "
+    "loadMJCF reads the file; its joints' velocity motors are switched off and the profile's "
+    "link damping replaces Bullet's 0.04; URDF damping is jointDamping (explicit -c·q̇); a "
+    "fixed base is static and holds mass 0 in PyBullet (the scene's values are reported for it)"
+)
+"""The provenance note of a scene with natively loaded models."""
+
 # --- frames ---------------------------------------------------------------------------------
 
 
@@ -439,12 +447,7 @@ class PybulletAdapter:
         placed, at its initial joint state), with the velocity motors PyBullet puts on its
         joints switched off, the profile's damping and velocity clamp (``_multibody_settings``)
         on each of its multibodies, and no collisions for ``collisions: false``. A floating
-        base is refused (its base coordinates are not mapped to the tree's yet)."""
-        if not layout.spec.fixed_base:
-            raise ValueError(
-                f"model {layout.name!r}: the PyBullet adapter loads only fixed-base models "
-                "natively so far; use pybullet(model_loader=physval) for a floating base"
-            )
+        base floats as the file's base link (``useFixedBase`` false)."""
         model = models.load_model(layout, self.urdf_inertia, self.client)
         models.release_motors(model, self.client)
         for body in model.ids:
@@ -1052,8 +1055,12 @@ class PybulletAdapter:
             "contact_misses": self.contact_misses,
             "filtered_pairs": self.filtered_pairs,
         }
+        settings["model_loader"] = self.model_loader
+        settings["urdf_inertia"] = self.urdf_inertia
         if self.trees:
             settings["joint_trees"] = self._tree_settings()
+        if self.native:
+            settings["models"] = [self._model_settings(model) for model in self.native]
         notes = list(self.notes)
         if self.bodies_mode == "maximal":
             notes.append(
@@ -1062,6 +1069,8 @@ class PybulletAdapter:
             )
         if self.trees:
             notes.append(JOINTS_NOTE)
+        if self.native:
+            notes.append(MODELS_NOTE)
         return Provenance(
             engine="pybullet",
             version=importlib.metadata.version("pybullet"),
@@ -1121,24 +1130,19 @@ class PybulletAdapter:
         """Every natively loaded model's scene joints."""
         return {name: joint for model in self.native for name, joint in model.joints.items()}
 
-    def _coordinates(self, trees: bool) -> list[Coordinate]:
-        """The tree coordinates PyBullet holds as joint coordinates: every natively loaded
-        model joint with coordinates, and (``trees``) every hinge and slider of this adapter's
-        own multibodies (their coordinate 0 is the scene's t = 0). ValueError for a
-        coordinate of any other kind (a ball, a floating body or base)."""
+    def _coordinates(self) -> list[Coordinate]:
+        """The tree's coordinates as PyBullet's joint coordinates: every natively loaded
+        model joint with coordinates, and every hinge and slider of this adapter's own
+        multibodies (their coordinate 0 is the scene's t = 0). ValueError for a coordinate of
+        any other kind (a ball, a floating body or base)."""
         tree = self.scene.joint_tree
-        if tree is None:
-            return []
         held = dict(self._native_joints())
-        if trees:
-            for plan in self.trees:
-                for link in plan.links:
-                    held[link.joint] = models.FileJoint(
-                        self.ids[link.body], self.links[link.body], 0.0
-                    )
+        for plan in self.trees:
+            for link in plan.links:
+                held[link.joint] = models.FileJoint(self.ids[link.body], self.links[link.body], 0.0)
         coordinates = []
         for joint in tree.joints:
-            if joint.type == "fixed" or (not trees and joint.name not in held):
+            if joint.type == "fixed":
                 continue
             if joint.type not in ("hinge", "slider") or joint.name not in held:
                 raise ValueError(
@@ -1204,12 +1208,7 @@ class PybulletAdapter:
         inverse dynamics leaves joint damping out, as the tree's bias does; springs and
         applied loads are not in it). ValueError for a scene with a ball joint or a floating
         body or base."""
-        coordinates = self._coordinates(trees=True)
-        floating = [j.name for j in self.scene.joint_tree.joints if j.type == "free"]
-        if floating:
-            raise ValueError(
-                f"{floating[0]}: the PyBullet adapter probes only fixed-base multibodies"
-            )
+        coordinates = self._coordinates()
         for c in coordinates:
             pybullet.resetJointState(
                 c.body,
@@ -1243,6 +1242,7 @@ class PybulletAdapter:
         inertial = quat_to_matrix(quat)
         slices = {joint.child: joint.v_slice for joint in tree.joints}
         in_trees = {body for plan in self.trees for body in plan.bodies}
+        in_trees |= {k for k, part in enumerate(self.parts) if part is not None}  # a model's
         for root in [j.child for j in tree.joints if j.type == "free" and j.child not in in_trees]:
             mass, world = self._world_inertia(root, inertial)
             block = np.block([[mass * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), world]])
@@ -1255,9 +1255,62 @@ class PybulletAdapter:
             linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
             own += mass * linear.T @ linear + angular.T @ world @ angular
         change = self._tree_coordinates(inertial, quat_to_matrix(self._body_quat(quat)))
-        tree_q = np.zeros(tree.nq)  # a model's coordinates are hinges and sliders: 0 at t = 0
-        loaded = self._dynamics(self._coordinates(trees=False), tree_q, np.zeros(tree.nv))[0]
-        return matrix + change.T @ own @ change + loaded
+        return matrix + change.T @ own @ change + self._loaded_mass_matrix()
+
+    def _loaded_mass_matrix(self) -> np.ndarray:
+        """M(q0) of the natively loaded models in the tree's coordinates, as PyBullet moves
+        and holds them: Σ Jᵀ diag(m, I) J over their bodies (``models.held_inertia``), each
+        column of J the bodies' centre velocities and ω (``models.inertial_state``) with one
+        coordinate at 1 (``_set_loaded_velocities``). The velocities are restored after."""
+        tree = self.scene.joint_tree
+        matrix = np.zeros((tree.nv, tree.nv))
+        parts = [part for part in self.parts if part is not None and not part.welded]
+        if not parts:
+            return matrix
+        now = self._set_loaded_velocities(None)
+        columns = []
+        for column in np.eye(tree.nv):
+            self._set_loaded_velocities(column)
+            motion = [models.inertial_state(part, self.client)[2:] for part in parts]
+            columns.append(np.concatenate([np.concatenate(m) for m in motion]))
+        self._set_loaded_velocities(now)
+        jacobian = np.array(columns).T
+        for k, part in enumerate(parts):
+            mass, _, world = models.held_inertia(part, self.client)
+            linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
+            matrix += mass * linear.T @ linear + angular.T @ world @ angular
+        return matrix
+
+    def _set_loaded_velocities(self, nu: np.ndarray | None) -> np.ndarray:
+        """The natively loaded models' velocities set from a tree ν (each joint's rate at its
+        current position by ``resetJointState``; a floating base's v and ω, world frame, the
+        tree's free coordinates, by ``resetBaseVelocity``); None sets nothing. Returns the
+        tree ν they held before (other coordinates 0)."""
+        tree = self.scene.joint_tree
+        native = self._native_joints()
+        before = np.zeros(tree.nv)
+        for joint in tree.joints:
+            at, part = joint.v_slice.start, self.parts[joint.child]
+            if joint.name in native and joint.type in ("hinge", "slider"):
+                held = native[joint.name]
+                position, before[at] = pybullet.getJointState(
+                    held.body, held.index, physicsClientId=self.client
+                )[:2]
+                if nu is not None:
+                    pybullet.resetJointState(
+                        held.body, held.index, position, float(nu[at]), physicsClientId=self.client
+                    )
+            elif joint.type == "free" and part is not None:
+                linear, angular = pybullet.getBaseVelocity(part.body, physicsClientId=self.client)
+                before[at : at + 6] = [*linear, *angular]
+                if nu is not None:
+                    pybullet.resetBaseVelocity(
+                        part.body,
+                        nu[at : at + 3].tolist(),
+                        nu[at + 3 : at + 6].tolist(),
+                        physicsClientId=self.client,
+                    )
+        return before
 
     def _world_inertia(self, body: int, inertial: np.ndarray) -> tuple[float, np.ndarray]:
         """A body's mass and world inertia as PyBullet holds them (``getDynamicsInfo``)."""
@@ -1288,6 +1341,22 @@ class PybulletAdapter:
                 change[at : at + size, slices[link.body]] = block
                 at += size
         return change
+
+    def _model_settings(self, model: models.NativeModel) -> dict[str, object]:
+        """A natively loaded model (provenance): its file, PyBullet's loader and flags, and
+        the loader's bodies removed (``models._world_geoms``)."""
+        layout = model.layout
+        loader = "loadURDF" if layout.format == "urdf" else "loadMJCF"
+        flags = "URDF_USE_INERTIA_FROM_FILE" if self.urdf_inertia == "file" else "none"
+        return {
+            "model": layout.name,
+            "file": str(layout.path),
+            "loader": loader,
+            "flags": flags if loader == "loadURDF" else "none",
+            "useFixedBase": bool(layout.spec.fixed_base),
+            "collisions": bool(layout.spec.collisions),
+            "removed_bodies": list(model.removed),
+        }
 
     def _tree_settings(self) -> list[dict[str, object]]:
         """Each multibody (provenance): its base and each link's body, joint, parent, damping

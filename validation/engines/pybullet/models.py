@@ -32,6 +32,9 @@ from validation.engines.pybullet.trees import BASE
 from validation.reference.rotation import quat_to_matrix
 from validation.scenario.urdf import IDENTITY, Frame, ModelLayout
 
+LOADERS = {"urdf": "loadURDF", "mjcf": "loadMJCF"}
+"""A model file's format -> PyBullet's loader."""
+
 NO_COLLISIONS = (0, 0)
 """``setCollisionFilterGroupMask``'s group and mask of a model link that collides with
 nothing (``collisions: false``): no group, and a mask that accepts none."""
@@ -108,6 +111,18 @@ def load_files(layout: ModelLayout, inertia: str, client: int) -> tuple[int, ...
     pybullet = _pybullet()
     base = _base_frame(layout)
     _add_search_paths(layout, client)
+    try:
+        return _loaded(layout, base, inertia, client)
+    except pybullet.error as error:  # Bullet says why on stderr only (a missing mesh, ...)
+        raise ValueError(
+            f"PyBullet's {LOADERS[layout.format]} cannot load {layout.path} ({error}; a mesh "
+            "the file names may be missing)"
+        ) from None
+
+
+def _loaded(layout: ModelLayout, base: Frame, inertia: str, client: int) -> tuple[int, ...]:
+    """``load_files``' calls (``base``: the model's frame in the world)."""
+    pybullet = _pybullet()
     if layout.format == "urdf":
         body = pybullet.loadURDF(
             str(layout.path),
