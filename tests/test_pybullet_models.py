@@ -37,7 +37,7 @@ compose the same URDF transforms in double precision; measured <= 6e-14 (the Kuk
 DIAGONALIZATION = 1e-8
 """Relative to a link's largest inertia entry: Bullet's URDF importer diagonalizes an inertia
 with off-diagonal terms by Jacobi rotations stopping at a threshold of 1e-6 (BulletURDFImporter
-getMassAndInertia2: ``diagonalize(basis, 1.0e-6, 30)``); measured 2.5e-9 on the A1's hips."""
+getMassAndInertia2: ``diagonalize(basis, 1.0e-6, 30)``); measured 3.3e-9 on the A1's hips."""
 
 PROBE_TOLERANCE = 1e-9
 """Relative to the largest entry of M or of the bias: calculateMassMatrix and

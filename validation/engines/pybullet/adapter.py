@@ -31,6 +31,13 @@ Joints (engines.md 2.5): a scene's joint tree becomes one btMultiBody per tree (
 whatever the ``bodies`` option; its bodies' states are read from PyBullet's own kinematics
 (``getLinkState``) and its joint velocities set from the stated body velocities through them.
 A scene without joints takes the path above untouched.
+
+Models (engines.md 2.6): with ``model_loader=native`` (the default) a scene's ``models`` are read
+by PyBullet's own ``loadURDF``/``loadMJCF`` (``models``), the scene's other bodies and joints
+built as above; each model body is read back as its link's frame times the layout's
+``body_in_link``, and ``model_probe`` takes M and the bias from ``calculateMassMatrix`` and
+``calculateInverseDynamics``. ``model_loader=physval`` builds them from the expanded bodies and
+joints like any others.
 """
 
 from __future__ import annotations
