@@ -157,10 +157,11 @@ def test_the_native_model_report_is_the_scenes(tmp_path, name):
     assert np.abs(got.angular_momentum - want.angular_momentum).max() <= ROUND_OFF
 
 
+@pytest.mark.parametrize("spec", LOADERS)
 @pytest.mark.parametrize("name", sorted(MODELS))
-def test_the_native_joints_are_the_scenes_with_limits_and_damping(tmp_path, name):
+def test_the_joints_are_the_scenes_with_limits_and_damping(tmp_path, name, spec):
     scene = scene_of(tmp_path, MODELS[name])
-    with loaded("pybullet", scene) as adapter:
+    with loaded(spec, scene) as adapter:
         assert compare_joints(adapter, scene, ROUND_OFF) == []
         report = adapter.joint_report()
     joints = scene.scenario.joints

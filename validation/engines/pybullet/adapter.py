@@ -1092,9 +1092,11 @@ class PybulletAdapter:
         world by the two frames' poses (``getLinkState``, the base's, or the world's for a tree
         rooted at the world); and M(q0) of the trees (``_mass_matrix``). (A fixed link's
         ``worldLinkFramePosition`` is float32-rounded, 7e-8 of the scene, engines.md 2.5.)
-        A natively loaded model's joints: ``models.held_joint``. Limits (from t = 0; NaN
-        where PyBullet holds none) and damping (``jointDamping``) as ``getJointInfo`` reads
-        them; armature 0 (Bullet has none)."""
+        A natively loaded model's joints: ``models.held_joint``, limits (from t = 0; NaN where
+        PyBullet holds none) and damping as ``getJointInfo`` reads what the loader set. This
+        adapter's own multibodies: the limits and damping it passed to ``changeDynamics``
+        (``_set_limits``, ``_create_tree``), which ``getJointInfo`` does not read back (it
+        keeps the values at creation: no limits, damping 0). Armature 0 (Bullet has none)."""
         types, anchors, axes, limits, damping = [], [], [], [], []
         names = [body.name for body in self.scenario.bodies]
         pos, quat, _, _ = self._read_state()
@@ -1120,9 +1122,8 @@ class PybulletAdapter:
             anchors.append(origin + frame @ np.asarray(info[14]))
             has_axis = joint.type in ("hinge", "slider")
             axes.append(inertial[child] @ np.asarray(info[13]) if has_axis else np.zeros(3))
-            limited = has_axis and info[8] <= info[9]
-            limits.append(np.array(info[8:10]) if limited else np.full(2, np.nan))
-            damping.append(float(info[6]))
+            limits.append(np.array(joint.limits if joint.limits else (np.nan, np.nan)))
+            damping.append(joint.damping)
         return JointReport(
             tuple(types),
             np.array(anchors),
