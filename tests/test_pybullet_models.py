@@ -58,22 +58,27 @@ A1_STANCE = {f"a1/{leg}_lower_joint": -1.5 for leg in ("FR", "FL", "RR", "RL")}
 """The A1's knees inside their URDF limits [-2.70, -0.92] rad (0 is outside them)."""
 
 TURNED = """<robot name="turned">
-  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
-    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
-  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
-    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
+  <link name="base"><inertial><origin xyz="0.04 -0.02 0.12" rpy="0.25 -0.1 0"/><mass value="3"/>
+    <inertia ixx="0.2" iyy="0.15" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="upper"><inertial><origin xyz="0.18 0.01 0.04" rpy="0.1 0.6 0.2"/><mass value="1.2"/>
+    <inertia ixx="0.012" iyy="0.021" izz="0.027" ixy="0.0012" ixz="0" iyz="0"/></inertial></link>
+  <link name="slide"><inertial><origin xyz="0.02 0.08 0" rpy="0.35 0 0.1"/><mass value="0.6"/>
+    <inertia ixx="0.0021" iyy="0.0032" izz="0.0043" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="wrist"><inertial><origin xyz="0 0 0.05" rpy="0 0.2 0"/><mass value="0.3"/>
+    <inertia ixx="0.001" iyy="0.001" izz="0.0005" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="pin" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="0 0.02 0.3" rpy="0.3 0.1 0.5"/><axis xyz="0 1 0"/>
     <limit lower="-1" upper="1"/><dynamics damping="0.2"/></joint>
-  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
+  <joint name="rail" type="prismatic"><parent link="upper"/><child link="slide"/>
     <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
     <limit lower="-0.5" upper="0.5"/></joint>
+  <joint name="twist" type="continuous"><parent link="slide"/><child link="wrist"/>
+    <origin xyz="0.1 0.05 0" rpy="-0.4 0 0"/><axis xyz="0 0.6 0.8"/></joint>
 </robot>
 """
-"""A hinge and an off-axis slider, every origin and inertial frame turned, a base with mass
-(held by the fixed base's weld) whose inertial frame is turned too (no meshes)."""
+"""A hinge, an off-axis slider and a continuous joint, every origin and inertial frame turned,
+a base with mass (held by the fixed base's weld) whose inertial frame is turned too (no
+meshes)."""
 
 MODELS = {
     "kuka": {
@@ -97,8 +102,8 @@ MODELS = {
     "turned": {
         "name": "tw",
         "file": "turned.urdf",
-        "joint_positions": {"tw/pin": 0.3, "tw/rail": 0.1},
-        "joint_velocities": {"tw/pin": 0.5, "tw/rail": -0.2},
+        "joint_positions": {"tw/pin": 0.3, "tw/rail": 0.1, "tw/twist": 2.0},
+        "joint_velocities": {"tw/pin": 0.5, "tw/rail": -0.2, "tw/twist": 1.5},
     },
 }
 """Each model's ``models`` entry (a fixed base at ``TILT``, 1 m up)."""
