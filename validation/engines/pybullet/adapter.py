@@ -1354,13 +1354,12 @@ class PybulletAdapter:
         """A natively loaded model (provenance): its file, PyBullet's loader and flags, and
         the loader's bodies removed (``models._world_geoms``)."""
         layout = model.layout
-        loader = "loadURDF" if layout.format == "urdf" else "loadMJCF"
-        flags = "URDF_USE_INERTIA_FROM_FILE" if self.urdf_inertia == "file" else "none"
+        from_file = layout.format == "urdf" and self.urdf_inertia == "file"
         return {
             "model": layout.name,
             "file": str(layout.path),
-            "loader": loader,
-            "flags": flags if loader == "loadURDF" else "none",
+            "loader": models.LOADERS[layout.format],
+            "flags": "URDF_USE_INERTIA_FROM_FILE" if from_file else "none",
             "useFixedBase": bool(layout.spec.fixed_base),
             "collisions": bool(layout.spec.collisions),
             "removed_bodies": list(model.removed),

@@ -12,7 +12,7 @@ and axes (the file's inertial rotation), whatever frame Bullet keeps its inertia
 
 What the loaders do with the file, measured (docs/engines.md 2.6): ``loadURDF`` recomputes
 every link's inertia from its collision shapes unless ``URDF_USE_INERTIA_FROM_FILE``
-(``INERTIA_FLAGS``); it keeps ``<dynamics damping>`` as btMultiBody's ``jointDamping`` (an
+(``inertia_flags``); it keeps ``<dynamics damping>`` as btMultiBody's ``jointDamping`` (an
 explicit ``-c q̇``), puts a velocity motor on every joint (``release_motors``) and gives the
 multibody Bullet's link damping 0.04 (the profile's ``changeDynamics`` settings replace it);
 a fixed base holds mass 0. ``loadMJCF`` makes each jointed MJCF body a massless link on the
@@ -83,7 +83,7 @@ class NativeModel:
 
 
 def inertia_flags(mode: str) -> int:
-    """``loadURDF``'s flags for an ``urdf_inertia`` mode (``INERTIA_MODES``)."""
+    """``loadURDF``'s flags for an ``urdf_inertia`` mode (``declaration.INERTIA_MODES``)."""
     return _pybullet().URDF_USE_INERTIA_FROM_FILE if mode == "file" else 0
 
 
