@@ -212,7 +212,7 @@ VERDICT_ROWS = pd.DataFrame(
         ("rapier", "fk_error", True, "unstable", ""),
         ("rapier", "status", False, "unstable", "deep_penetration at t = 0.2 s"),
         ("drake", "model_fields", None, "unsupported", ""),
-        ("drake", "status", None, "unsupported", "drake cannot represent: joints"),
+        ("drake", "status", None, "unsupported", "drake cannot represent: joints; ground"),
     ],
     columns=["engine", "metric", "passed", "status", "message"],
 ).assign(value_text="")
@@ -236,7 +236,8 @@ def test_a_run_that_did_not_end_ok_is_no_agreement():
         "no tier row failed, but rapier's run is unstable: deep_penetration at t = 0.2 s"
     )
     assert sim2sim.pair_verdict(rows[rows["engine"] == "drake"], "drake", "rapier") == (
-        "no tier row failed, but drake's run is unsupported: drake cannot represent: joints"
+        "no tier row failed, but drake's run is unsupported: drake cannot represent: joints "
+        "(and 1 more in results.csv)"
     )
 
 

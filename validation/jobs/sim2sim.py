@@ -46,7 +46,7 @@ from validation.scenario.engine_spec import (
 )
 from validation.scenario.problems import printable
 from validation.scenario.schema import METRIC_NAMES
-from validation.scenario.urdf import PACKAGE_PREFIX, model_path, read_urdf
+from validation.scenario.urdf import PACKAGE_PREFIX, READERS, model_path
 
 try:  # the tier order, where the report reads it (issue 36's plan, item 1)
     from validation.measure.definitions import TIERS
@@ -57,9 +57,6 @@ except ImportError:  # until the tiers land on main: the same order (MODELS.md)
         ("mass_matrix_error", "bias_force_error"),
         ("joint_divergence", "agreement_time", "energy_drift", "joint_violation"),
     )
-
-MODEL_FORMATS = {".urdf": "URDF", ".xml": "MJCF"}
-"""Model file suffix -> the format read from it."""
 
 DEFAULT_OUT = Path("reports") / "sim2sim"
 """Where ``physval sim2sim`` publishes without ``--out``."""
@@ -122,6 +119,9 @@ left out of the written scene."""
 AGREEING = "agree on every tier"
 VERDICT_TITLE = "sim2sim: the first tier where each engine pair disagrees"
 
+REASON_SEPARATOR = "; "
+"""Between the reasons of one status message (``_first_reason``)."""
+
 RUN_STATUS_METRIC = "status"
 """The row an engine's run writes when it did not end ``ok`` (``measure.comparator``): its
 status (unstable, error, unsupported, ...) and why."""
@@ -162,7 +162,7 @@ def model_file(text: str) -> tuple[str, Path]:
         path = model_path(text, Path.cwd() / "scene")
     except ValueError as error:
         raise BadInputError(f"{printable(text)}: {error}") from None
-    if path.suffix.lower() not in MODEL_FORMATS:
+    if path.suffix.lower() not in READERS:
         raise BadInputError(
             f"{printable(text)}: expected a URDF (.urdf) or MJCF (.xml) model file; got "
             f"{printable(path.name)!r}"
@@ -175,11 +175,9 @@ def model_file(text: str) -> tuple[str, Path]:
 
 def default_configuration(path: Path) -> dict[str, float]:
     """File joint name -> its position at t = 0: the middle of its limits where 0 is outside
-    them (others 0, not listed). A URDF's limits are read here; an MJCF model starts at its
-    ``qpos0`` (0). ``ValueError`` when the URDF cannot be read."""
-    if MODEL_FORMATS[path.suffix.lower()] != "URDF":
-        return {}
-    robot = read_urdf(path)
+    them (others 0, not listed: a swing pushed from a limit would start against its stop).
+    ``ValueError`` when the file cannot be read."""
+    robot = READERS[path.suffix.lower()][1](path)
     return {
         joint.name: (joint.limits[0] + joint.limits[1]) / 2
         for joint in robot.joints
@@ -328,10 +326,19 @@ def write_scene(folder: Path, model: str, engines: list[str], duration: float, d
     return scene
 
 
+def _first_reason(message: str) -> str:
+    """A status message's first reason (they are ``; ``-separated: the parity gate lists
+    every field that differs), with a count of the others."""
+    first, *others = message.split(REASON_SEPARATOR)
+    return first + (f" (and {len(others)} more in {RESULTS_FILE})" if others else "")
+
+
 def _run_status(rows, engine: str) -> tuple[str, str] | None:
-    """(status, why) when ``engine``'s run did not end ``ok``, else None."""
+    """(status, its first reason) when ``engine``'s run did not end ``ok``, else None."""
     found = rows[(rows["engine"] == engine) & (rows["metric"] == RUN_STATUS_METRIC)]
-    return None if found.empty else (found.iloc[0]["status"], found.iloc[0]["message"])
+    if found.empty:
+        return None
+    return found.iloc[0]["status"], _first_reason(found.iloc[0]["message"])
 
 
 def _failed(rows, engine: str, metric: str):
