@@ -254,6 +254,15 @@ def test_a_rerun_replaces_its_own_run_folder(tmp_path, capsys):
         assert sim2sim_run(capsys, KUKA, "--engines", "mini", "--out", out, *SHORT)[0] == EXIT_OK
 
 
+SINGLE_LINK = (
+    '<robot name="r"><link name="a"><inertial><mass value="1"/>'
+    '<inertia ixx="1" iyy="1" izz="1"/></inertial></link></robot>'
+)
+FLOATING = (
+    '<link name="b"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1"/></inertial>'
+    '</link><joint name="j" type="floating"><parent link="a"/><child link="b"/></joint></robot>'
+)
+
 BAD_INPUTS = {
     "missing file": (["nowhere.urdf"], "nowhere.urdf: no such file"),
     "not a model": (["notes.txt"], "expected a URDF (.urdf) or MJCF (.xml) model file"),
@@ -263,6 +272,9 @@ BAD_INPUTS = {
     "engine twice": ([KUKA, "--engines", "mini", "mini"], "--engines: an engine is listed twice"),
     "package path syntax": ([KUKA, "--package-path", "robots"], "expected NAME=DIR"),
     "package path missing": ([KUKA, "--package-path", "r=/no/such/dir"], "is not a folder"),
+    "no movable joint": (["single.urdf"], "single.urdf: has no movable joint"),
+    "floating joint": (["floating.urdf"], "floating.urdf: cannot be read"),
+    "dt beyond the swing": ([KUKA, "--dt", "0.5", "--duration", "0.1"], "--duration: expected"),
 }
 
 
@@ -271,6 +283,8 @@ def test_bad_input_is_one_line_and_exit_2(case, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "notes.txt").write_text("not a robot")
     (tmp_path / "broken.urdf").write_text("<robot><link name='a'>")
+    (tmp_path / "single.urdf").write_text(SINGLE_LINK)
+    (tmp_path / "floating.urdf").write_text(SINGLE_LINK.replace("</robot>", FLOATING))
     args, expected = BAD_INPUTS[case]
     code, _, err = sim2sim_run(capsys, *args, "--out", "run", *SHORT)
     assert code == EXIT_BAD_INPUT

@@ -5,17 +5,19 @@ In phases, every input checked before any work:
 1. **Read the request**: the model file (a path or ``pkg:PACKAGE/path``; URDF ``.urdf`` or
    MJCF ``.xml``), the engines (default ``model_engines``: every installed engine with joints,
    the native loaders first) and the ``--package-path`` flags. Bad input is one line, exit 2.
-2. **Write the scene** (``scene_text``): the model on a fixed base at its default
-   configuration (every movable joint at 0, or at the middle of its limits where 0 is outside
-   them), each joint given ``SWING_VELOCITY``, a passive swing under gravity for
-   ``SWING_DURATION``, collisions off, with ``SIM2SIM_CHECKS``. It is loaded as ``physval
-   check`` loads it: a model the reader refuses is one line naming the model file.
+2. **Write the scene** (``write_scene``, ``Swing``): the model on a fixed base turned so
+   that it hangs below it (``hanging``), at its default configuration (every movable joint
+   at 0, or at the middle of its limits where 0 is outside them), each movable joint given
+   ``SWING_VELOCITY``, a passive swing under gravity for ``SWING_DURATION``, collisions off,
+   with ``SIM2SIM_CHECKS``. It is loaded as ``physval check`` loads it: a model the reader
+   refuses, or one without a movable joint, is one line naming the model file.
 3. **Run it** through ``physval run``'s own machinery (``run.run_main``): the same run folder,
    ``--out`` rules, exit codes; the scene goes into the run folder as ``scene.yaml``
    (``SCENE_FILE``), so ``physval run DIR/scene.yaml`` runs it again.
-4. **The verdict** (``verdicts``): per engine pair, the first tier (``TIERS``) where one of
-   the two engines' rows failed, with that row's message (it names the link or field); or
-   ``agree on every tier``.
+4. **The verdict** (``verdicts``): per engine pair, the first tier (``TIERS``) where a row
+   of one of the two engines is beyond its tolerance, with that row's message (it names the
+   link or field); else a run that did not end ``ok``, with its status; else ``agree on every
+   tier``.
 """
 
 from __future__ import annotations
@@ -118,6 +120,9 @@ left out of the written scene."""
 
 AGREEING = "agree on every tier"
 VERDICT_TITLE = "sim2sim: the first tier where each engine pair disagrees"
+
+SCENE_FLAGS = {"dt": "--dt", "duration": "--duration", "engines": "--engines"}
+"""A field of the written scene -> the flag that sets it (a problem there is the flag's)."""
 
 REASON_SEPARATOR = "; "
 """Between the reasons of one status message (``_first_reason``)."""
@@ -262,16 +267,20 @@ class Swing:
 
 def _loaded(swing: Swing, scene: Path, model: str) -> Scenario:
     """``swing`` written to ``scene`` and loaded as ``physval check`` loads it;
-    ``BadInputError`` naming the model file with the reader's first problem."""
+    ``BadInputError`` with its first problem: the model file's, or the flag's that set the
+    field (``SCENE_FLAGS``)."""
     scene.write_text(swing.text())
     try:
         return load_scenario(scene)
     except ScenarioError as error:
         first = next((p for p in error.problems if p.path.startswith("models")), None)
-        first = first or error.problems[0]
-        raise BadInputError(
-            f"{printable(model)}: cannot be read ({first.path}: {first.message})"
-        ) from None
+        if first is not None:
+            raise BadInputError(
+                f"{printable(model)}: cannot be read ({first.path}: {first.message})"
+            ) from None
+        first = error.problems[0]
+        flag = SCENE_FLAGS.get(first.path.split(".")[0], first.path)
+        raise BadInputError(f"{flag}: {first.message}") from None
 
 
 def _tolerance(value: float | dict[str, float], engines: list[str]) -> float | dict[str, float]:
@@ -316,6 +325,11 @@ def write_scene(folder: Path, model: str, engines: list[str], duration: float, d
     at_rest = _loaded(swing, scene, model)
     prefix = swing.name + "/"
     movable = [j.name[len(prefix) :] for j in at_rest.joints if j.type != "fixed"]
+    if not movable:
+        raise BadInputError(
+            f"{printable(model)}: has no movable joint; expected a model with revolute, "
+            "continuous or prismatic (hinge or slide) joints to swing"
+        )
     swing = replace(
         swing,
         velocities=dict.fromkeys(movable, SWING_VELOCITY),
