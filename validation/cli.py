@@ -104,6 +104,7 @@ def command_sim2sim(args: argparse.Namespace) -> int:
         args.argv,
         args.jobs,
         args.job_timeout,
+        args.scheduler,
     )
 
 
@@ -318,14 +319,7 @@ def _sim2sim_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--dt", type=_positive_seconds, metavar="SECONDS", help="the step (default 1 ms)"
     )
-    _job_timeout_argument(command)
-    command.add_argument(
-        "--jobs",
-        type=_positive_count,
-        default=os.cpu_count() or 1,
-        metavar="N",
-        help="parallel worker processes (default: the machine's cores)",
-    )
+    _jobs_argument(command)
 
 
 def _run_arguments(command: argparse.ArgumentParser) -> None:
@@ -413,7 +407,8 @@ def _job_timeout_argument(command: argparse.ArgumentParser) -> None:
 
 
 def _jobs_argument(command: argparse.ArgumentParser) -> None:
-    """--jobs, --scheduler and --job-timeout: where the jobs run (run, sweep, stability)."""
+    """--jobs, --scheduler and --job-timeout: where the jobs run (run, sweep, stability,
+    sim2sim)."""
     _job_timeout_argument(command)
     command.add_argument(
         "--jobs",

@@ -409,8 +409,10 @@ def sim2sim_main(
     argv: list[str],
     jobs: int = 1,
     job_timeout: float | None = None,
+    scheduler: str | None = None,
 ) -> int:
-    """The whole command (module docstring); the exit code, as ``physval run``'s."""
+    """The whole command (module docstring); the exit code, as ``physval run``'s. ``jobs``,
+    ``job_timeout``, ``scheduler``: as ``run``'s ``--jobs``, ``--job-timeout``, ``--scheduler``."""
     from validation.jobs.run import run_main
 
     out = DEFAULT_OUT if out is None else out
@@ -433,6 +435,7 @@ def sim2sim_main(
             argv,
             jobs,
             baseline="none",
+            scheduler=scheduler,
             history="none",
             job_timeout=job_timeout,
             extra_files={SCENE_FILE: scene.read_text()},
