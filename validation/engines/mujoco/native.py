@@ -1,0 +1,264 @@
+"""A scene's ``models`` loaded by MuJoCo's own compiler (``model_loader=native``, issue 36).
+
+The scene's other bodies and joints are written as MJCF by ``mjcf.build_mjcf`` (as for any
+scene); each model file is then read by ``mujoco.MjSpec.from_file`` (MuJoCo's URDF importer or
+its MJCF parser) and attached into a frame of the world body at the model's ``position`` and
+``orientation``, its names prefixed ``<model>/`` so that MuJoCo's body and joint names are the
+scene's (``<model>/<link>``, ``<model>/<joint>``). What is MuJoCo's and what is physval's:
+
+- MuJoCo's: everything the file's own reading decides: masses, inertias (URDF ``<inertial>``,
+  MJCF ``<inertial>`` or the geoms' under the file's ``<compiler inertiafromgeom>``), joint
+  frames, axes, ranges (MJCF ``angle`` units), damping and armature (MJCF ``<default>``
+  classes), every other ``<compiler>`` setting of the file;
+- physval's (``NATIVE_COMPILER``): ``fusestatic`` off, so every link stays a MuJoCo body that
+  the scene's name addresses (MuJoCo's URDF default fuses a fixed joint's child into its
+  parent; welded, its dynamics is the same);
+- the scene's: the timestep, gravity, integrator and every other ``<option>`` (the spec's):
+  ``attach`` keeps the parent's options, so a model file's own ``<option>`` (an MJCF's
+  timestep, gravity, integrator) is not used; MuJoCo's attach-conflict warnings say which
+  values were dropped, and the provenance lists them;
+- the base: fixed (the root body welded to the frame; an MJCF root's free joint removed) or
+  free (a free joint ``<root>/free`` added to the root link's body); joint states at t = 0
+  from the scene (``ModelLayout.initial_position``/``initial_velocity``, the file's own
+  coordinate: MuJoCo's qpos);
+- contacts: ``collisions: false`` removes the geoms that neither collide nor weigh
+  (``drop_idle_geoms``) and gives the remaining ones ``contype = conaffinity = 0`` (on the
+  compiled model, so the compiler's inertia-from-geom logic sees the file's own values).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from validation.engines.frames import matrix_to_quat
+
+FREE_JOINT = "free"
+"""The name (after the root link's name) of the free joint a free-base model's root gets."""
+
+NATIVE_COMPILER = {"fusestatic": False}
+"""``<compiler>`` settings physval sets on every model file (module docstring): links on fixed
+joints stay bodies, addressable by the scene's names."""
+
+WORLD_BODY = "world"
+"""MuJoCo's world body: its geoms weigh nothing."""
+
+PACKAGE_URL = "package://"
+"""A URDF mesh reference resolved by ``ModelLayout.package_paths`` or the file's folder."""
+
+
+@dataclass(frozen=True)
+class NativeModel:
+    """What attaching one model did, for the adapter's bookkeeping.
+
+    Attributes:
+        layout: the scene's ``ModelLayout``.
+        root: the MuJoCo name of the model's root body.
+        free_joint: the MuJoCo name of the root's free joint, or None (fixed base).
+    """
+
+    layout: object
+    root: str
+    free_joint: str | None
+
+
+def mujoco_name(layout, name: str) -> str:
+    """The MuJoCo name of a file's link or joint once attached: the scene's name."""
+    return f"{layout.name}/{name}"
+
+
+def _resolve_meshes(child, layout) -> None:
+    """``package://NAME/path`` mesh files resolved (``--package-path NAME=DIR``, else the
+    model file's folder): MuJoCo's URDF importer takes the URL as a relative path."""
+    packages = dict(layout.package_paths)
+    folder = layout.path.parent
+    for mesh in child.meshes:
+        if mesh.file.startswith(PACKAGE_URL):
+            package, _, inside = mesh.file[len(PACKAGE_URL) :].partition("/")
+            base = packages.get(package)
+            mesh.file = str((folder if base is None else type(folder)(base)) / inside)
+
+
+def _weighs(child, body) -> bool:
+    """Whether MuJoCo's compiler takes ``body``'s inertia from its geoms (``inertiafromgeom``
+    true, or auto on a body without an explicit ``<inertial>``)."""
+    import mujoco
+
+    rule = child.compiler.inertiafromgeom
+    if rule == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE:
+        return True
+    automatic = rule == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
+    return automatic and not body.explicitinertial and body.name != WORLD_BODY
+
+
+def drop_idle_geoms(child) -> None:
+    """Under ``collisions: false``: the geoms that take no part in the model (they collide with
+    nothing, and their body's inertia is stated, ``_weighs``) removed before compiling, and the
+    meshes no geom uses left: a model's meshes are read only where MuJoCo weighs them, so a
+    copy of a URDF without its mesh files loads."""
+    for body in child.bodies:
+        if not _weighs(child, body):
+            for geom in list(body.geoms):
+                child.delete(geom)
+    used = {geom.meshname for geom in child.geoms}
+    for mesh in list(child.meshes):
+        if mesh.name not in used:
+            child.delete(mesh)
+
+
+def _root_body(child, layout):
+    """The model's root body in the file's spec (the layout's root link)."""
+    body = child.body(layout.root_link)
+    if body is None:
+        raise ValueError(f"{layout.path.name}: MuJoCo read no body {layout.root_link!r}")
+    return body
+
+
+def _set_base(child, layout) -> str | None:
+    """Weld or free the root (module docstring); the free joint's file name, or None."""
+    root = _root_body(child, layout)
+    free = [j for j in root.joints if j.type == _free_type()]
+    if layout.spec.fixed_base:
+        for joint in free:
+            child.delete(joint)
+        return None
+    if free:
+        return free[0].name
+    name = f"{layout.root_link}/{FREE_JOINT}"
+    root.add_freejoint(name=name)
+    return name
+
+
+def _free_type():
+    import mujoco
+
+    return mujoco.mjtJoint.mjJNT_FREE
+
+
+def attach_model(parent, layout) -> NativeModel:
+    """Read ``layout``'s file with MuJoCo's own importer and attach it to ``parent`` (an
+    ``MjSpec``) at the model's pose, names prefixed (module docstring)."""
+    import mujoco
+
+    child = mujoco.MjSpec.from_file(str(layout.path))
+    for name, value in NATIVE_COMPILER.items():
+        setattr(child.compiler, name, value)
+    if not layout.spec.collisions:
+        drop_idle_geoms(child)
+    _resolve_meshes(child, layout)
+    free_joint = _set_base(child, layout)
+    spec = layout.spec
+    frame = parent.worldbody.add_frame(
+        pos=[float(v) for v in spec.position], quat=[float(v) for v in spec.orientation]
+    )
+    parent.attach(child, prefix=f"{layout.name}/", frame=frame)
+    return NativeModel(
+        layout,
+        mujoco_name(layout, layout.root_link),
+        None if free_joint is None else mujoco_name(layout, free_joint),
+    )
+
+
+def compile_with_models(xml: str, layouts) -> tuple[object, list[NativeModel], list[str]]:
+    """(MjModel, the attached models, MuJoCo's attach-conflict warnings) of the scene's MJCF
+    ``xml`` with every model of ``layouts`` attached."""
+    import mujoco
+
+    parent = mujoco.MjSpec.from_string(xml)
+    natives = [attach_model(parent, layout) for layout in layouts]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = parent.compile()
+    notes = [" ".join(str(w.message).split()) for w in caught]
+    switch_off_collisions(model, natives)
+    return model, natives, notes
+
+
+def switch_off_collisions(model, natives: list[NativeModel]) -> None:
+    """``contype = conaffinity = 0`` on every geom of a model with ``collisions: false``
+    (its bodies' and the geoms it attached to the world body, named with its prefix)."""
+    import mujoco
+
+    for native in natives:
+        if native.layout.spec.collisions:
+            continue
+        prefix = f"{native.layout.name}/"
+        for geom in range(model.ngeom):
+            body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or ""
+            if (body or "").startswith(prefix) or name.startswith(prefix):
+                model.geom_contype[geom] = 0
+                model.geom_conaffinity[geom] = 0
+
+
+def set_joint_state(model, data, natives: list[NativeModel]) -> list[int]:
+    """Each model's file joints at the scene's t = 0 coordinates (qpos, qvel: the file's own
+    convention); the dof addresses set (the adapter leaves them out of its own solve)."""
+    import mujoco
+
+    dofs: list[int] = []
+    for native in natives:
+        layout = native.layout
+        for file_joint in layout.file_joints:
+            if file_joint is None:
+                continue
+            jid = mujoco.mj_name2id(
+                model, mujoco.mjtObj.mjOBJ_JOINT, mujoco_name(layout, file_joint)
+            )
+            if jid < 0:
+                continue  # a fixed joint: its child is welded, no coordinate
+            data.qpos[model.jnt_qposadr[jid]] = layout.initial_position(file_joint)
+            data.qvel[model.jnt_dofadr[jid]] = layout.initial_velocity(file_joint)
+            dofs.append(int(model.jnt_dofadr[jid]))
+        if native.free_joint is not None:
+            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, native.free_joint)
+            start = int(model.jnt_dofadr[jid])
+            dofs += list(range(start, start + 6))  # at rest, where MuJoCo placed it
+    return dofs
+
+
+def body_offsets(scene, body_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per scene body, its frame in the MuJoCo body's (``ModelLayout.body_in_link``):
+    rotations (n, 3, 3), translations (n, 3), and (n,) whether it is a model's body (the
+    others are written by ``mjcf`` with their frame at the centre of mass: identity; every
+    body's without a natively loaded ``scene``, None)."""
+    rotation = np.repeat(np.eye(3)[None], body_count, axis=0)
+    translation = np.zeros((body_count, 3))
+    native = np.zeros(body_count, dtype=bool)
+    if scene is None:
+        return rotation, translation, native
+    index = {body.name: k for k, body in enumerate(scene.scenario.bodies)}
+    for layout in scene.models:
+        for name, frame in zip(layout.bodies, layout.body_in_link, strict=True):
+            k = index[name]
+            rotation[k], translation[k], native[k] = frame.rotation, frame.translation, True
+    return rotation, translation, native
+
+
+def offset_quaternions(rotation: np.ndarray) -> np.ndarray:
+    """(n, 4) w x y z of the offsets' rotations."""
+    return np.array([matrix_to_quat(r) for r in rotation])
+
+
+def without_models(scene):
+    """The scene's scenario without the bodies and joints its models own (what ``mjcf``
+    writes under native loading), and the joint tree of what remains."""
+    from validation.scenario.joints import joint_tree
+
+    owned = {name for layout in scene.models for name in (*layout.bodies, *layout.joints)}
+    scenario = scene.scenario
+    bodies = [b for b in scenario.bodies if b.name not in owned]
+    joints = [j for j in scenario.joints if j.name not in owned]
+    ties = [(j.name, j.parent, j.child) for j in joints]
+    ties += [(f"spring {k}", s.a, s.b) for k, s in enumerate(scenario.springs)]
+    for name, a, b in ties:
+        if a in owned or b in owned:
+            raise ValueError(
+                f"{name} joins a model's body: the native loader keeps a model whole "
+                "(use mujoco(model_loader=physval))"
+            )
+    pairs = [p for p in scenario.pairs if not {p.a, p.b} & owned]  # models touch nothing
+    rest = scenario.model_copy(update={"bodies": bodies, "joints": joints, "pairs": pairs})
+    return rest, joint_tree(rest)
