@@ -21,6 +21,8 @@ scene's (``<model>/<link>``, ``<model>/<joint>``). What is MuJoCo's and what is 
   free (a free joint ``<root>/free`` added to the root link's body); joint states at t = 0
   from the scene (``ModelLayout.initial_position``/``initial_velocity``, the file's own
   coordinate: MuJoCo's qpos);
+- actuators: removed (a scene applies no controls; a position servo at ctrl 0 would hold its
+  joint, a motor at ctrl 0 does nothing): the model is passive, as physval's reading of it;
 - contacts: ``collisions: false`` removes the geoms that neither collide nor weigh
   (``drop_idle_geoms``) and gives the remaining ones ``contype = conaffinity = 0`` (on the
   compiled model, so the compiler's inertia-from-geom logic sees the file's own values).
@@ -86,11 +88,13 @@ def _weighs(child, body) -> bool:
     true, or auto on a body without an explicit ``<inertial>``)."""
     import mujoco
 
+    if body.name == WORLD_BODY:
+        return False
     rule = child.compiler.inertiafromgeom
     if rule == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE:
         return True
     automatic = rule == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
-    return automatic and not body.explicitinertial and body.name != WORLD_BODY
+    return automatic and not body.explicitinertial
 
 
 def drop_idle_geoms(child) -> None:
@@ -126,6 +130,11 @@ def _set_base(child, layout) -> str | None:
         return None
     if free:
         return free[0].name
+    if list(root.joints):
+        raise ValueError(
+            f"{layout.path.name}: the root body {layout.root_link!r} has joints of its own: "
+            "MuJoCo gives a free joint only to a body without other joints (fixed_base: true)"
+        )
     name = f"{layout.root_link}/{FREE_JOINT}"
     root.add_freejoint(name=name)
     return name
@@ -145,6 +154,8 @@ def attach_model(parent, layout) -> NativeModel:
     child = mujoco.MjSpec.from_file(str(layout.path))
     for name, value in NATIVE_COMPILER.items():
         setattr(child.compiler, name, value)
+    for actuator in list(child.actuators):
+        child.delete(actuator)  # a scene applies no controls: a passive model
     if not layout.spec.collisions:
         drop_idle_geoms(child)
     _resolve_meshes(child, layout)

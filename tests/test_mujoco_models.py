@@ -1,0 +1,398 @@
+"""MuJoCo's native loader of a scene's ``models`` (issue 36, ``model_loader=native``): the
+Kuka iiwa URDF and the MJCF inverted double pendulum of pybullet_data read by MuJoCo's own
+compiler and attached at the model's pose hold the scene's masses, joints and start, and
+their mass matrix and bias forces equal the reference side's at random states; a passive
+swing agrees with MuJoCo built from physval's reading."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from validation.cli import main
+from validation.engines.mujoco.adapter import MujocoAdapter
+from validation.engines.mujoco.native import compile_with_models, set_joint_state
+from validation.reference.articulated import Loads, bias_forces, forward_kinematics, mass_matrix
+from validation.reference.rotation import quat_to_matrix
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import parse_engine_spec
+from validation.scenario.load import load_scenario
+from validation.scenario.physics import body_inertia
+from validation.scenario.schema import ModelSpec
+from validation.scenario.urdf import Frame, ModelLayout, model_path
+
+KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
+PENDULUM = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
+BASE = (0.3, -0.2, 1.0)
+BASE_TURN = (math.cos(0.2), 0.0, 0.0, math.sin(0.2))  # 0.4 rad about z
+POSE = {"arm/lbr_iiwa_joint_2": 0.5, "arm/lbr_iiwa_joint_4": -0.7, "arm/lbr_iiwa_joint_6": 0.9}
+RATES = {"arm/lbr_iiwa_joint_1": 0.3, "arm/lbr_iiwa_joint_5": -0.4}
+NATIVE, PHYSVAL = "mujoco", "mujoco(model_loader=physval)"
+
+CHAIN = """<robot name="chain">
+  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
+    <inertia ixx="0.1" iyy="0.12" izz="0.08" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
+  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1"/></joint>
+  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
+    <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
+    <limit lower="-0.5" upper="0.5"/></joint>
+</robot>
+"""
+"""A hinge and a slider on a free base whose inertial frame is off its link frame and turned:
+MuJoCo's free joint then moves the link origin, not the centre (the probe's free-root terms)."""
+
+FIELD_TOLERANCE = 1e-9
+"""kg, m, kg·m², rad: MuJoCo's reading of the Kuka against physval's: both take the URDF's
+numbers as written and compose the same transforms in double precision (measured: mass 0,
+COM 4.4e-16 m, world inertia 1.2e-16 kg·m², joint anchors 2.2e-16 m)."""
+
+STATE_TOLERANCE = 1e-12
+"""m, m/s, rad/s: observe() at t = 0 against the scene's start (measured 4.4e-16; the native
+model starts from the file's joint coordinates, the scene from physval's expansion of them)."""
+
+DYNAMICS_TOLERANCE = 1e-12
+"""Relative to the largest entry: M and the bias from MuJoCo (CRBA, RNE over its own body
+frames) against the reference's (composite rigid body and Newton-Euler over the scene's bodies):
+measured ≤ 1.1e-15 on the Kuka, the free chain and the pendulum; round-off of sums of ~10
+products."""
+
+SWING_TOLERANCE = 1e-9
+"""m: ``divergence`` of a 1 s passive swing of the hanging Kuka (no limit reached) between
+MuJoCo's native reading and physval's (measured 3.0e-15 m: the same equations in other body
+frames; a limit reached changes this, docs/engines.md "MuJoCo's own loader")."""
+
+
+def write_scene(folder: Path, model: dict, engines=(NATIVE,), duration: float = 0.2) -> Path:
+    entry = {"name": "arm", "file": KUKA, **model}
+    document = {"dt": 0.001, "duration": duration, "engines": list(engines), "models": [entry]}
+    path = folder / "arm.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+def kuka_scene(folder: Path, **fields):
+    model = {
+        "position": list(BASE),
+        "orientation": list(BASE_TURN),
+        "joint_positions": POSE,
+        "joint_velocities": RATES,
+        **fields,
+    }
+    return compile_scene(load_scenario(write_scene(folder, model)))
+
+
+def free_chain_scene(folder: Path):
+    (folder / "chain.urdf").write_text(CHAIN)
+    return kuka_scene(
+        folder,
+        file="chain.urdf",
+        fixed_base=False,
+        joint_positions={"arm/pin": 0.4, "arm/rail": 0.15},
+        joint_velocities={"arm/pin": -0.8, "arm/rail": 0.6},
+    )
+
+
+def loaded(scene, spec: str = NATIVE) -> MujocoAdapter:
+    adapter = MujocoAdapter(parse_engine_spec(spec))
+    adapter.load(scene)
+    return adapter
+
+
+def world_inertia(body) -> np.ndarray:
+    rot = quat_to_matrix(np.array([body.orientation], dtype=float))[0]
+    return rot @ body_inertia(body) @ rot.T
+
+
+# --- the Kuka URDF ------------------------------------------------------------------------
+
+
+def test_native_kuka_is_read_by_mujocos_compiler_with_the_scenes_names(tmp_path):
+    adapter = loaded(kuka_scene(tmp_path))
+    m = adapter.model
+    bodies = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(m.nbody)]
+    # link_0 (mass 0) is kept by MuJoCo (fusestatic off), folded into the world by physval
+    assert bodies == ["world"] + [f"arm/lbr_iiwa_link_{i}" for i in range(8)]
+    assert adapter.xml.count("<body") == 0  # the scene's own MJCF holds no model body
+    assert "model_loader=native" in " ".join(adapter.provenance().notes)
+    physval = loaded(adapter.scene, PHYSVAL)
+    assert physval.model.nbody == 8  # world + the seven scene bodies, from physval's reading
+
+
+def test_native_kuka_model_report_equals_the_scenes_bodies(tmp_path):
+    scene = kuka_scene(tmp_path)
+    report = loaded(scene).model_report()
+    bodies = scene.scenario.bodies
+    assert np.abs(report.mass - [b.mass for b in bodies]).max() <= FIELD_TOLERANCE
+    assert np.abs(report.com - [b.position for b in bodies]).max() <= FIELD_TOLERANCE
+    expected = np.array([world_inertia(b) for b in bodies])
+    assert np.abs(report.inertia_world - expected).max() <= FIELD_TOLERANCE
+    start = scene.start
+    energy = scene.energy(start.pos, start.quat, start.vel, start.ang_vel)[0]
+    assert report.energy == pytest.approx(energy, rel=FIELD_TOLERANCE)
+
+
+def test_native_kuka_joint_report_holds_the_urdfs_limits_damping_and_axes(tmp_path):
+    scene = kuka_scene(tmp_path)
+    report = loaded(scene).joint_report()
+    joints = scene.scenario.joints
+    assert report.types == ("hinge",) * 7
+    assert np.abs(report.anchors - [j.anchor for j in joints]).max() <= FIELD_TOLERANCE
+    assert np.abs(report.axes - [j.axis for j in joints]).max() <= FIELD_TOLERANCE
+    # relative to t = 0: joint_2's ±2.0944 rad less its initial 0.5 rad
+    assert np.abs(report.limits - [j.limits for j in joints]).max() <= FIELD_TOLERANCE
+    assert report.limits[1] == pytest.approx((-2.09439510239 - 0.5, 2.09439510239 - 0.5))
+    assert report.damping.tolist() == [0.5] * 7  # <dynamics damping="0.5">
+    assert report.armature.tolist() == [0.0] * 7
+    tree = scene.joint_tree
+    reference = mass_matrix(tree, tree.zero())
+    assert (
+        np.abs(report.mass_matrix - reference).max() <= DYNAMICS_TOLERANCE * np.abs(reference).max()
+    )
+
+
+def assert_starts_as_the_scene(adapter, scene) -> None:
+    snap, start = adapter.observe(), scene.start
+    assert np.abs(snap.pos - start.pos[0]).max() <= STATE_TOLERANCE
+    signs = np.sign(np.einsum("ni,ni->n", snap.quat, start.quat[0]))[:, None]
+    assert np.abs(snap.quat * signs - start.quat[0]).max() <= STATE_TOLERANCE
+    assert np.abs(snap.vel - start.vel[0]).max() <= STATE_TOLERANCE
+    assert np.abs(snap.ang_vel - start.ang_vel[0]).max() <= STATE_TOLERANCE
+
+
+@pytest.mark.parametrize("case", ["kuka", "free chain"])
+def test_native_model_starts_where_the_scene_starts(tmp_path, case):
+    scene = kuka_scene(tmp_path) if case == "kuka" else free_chain_scene(tmp_path)
+    assert_starts_as_the_scene(loaded(scene), scene)
+
+
+def assert_probes_equal_the_reference(adapter, scene, states: int = 4, seed: int = 7) -> None:
+    """model_probe at the start and at ``states`` seeded random states against the reference."""
+    tree = scene.joint_tree
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    rng = np.random.default_rng(seed)
+    for k in range(states + 1):
+        q, nu = tree.zero(), np.zeros(tree.nv)
+        if k:
+            turns = [j for j in tree.joints if j.type in ("hinge", "slider")]
+            for joint in turns:
+                q[joint.q_slice] = rng.uniform(-0.8, 0.8)
+            nu = rng.uniform(-1.5, 1.5, tree.nv)
+        probe = adapter.model_probe(q, nu)
+        pose = forward_kinematics(tree, q)
+        assert np.abs(probe.pos - pose.pos).max() <= STATE_TOLERANCE, k
+        axes = quat_to_matrix(probe.quat)
+        assert np.abs(axes - pose.rot).max() <= STATE_TOLERANCE, k
+        reference = mass_matrix(tree, q)
+        scale = np.abs(reference).max()
+        assert np.abs(probe.mass_matrix - reference).max() <= DYNAMICS_TOLERANCE * scale, k
+        bias = bias_forces(tree, q, nu, loads)
+        scale = np.abs(bias).max()
+        assert np.abs(probe.bias - bias).max() <= DYNAMICS_TOLERANCE * scale, k
+
+
+@pytest.mark.parametrize("spec", [NATIVE, PHYSVAL])
+@pytest.mark.parametrize("case", ["kuka", "free chain"])
+def test_model_probe_equals_the_reference_sides_dynamics(tmp_path, case, spec):
+    scene = kuka_scene(tmp_path) if case == "kuka" else free_chain_scene(tmp_path)
+    assert_probes_equal_the_reference(loaded(scene, spec), scene)
+
+
+def test_probing_leaves_the_run_where_it_was(tmp_path):
+    scene = kuka_scene(tmp_path)
+    adapter = loaded(scene)
+    before = adapter.observe()
+    adapter.model_probe(scene.joint_tree.zero() + 0.3, np.ones(scene.joint_tree.nv))
+    after = adapter.observe()
+    assert np.array_equal(before.pos, after.pos) and np.array_equal(before.vel, after.vel)
+
+
+def test_a_copy_of_the_urdf_without_its_meshes_loads(tmp_path):
+    """collisions: false: the links' geoms neither collide nor weigh (every link states its
+    <inertial>), so MuJoCo is not asked to read the copy's missing mesh files."""
+    (tmp_path / "kuka.urdf").write_text(model_path(KUKA, tmp_path / "x.yaml").read_text())
+    adapter = loaded(kuka_scene(tmp_path, file="kuka.urdf"))
+    assert adapter.model.nmesh == 0 and adapter.model.ngeom == 0
+
+
+def test_a_swing_through_physval_run_agrees_with_physvals_reading(tmp_path):
+    """A 1 s passive swing of the Kuka hanging upside down (no joint reaches a limit), run by
+    ``physval run`` in MuJoCo native and MuJoCo from physval's reading: both ok, one trajectory."""
+    model = {
+        "position": [0.3, -0.2, 1.5],
+        "orientation": [0.0, 1.0, 0.0, 0.0],
+        "joint_positions": POSE,
+        "joint_velocities": RATES,
+    }
+    path = write_scene(tmp_path, model, engines=(NATIVE, PHYSVAL), duration=1.0)
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    results = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert set(results["engine"]) == {NATIVE, PHYSVAL}
+    assert (results["status"] == "ok").all(), results.to_string()
+    divergence = results.set_index(["engine", "metric"]).loc[(PHYSVAL, "divergence"), "value"]
+    assert divergence <= SWING_TOLERANCE
+
+
+# --- the MJCF inverted double pendulum ------------------------------------------------------
+
+PENDULUM_JOINTS = {"slider": 0.2, "hinge": 0.3, "hinge2": -0.4}
+PENDULUM_RATES = {"slider": -0.5, "hinge": 1.0, "hinge2": 0.7}
+PENDULUM_LINKS = ("cart", "pole", "pole2")
+CAPSULES = {"cart": (0.1, 0.1), "pole": (0.045, 0.3), "pole2": (0.045, 0.3)}
+"""The file's capsules: radius, half-length (m); ``inertiafromgeom="true"``, density 1000."""
+WATER = 1000.0
+"""kg/m³: MuJoCo's default geom density, the file sets none."""
+SCENE_AXES = 0.3
+"""rad about the link's x: each scene body's axes turned off MuJoCo's principal axes, so the
+adapter's body offsets (``ModelLayout.body_in_link``) are exercised with a rotation."""
+
+
+def pendulum_layout(path: Path, links_frames) -> ModelLayout:
+    spec = ModelSpec(
+        name="dp",
+        file=str(path),
+        position=list(BASE),
+        orientation=list(BASE_TURN),
+        joint_positions={f"dp/{k}": v for k, v in PENDULUM_JOINTS.items()},
+        joint_velocities={f"dp/{k}": v for k, v in PENDULUM_RATES.items()},
+    )
+    return ModelLayout(
+        name="dp",
+        path=path,
+        format="mjcf",
+        spec=spec,
+        bodies=tuple(f"dp/{link}" for link in PENDULUM_LINKS),
+        links=PENDULUM_LINKS,
+        body_in_link=tuple(links_frames),
+        joints=tuple(f"dp/{joint}" for joint in PENDULUM_JOINTS),
+        file_joints=tuple(PENDULUM_JOINTS),
+        root_link="cart",
+    )
+
+
+def pendulum_scene(folder: Path):
+    """The pendulum as scene bodies and joints, from MuJoCo's compile of the file alone (what
+    physval's MJCF reader will give once merged), with the native layout set on the scene
+    (physval's expansion refuses .xml on this branch): ``CompiledScene.models`` overridden."""
+    path = model_path(PENDULUM, folder / "x.yaml")
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    base = Frame(quat_to_matrix(np.array([BASE_TURN]))[0], np.array(BASE))
+    for name, value in PENDULUM_JOINTS.items():
+        d.qpos[m.joint(name).qposadr[0]] = value
+        d.qvel[m.joint(name).dofadr[0]] = PENDULUM_RATES[name]
+    mujoco.mj_forward(m, d)
+    turn = Frame(
+        quat_to_matrix(np.array([[math.cos(SCENE_AXES / 2), math.sin(SCENE_AXES / 2), 0, 0]]))[0],
+        np.zeros(3),
+    )
+    bodies, frames, velocity = [], [], np.zeros(6)
+    for link in PENDULUM_LINKS:
+        b = m.body(link).id
+        principal = quat_to_matrix(m.body_iquat[b][None])[0]
+        in_link = Frame(principal, m.body_ipos[b].copy()) * turn
+        link_frame = base * Frame(d.xmat[b].reshape(3, 3), d.xpos[b].copy())
+        body = link_frame * in_link
+        inertia = turn.rotation.T @ np.diag(m.body_inertia[b]) @ turn.rotation
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, velocity, 0)
+        w, x, y, z = (float(v) for v in _quat(body.rotation))
+        bodies.append(
+            {
+                "name": f"dp/{link}",
+                "shape": {"type": "sphere", "radius": 0.01},
+                "mass": float(m.body_mass[b]),
+                "inertia": inertia.tolist(),
+                "position": body.translation.tolist(),
+                "orientation": [w, x, y, z],
+                "velocity": (base.rotation @ velocity[3:]).tolist(),
+                "angular_velocity": (base.rotation @ velocity[:3]).tolist(),
+            }
+        )
+        frames.append(in_link)
+    joints = []
+    for name, parent in (("slider", "world"), ("hinge", "dp/cart"), ("hinge2", "dp/pole")):
+        j = m.joint(name).id
+        slid = PENDULUM_JOINTS[name] if name == "slider" else 0.0  # xanchor: the slide at 0
+        joints.append(
+            {
+                "name": f"dp/{name}",
+                "type": "slider" if name == "slider" else "hinge",
+                "parent": parent,
+                "child": f"dp/{PENDULUM_LINKS[list(PENDULUM_JOINTS).index(name)]}",
+                "anchor": (
+                    base.rotation @ (d.xanchor[j] + slid * d.xaxis[j]) + base.translation
+                ).tolist(),
+                "axis": (base.rotation @ d.xaxis[j]).tolist(),
+                "damping": 0.05,
+                **({"limits": [-1.2, 0.8]} if name == "slider" else {}),
+            }
+        )
+    document = {
+        "dt": 0.001,
+        "duration": 0.2,
+        "engines": [NATIVE],
+        "bodies": bodies,
+        "joints": joints,
+    }
+    (folder / "dp.yaml").write_text(yaml.safe_dump(document, sort_keys=False))
+    scene = compile_scene(load_scenario(folder / "dp.yaml"))
+    scene.__dict__["models"] = (pendulum_layout(path, frames),)
+    return scene
+
+
+def _quat(rotation: np.ndarray) -> np.ndarray:
+    from validation.engines.frames import matrix_to_quat
+
+    return matrix_to_quat(rotation)
+
+
+def test_mjcf_pendulum_is_compiled_by_mujoco_under_the_scenes_options(tmp_path):
+    path = model_path(PENDULUM, tmp_path / "x.yaml")
+    layout = pendulum_layout(path, [Frame(np.eye(3), np.zeros(3))] * 3)
+    scene_xml = '<mujoco><option timestep="0.001" integrator="Euler"/><worldbody/></mujoco>'
+    model, natives, notes = compile_with_models(scene_xml, [layout])
+    data = mujoco.MjData(model)
+    set_joint_state(model, data, natives)
+    # the file's own <option timestep="0.01" integrator="RK4" gravity="1e-5 0 -9.81">: not used
+    assert model.opt.timestep == 0.001
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    assert model.opt.gravity.tolist() == [0.0, 0.0, -9.81]
+    assert any("timestep" in note for note in notes) and any("gravity" in note for note in notes)
+    for link, (radius, half) in CAPSULES.items():  # inertiafromgeom="true", density 1000
+        volume = math.pi * radius**2 * 2 * half + 4 / 3 * math.pi * radius**3
+        assert model.body(f"dp/{link}").mass[0] == pytest.approx(WATER * volume, rel=1e-12)
+    joints = [model.joint(f"dp/{name}") for name in PENDULUM_JOINTS]
+    assert [model.dof_damping[j.dofadr[0]] for j in joints] == [0.05] * 3  # <default><joint>
+    assert [data.qpos[j.qposadr[0]] for j in joints] == list(PENDULUM_JOINTS.values())
+    assert [data.qvel[j.dofadr[0]] for j in joints] == list(PENDULUM_RATES.values())
+    assert model.nu == 0  # its motor removed: a passive model
+    assert model.ngeom == 3  # the capsules weigh; the world's floor and rail are dropped
+    assert not model.geom_contype.any() and not model.geom_conaffinity.any()
+
+
+def test_mjcf_pendulum_through_the_adapter_starts_reports_and_probes_as_the_scene(tmp_path):
+    scene = pendulum_scene(tmp_path)
+    adapter = loaded(scene)
+    assert adapter.xml.count("<body") == 0
+    assert_starts_as_the_scene(adapter, scene)
+    report = adapter.joint_report()
+    assert report.types == ("slider", "hinge", "hinge")
+    assert report.damping.tolist() == [0.05] * 3
+    # the file's range [-1, 1] m less the slider's initial 0.2 m; the hinges are unlimited
+    assert report.limits[0] == pytest.approx((-1.2, 0.8))
+    assert np.isnan(report.limits[1:]).all()
+    assert np.abs(report.anchors - [j.anchor for j in scene.scenario.joints]).max() <= 1e-12
+    assert_probes_equal_the_reference(adapter, scene)
+    notes = " ".join(adapter.provenance().notes)
+    assert "model file's option not used" in notes and "timestep" in notes
