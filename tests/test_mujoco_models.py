@@ -19,7 +19,7 @@ from validation.cli import main
 from validation.engines.mujoco.adapter import MujocoAdapter
 from validation.engines.mujoco.native import compile_with_models, set_joint_state
 from validation.reference.articulated import Loads, bias_forces, forward_kinematics, mass_matrix
-from validation.reference.rotation import quat_to_matrix
+from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 from validation.scenario.load import load_scenario
@@ -396,3 +396,74 @@ def test_mjcf_pendulum_through_the_adapter_starts_reports_and_probes_as_the_scen
     assert_probes_equal_the_reference(adapter, scene)
     notes = " ".join(adapter.provenance().notes)
     assert "model file's option not used" in notes and "timestep" in notes
+
+
+def unit(rng) -> np.ndarray:
+    """A random unit quaternion w x y z, w > 0."""
+    quat = rng.normal(size=4)
+    return quat * np.sign(quat[0]) / np.linalg.norm(quat)
+
+
+LIBRARY = Path(__file__).resolve().parent.parent / "scenarios" / "joints"
+
+
+TURNED_BALLS = """dt: 0.001
+duration: 0.1
+engines: [mujoco]
+bodies:
+  - {name: a, shape: {type: box, half_extents: [0.1, 0.05, 0.02]}, mass: 1.0,
+     position: [0.3, 0.1, 2.0], orientation: [0.9, 0.3, -0.2, 0.2449489742783178]}
+  - {name: b, shape: {type: box, half_extents: [0.05, 0.1, 0.03]}, mass: 0.5,
+     position: [0.5, 0.4, 1.8], orientation: [0.6, 0.0, 0.8, 0.0]}
+  - {name: floating, shape: {type: box, half_extents: [0.1, 0.2, 0.3]}, mass: 2.0,
+     position: [2.0, 0.0, 1.0], orientation: [0.8, 0.0, 0.0, 0.6], velocity: [0.1, 0.0, 0.0],
+     angular_velocity: [0.5, 0.2, -0.4]}
+joints:
+  - {name: shoulder, type: ball, parent: world, child: a, anchor: [0.2, 0.0, 2.1]}
+  - {name: elbow, type: ball, parent: a, child: b, anchor: [0.45, 0.25, 1.9]}
+"""
+"""Ball joints between bodies turned off the world's axes (so R0 and MuJoCo's body frames are
+no identity), and a turned floating box (a free root)."""
+
+
+@pytest.mark.parametrize(
+    "name", ["turned balls", "conical_pendulum_ball_joint", "slider_on_spring", "chain_falling"]
+)
+def test_model_probe_of_scenes_without_models_equals_the_reference(tmp_path, name):
+    """Scenes without models (every body written by ``mjcf``): a ball joint's quaternion and
+    spin carried into MuJoCo's frames, a free root, a spring (a load the bias includes)."""
+    path = LIBRARY / f"{name}.yaml"
+    if name == "turned balls":
+        path = tmp_path / "balls.yaml"
+        path.write_text(TURNED_BALLS)
+    scene = compile_scene(load_scenario(path))
+    tree = scene.joint_tree
+    adapter = loaded(scene)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, nu = tree.zero(), rng.uniform(-1.5, 1.5, tree.nv)
+        for joint in tree.joints:
+            if joint.type == "free":
+                q[joint.q_slice][:3] += rng.uniform(-0.5, 0.5, 3)
+                q[joint.q_slice][3:] = quat_multiply(q[joint.q_slice][3:], unit(rng))
+            if joint.type == "ball":
+                axis = rng.normal(size=3)
+                turn = rng.uniform(0.1, 1.0)
+                q[joint.q_slice] = [
+                    math.cos(turn / 2),
+                    *(math.sin(turn / 2) * axis / np.linalg.norm(axis)),
+                ]
+            elif joint.type in ("hinge", "slider"):
+                q[joint.q_slice] = rng.uniform(-0.8, 0.8)
+        probe = adapter.model_probe(q, nu)
+        pose = forward_kinematics(tree, q)
+        assert np.abs(probe.pos - pose.pos).max() <= STATE_TOLERANCE
+        assert np.abs(quat_to_matrix(probe.quat) - pose.rot).max() <= STATE_TOLERANCE
+        reference = mass_matrix(tree, q)
+        assert (
+            np.abs(probe.mass_matrix - reference).max()
+            <= DYNAMICS_TOLERANCE * np.abs(reference).max()
+        )
+        loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+        bias = bias_forces(tree, q, nu, loads)
+        assert np.abs(probe.bias - bias).max() <= DYNAMICS_TOLERANCE * np.abs(bias).max()
