@@ -71,7 +71,7 @@ products."""
 SWING_TOLERANCE = 1e-9
 """m: ``divergence`` of a 1 s passive swing of the hanging Kuka (no limit reached) between
 MuJoCo's native reading and physval's (measured 3.0e-15 m: the same equations in other body
-frames; a limit reached changes this, docs/engines.md "MuJoCo's own loader")."""
+frames; a limit reached changes this: docs/engines.md 1.4c)."""
 
 
 def write_scene(folder: Path, model: dict, engines=(NATIVE,), duration: float = 0.2) -> Path:
@@ -467,3 +467,13 @@ def test_model_probe_of_scenes_without_models_equals_the_reference(tmp_path, nam
         loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
         bias = bias_forces(tree, q, nu, loads)
         assert np.abs(probe.bias - bias).max() <= DYNAMICS_TOLERANCE * np.abs(bias).max()
+
+
+def test_limit_softness_is_mujocos_at_its_own_reference_configuration(tmp_path):
+    """A finding (docs/engines.md 1.4c): MuJoCo scales a joint limit's softness by the dof's
+    inverse weight at qpos0 (``dof_invweight0``), the file's zero under native loading and the
+    scene's start under physval's: the same Kuka, two different limit responses."""
+    scene = kuka_scene(tmp_path)
+    native, physval = (loaded(scene, spec).model.dof_invweight0 for spec in (NATIVE, PHYSVAL))
+    assert native[0] == pytest.approx(20.59995719, rel=1e-6)  # measured
+    assert physval[0] == pytest.approx(3.32926001, rel=1e-6)
