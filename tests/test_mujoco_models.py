@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from test_models import CHAIN as TURNED_CHAIN
 
 from validation.cli import main
 from validation.engines.mujoco.adapter import MujocoAdapter
@@ -35,22 +36,9 @@ POSE = {"arm/lbr_iiwa_joint_2": 0.5, "arm/lbr_iiwa_joint_4": -0.7, "arm/lbr_iiwa
 RATES = {"arm/lbr_iiwa_joint_1": 0.3, "arm/lbr_iiwa_joint_5": -0.4}
 NATIVE, PHYSVAL = "mujoco", "mujoco(model_loader=physval)"
 
-CHAIN = """<robot name="chain">
-  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
-    <inertia ixx="0.1" iyy="0.12" izz="0.08" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
-  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
-    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1"/></joint>
-  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
-    <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
-    <limit lower="-0.5" upper="0.5"/></joint>
-</robot>
-"""
-"""A hinge and a slider on a free base whose inertial frame is off its link frame and turned:
+CHAIN = TURNED_CHAIN.replace('iyy="0.1" izz="0.1"', 'iyy="0.12" izz="0.08"', 1)
+"""test_models' chain (a hinge and a slider, every origin and inertial frame turned), its base's
+inertia made unequal, on a free base whose inertial frame is off its link frame and turned:
 MuJoCo's free joint then moves the link origin, not the centre (the probe's free-root terms)."""
 
 FIELD_TOLERANCE = 1e-9

@@ -214,11 +214,11 @@ class MujocoAdapter:
         missing = [b.name for b, i in zip(scenario.bodies, self.body_ids, strict=True) if i < 0]
         if missing:
             raise RuntimeError(f"MuJoCo built no body {missing[0]!r} from the model file")
-        self.offset_rot, self.offset_pos, self.native = body_offsets(
+        self.offset_rot, self.offset_pos, self.in_model = body_offsets(
             self.scene if self.natives else None, len(scenario.bodies)
         )
         self.offset_quat = offset_quaternions(self.offset_rot)
-        own = self.moving[~self.native[self.moving]]  # bodies written by ``mjcf``
+        own = self.moving[~self.in_model[self.moving]]  # bodies written by ``mjcf``
         self.free = own[m.body_jntnum[self.body_ids[own]] > 0]
         self.free = self.free[
             m.jnt_type[m.body_jntadr[self.body_ids[self.free]]] == mujoco.mjtJoint.mjJNT_FREE
@@ -257,7 +257,7 @@ class MujocoAdapter:
         dofs (``model_dofs``) are set already, from its joint rates: left out of the solve."""
         m, d = self.model, self.data
         mujoco.mj_forward(m, d)
-        own = self.moving[~self.native[self.moving]]
+        own = self.moving[~self.in_model[self.moving]]
         columns = np.setdiff1d(np.arange(m.nv), model_dofs)
         if not own.size or not columns.size:
             return
@@ -275,10 +275,9 @@ class MujocoAdapter:
         """The joints MuJoCo compiled, at the initial state (``mj_forward`` on a scratch copy):
         each stated joint's type (``jnt_type``; a fixed joint is a body welded into its
         parent: no joint), anchor ``xanchor`` (a slide's moved with its child, ``_slid``) and
-        axis ``xaxis``, world frame; its range
-        (``jnt_range`` where ``jnt_limited``) less its coordinate at t = 0, ``dof_damping`` and
-        ``dof_armature``; and M(q0), ``mj_fullM``, carried into the joint tree's coordinates:
-        ``M_tree = Tᵀ M T`` (``_tree_velocities``)."""
+        axis ``xaxis``, world frame; its range (``jnt_range`` where ``jnt_limited``) less its
+        coordinate at t = 0, ``dof_damping`` and ``dof_armature``; and M(q0), ``mj_fullM``,
+        carried into the joint tree's coordinates: ``M_tree = Tᵀ M T`` (``_tree_velocities``)."""
         m = self.model
         d = mujoco.MjData(m)
         d.qpos[:], d.qvel[:] = self.data.qpos, self.data.qvel
@@ -430,13 +429,11 @@ class MujocoAdapter:
         bodies ``mjcf`` wrote are their own frames, read as they are)."""
         ids = self.body_ids
         pos, quat = d.xipos[ids].copy(), d.xquat[ids].copy()
-        native = self.native
-        if native.any():
-            frames = d.xmat[ids[native]].reshape(-1, 3, 3)
-            pos[native] = d.xpos[ids[native]] + np.einsum(
-                "nij,nj->ni", frames, self.offset_pos[native]
-            )
-            quat[native] = quat_multiply(d.xquat[ids[native]], self.offset_quat[native])
+        rows = self.in_model
+        if rows.any():
+            frames = d.xmat[ids[rows]].reshape(-1, 3, 3)
+            pos[rows] = d.xpos[ids[rows]] + np.einsum("nij,nj->ni", frames, self.offset_pos[rows])
+            quat[rows] = quat_multiply(d.xquat[ids[rows]], self.offset_quat[rows])
         return pos, quat
 
     def model_report(self) -> ModelReport:
@@ -539,10 +536,10 @@ class MujocoAdapter:
             for k, body in enumerate(self.body_ids):
                 mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, int(body), velocity, 0)
                 ang_vel[s, k], vel[s, k] = velocity[:3], velocity[3:]
-            if self.native.any():  # from the inertial frame's origin to the scene's centre
-                ids = self.body_ids[self.native]
-                vel[s, self.native] += cross(
-                    ang_vel[s, self.native], pos[s, self.native] - d.xipos[ids]
+            if self.in_model.any():  # from the inertial frame's origin to the scene's centre
+                ids = self.body_ids[self.in_model]
+                vel[s, self.in_model] += cross(
+                    ang_vel[s, self.in_model], pos[s, self.in_model] - d.xipos[ids]
                 )
         return Trajectory(times.astype(float), pos, quat, vel, ang_vel)
 
