@@ -349,9 +349,9 @@ def test_mjcf_pendulum_is_compiled_by_mujoco_under_the_scenes_options(tmp_path):
     path = model_path(PENDULUM, tmp_path / "x.yaml")
     layout = pendulum_layout(path, [Frame(np.eye(3), np.zeros(3))] * 3)
     scene_xml = '<mujoco><option timestep="0.001" integrator="Euler"/><worldbody/></mujoco>'
-    model, natives, notes = compile_with_models(scene_xml, [layout])
+    model, notes = compile_with_models(scene_xml, [layout])
     data = mujoco.MjData(model)
-    set_joint_state(model, data, natives)
+    set_joint_state(model, data, [layout])
     # the file's own <option timestep="0.01" integrator="RK4" gravity="1e-5 0 -9.81">: not used
     assert model.opt.timestep == 0.001
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER

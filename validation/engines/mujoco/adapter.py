@@ -185,9 +185,8 @@ class MujocoAdapter:
             rest, rest_tree = without_models(scene)
             self.xml, self.plan, self.solver = build_mjcf(rest, self.settings, rest_tree)
             with collected_warnings(self.messages):
-                self.model, self.natives, self.attach_notes = compile_with_models(
-                    self.xml, scene.models
-                )
+                self.model, self.attach_notes = compile_with_models(self.xml, scene.models)
+                self.natives = list(scene.models)
                 self.data = mujoco.MjData(self.model)
             model_dofs = set_joint_state(self.model, self.data, self.natives)
         else:
@@ -573,7 +572,7 @@ class MujocoAdapter:
             return []
         if not self.natives:
             return ["models: built from physval's reading of the files (model_loader=physval)"]
-        files = ", ".join(f"{n.layout.name}: {n.layout.path.name}" for n in self.natives)
+        files = ", ".join(f"{layout.name}: {layout.path.name}" for layout in self.natives)
         notes = [
             f"models loaded by MuJoCo's own compiler (model_loader=native): {files}; "
             "fusestatic off (every link a body), the scene's <option> governs"

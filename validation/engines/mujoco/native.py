@@ -31,7 +31,6 @@ scene's (``<model>/<link>``, ``<model>/<joint>``). What is MuJoCo's and what is 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,23 +46,11 @@ joints stay bodies, addressable by the scene's names."""
 WORLD_BODY = "world"
 """MuJoCo's world body: its geoms weigh nothing."""
 
+AXIS_JOINTS = (2, 3)
+"""MuJoCo's ``mjtJoint`` codes of the joints with one coordinate: mjJNT_SLIDE 2, mjJNT_HINGE 3."""
+
 PACKAGE_URL = "package://"
 """A URDF mesh reference resolved by ``ModelLayout.package_paths`` or the file's folder."""
-
-
-@dataclass(frozen=True)
-class NativeModel:
-    """What attaching one model did, for the adapter's bookkeeping.
-
-    Attributes:
-        layout: the scene's ``ModelLayout``.
-        root: the MuJoCo name of the model's root body.
-        free_joint: the MuJoCo name of the root's free joint, or None (fixed base).
-    """
-
-    layout: object
-    root: str
-    free_joint: str | None
 
 
 def mujoco_name(layout, name: str) -> str:
@@ -120,33 +107,27 @@ def _root_body(child, layout):
     return body
 
 
-def _set_base(child, layout) -> str | None:
-    """Weld or free the root (module docstring); the free joint's file name, or None."""
+def _set_base(child, layout) -> None:
+    """Weld or free the root (module docstring)."""
+    import mujoco
+
     root = _root_body(child, layout)
-    free = [j for j in root.joints if j.type == _free_type()]
+    free = [j for j in root.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
     if layout.spec.fixed_base:
         for joint in free:
             child.delete(joint)
-        return None
+        return
     if free:
-        return free[0].name
+        return
     if list(root.joints):
         raise ValueError(
             f"{layout.path.name}: the root body {layout.root_link!r} has joints of its own: "
             "MuJoCo gives a free joint only to a body without other joints (fixed_base: true)"
         )
-    name = f"{layout.root_link}/{FREE_JOINT}"
-    root.add_freejoint(name=name)
-    return name
+    root.add_freejoint(name=f"{layout.root_link}/{FREE_JOINT}")
 
 
-def _free_type():
-    import mujoco
-
-    return mujoco.mjtJoint.mjJNT_FREE
-
-
-def attach_model(parent, layout) -> NativeModel:
+def attach_model(parent, layout) -> None:
     """Read ``layout``'s file with MuJoCo's own importer and attach it to ``parent`` (an
     ``MjSpec``) at the model's pose, names prefixed (module docstring)."""
     import mujoco
@@ -159,43 +140,39 @@ def attach_model(parent, layout) -> NativeModel:
     if not layout.spec.collisions:
         drop_idle_geoms(child)
     _resolve_meshes(child, layout)
-    free_joint = _set_base(child, layout)
+    _set_base(child, layout)
     spec = layout.spec
     frame = parent.worldbody.add_frame(
         pos=[float(v) for v in spec.position], quat=[float(v) for v in spec.orientation]
     )
     parent.attach(child, prefix=f"{layout.name}/", frame=frame)
-    return NativeModel(
-        layout,
-        mujoco_name(layout, layout.root_link),
-        None if free_joint is None else mujoco_name(layout, free_joint),
-    )
 
 
-def compile_with_models(xml: str, layouts) -> tuple[object, list[NativeModel], list[str]]:
-    """(MjModel, the attached models, MuJoCo's attach-conflict warnings) of the scene's MJCF
-    ``xml`` with every model of ``layouts`` attached."""
+def compile_with_models(xml: str, layouts) -> tuple[object, list[str]]:
+    """(MjModel, MuJoCo's attach-conflict warnings) of the scene's MJCF ``xml`` with every
+    model of ``layouts`` (``ModelLayout``) attached."""
     import mujoco
 
     parent = mujoco.MjSpec.from_string(xml)
-    natives = [attach_model(parent, layout) for layout in layouts]
+    for layout in layouts:
+        attach_model(parent, layout)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = parent.compile()
     notes = [" ".join(str(w.message).split()) for w in caught]
-    switch_off_collisions(model, natives)
-    return model, natives, notes
+    switch_off_collisions(model, layouts)
+    return model, notes
 
 
-def switch_off_collisions(model, natives: list[NativeModel]) -> None:
+def switch_off_collisions(model, layouts) -> None:
     """``contype = conaffinity = 0`` on every geom of a model with ``collisions: false``
     (its bodies' and the geoms it attached to the world body, named with its prefix)."""
     import mujoco
 
-    for native in natives:
-        if native.layout.spec.collisions:
+    for layout in layouts:
+        if layout.spec.collisions:
             continue
-        prefix = f"{native.layout.name}/"
+        prefix = f"{layout.name}/"
         for geom in range(model.ngeom):
             body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
             name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or ""
@@ -204,30 +181,27 @@ def switch_off_collisions(model, natives: list[NativeModel]) -> None:
                 model.geom_conaffinity[geom] = 0
 
 
-def set_joint_state(model, data, natives: list[NativeModel]) -> list[int]:
-    """Each model's file joints at the scene's t = 0 coordinates (qpos, qvel: the file's own
-    convention); the dof addresses set (the adapter leaves them out of its own solve)."""
+def set_joint_state(model, data, layouts) -> list[int]:
+    """Each model's hinges and slides at the scene's t = 0 coordinates (qpos, qvel: the file's
+    own convention; a ball joint, which ``joint_positions`` cannot state, and a free root stay
+    at ``qpos0``, at rest); every dof of the models (the adapter leaves them out of its own
+    solve of the other bodies' velocities)."""
     import mujoco
 
-    dofs: list[int] = []
-    for native in natives:
-        layout = native.layout
+    for layout in layouts:
         for file_joint in layout.file_joints:
-            if file_joint is None:
-                continue
             jid = mujoco.mj_name2id(
-                model, mujoco.mjtObj.mjOBJ_JOINT, mujoco_name(layout, file_joint)
+                model, mujoco.mjtObj.mjOBJ_JOINT, mujoco_name(layout, file_joint or "")
             )
-            if jid < 0:
-                continue  # a fixed joint: its child is welded, no coordinate
+            if jid < 0 or model.jnt_type[jid] not in AXIS_JOINTS:
+                continue  # welded (a fixed joint, the base's weld), or a ball
             data.qpos[model.jnt_qposadr[jid]] = layout.initial_position(file_joint)
             data.qvel[model.jnt_dofadr[jid]] = layout.initial_velocity(file_joint)
-            dofs.append(int(model.jnt_dofadr[jid]))
-        if native.free_joint is not None:
-            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, native.free_joint)
-            start = int(model.jnt_dofadr[jid])
-            dofs += list(range(start, start + 6))  # at rest, where MuJoCo placed it
-    return dofs
+    roots = [
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_name(layout, layout.root_link))
+        for layout in layouts
+    ]
+    return [dof for dof in range(model.nv) if model.body_rootid[model.dof_bodyid[dof]] in roots]
 
 
 def body_offsets(scene, body_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
