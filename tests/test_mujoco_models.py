@@ -465,3 +465,26 @@ def test_limit_softness_is_mujocos_at_its_own_reference_configuration(tmp_path):
     native, physval = (loaded(scene, spec).model.dof_invweight0 for spec in (NATIVE, PHYSVAL))
     assert native[0] == pytest.approx(20.59995719, rel=1e-6)  # measured
     assert physval[0] == pytest.approx(3.32926001, rel=1e-6)
+
+
+def test_a_scene_joint_to_a_models_body_is_an_error_row_naming_the_way_out(tmp_path):
+    """The native loader keeps a model whole: a scene body jointed to a model's link is an
+    ``error`` row whose message names ``model_loader=physval``; physval's reading runs it."""
+    from validation.measure.runner import run_engine
+
+    path = write_scene(tmp_path, {"position": [0.0, 0.0, 1.0]})
+    document = yaml.safe_load(path.read_text())
+    document["bodies"] = [
+        {"name": "bob", "shape": {"type": "sphere", "radius": 0.05}, "mass": 1.0,
+         "position": [0.0, 0.0, 2.5]}
+    ]  # fmt: skip
+    document["joints"] = [
+        {"name": "hook", "type": "ball", "parent": "arm/lbr_iiwa_link_7", "child": "bob",
+         "anchor": [0.0, 0.0, 2.4]}
+    ]  # fmt: skip
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    scene = compile_scene(load_scenario(path))
+    native = run_engine(scene, parse_engine_spec(NATIVE))
+    assert native.status == "error"
+    assert "model_loader=physval" in native.message and "hook" in native.message
+    assert run_engine(scene, parse_engine_spec(PHYSVAL)).status == "ok"
