@@ -26,6 +26,9 @@ scene's (``<model>/<link>``, ``<model>/<joint>``). What is MuJoCo's and what is 
 - contacts: ``collisions: false`` removes the geoms that neither collide nor weigh
   (``drop_idle_geoms``) and gives the remaining ones ``contype = conaffinity = 0`` (on the
   compiled model, so the compiler's inertia-from-geom logic sees the file's own values).
+
+MuJoCo is imported inside the functions: the adapter imports it first, headless
+(``adapter.NO_RENDERING``).
 """
 
 from __future__ import annotations
