@@ -25,8 +25,7 @@ from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 from validation.scenario.load import load_scenario
 from validation.scenario.physics import body_inertia
-from validation.scenario.schema import ModelSpec
-from validation.scenario.urdf import Frame, ModelLayout, model_path
+from validation.scenario.urdf import model_path
 
 KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
 PENDULUM = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
@@ -206,10 +205,14 @@ def test_probing_leaves_the_run_where_it_was(tmp_path):
     assert np.array_equal(before.pos, after.pos) and np.array_equal(before.vel, after.vel)
 
 
-def test_a_copy_of_the_urdf_without_its_meshes_loads(tmp_path):
+def test_meshes_that_neither_collide_nor_weigh_are_not_read(tmp_path):
     """collisions: false: the links' geoms neither collide nor weigh (every link states its
-    <inertial>), so MuJoCo is not asked to read the copy's missing mesh files."""
+    <inertial>), so MuJoCo is not asked to read their meshes: a copy of the URDF whose mesh
+    files are empty (they exist, as physval's load checks; MuJoCo cannot parse them) loads."""
     (tmp_path / "kuka.urdf").write_text(model_path(KUKA, tmp_path / "x.yaml").read_text())
+    (tmp_path / "meshes").mkdir()
+    for name in model_path(KUKA, tmp_path / "x.yaml").parent.joinpath("meshes").iterdir():
+        (tmp_path / "meshes" / name.name).write_bytes(b"")
     adapter = loaded(kuka_scene(tmp_path, file="kuka.urdf"))
     assert adapter.model.nmesh == 0 and adapter.model.ngeom == 0
 
@@ -234,120 +237,41 @@ def test_a_swing_through_physval_run_agrees_with_physvals_reading(tmp_path):
 
 # --- the MJCF inverted double pendulum ------------------------------------------------------
 
-PENDULUM_JOINTS = {"slider": 0.2, "hinge": 0.3, "hinge2": -0.4}
-PENDULUM_RATES = {"slider": -0.5, "hinge": 1.0, "hinge2": 0.7}
-PENDULUM_LINKS = ("cart", "pole", "pole2")
+PENDULUM_JOINTS = {"dp/slider": 0.2, "dp/hinge": 0.3, "dp/hinge2": -0.4}
+PENDULUM_RATES = {"dp/slider": -0.5, "dp/hinge": 1.0, "dp/hinge2": 0.7}
 CAPSULES = {"cart": (0.1, 0.1), "pole": (0.045, 0.3), "pole2": (0.045, 0.3)}
 """The file's capsules: radius, half-length (m); ``inertiafromgeom="true"``, density 1000."""
 WATER = 1000.0
 """kg/m³: MuJoCo's default geom density, the file sets none."""
-SCENE_AXES = 0.3
-"""rad about the link's x: each scene body's axes turned off MuJoCo's principal axes, so the
-adapter's body offsets (``ModelLayout.body_in_link``) are exercised with a rotation."""
-
-
-def pendulum_layout(path: Path, links_frames) -> ModelLayout:
-    spec = ModelSpec(
-        name="dp",
-        file=str(path),
-        position=list(BASE),
-        orientation=list(BASE_TURN),
-        joint_positions={f"dp/{k}": v for k, v in PENDULUM_JOINTS.items()},
-        joint_velocities={f"dp/{k}": v for k, v in PENDULUM_RATES.items()},
-    )
-    return ModelLayout(
-        name="dp",
-        path=path,
-        format="mjcf",
-        spec=spec,
-        bodies=tuple(f"dp/{link}" for link in PENDULUM_LINKS),
-        links=PENDULUM_LINKS,
-        body_in_link=tuple(links_frames),
-        joints=tuple(f"dp/{joint}" for joint in PENDULUM_JOINTS),
-        file_joints=tuple(PENDULUM_JOINTS),
-        root_link="cart",
-    )
+BOB = {
+    "name": "bob",
+    "shape": {"type": "sphere", "radius": 0.05},
+    "mass": 1.0,
+    "position": [2.0, 0.0, 1.0],
+    "velocity": [0.3, -0.2, 0.5],
+    "angular_velocity": [1.0, 0.0, 0.0],
+}
+"""A body of the scene's own beside the model: its velocity is solved, the model's set."""
 
 
 def pendulum_scene(folder: Path):
-    """The pendulum as scene bodies and joints, from MuJoCo's compile of the file alone (what
-    physval's MJCF reader will give once merged), with the native layout set on the scene
-    (physval's expansion refuses .xml on this branch): ``CompiledScene.models`` overridden."""
-    path = model_path(PENDULUM, folder / "x.yaml")
-    m = mujoco.MjModel.from_xml_path(str(path))
-    d = mujoco.MjData(m)
-    base = Frame(quat_to_matrix(np.array([BASE_TURN]))[0], np.array(BASE))
-    for name, value in PENDULUM_JOINTS.items():
-        d.qpos[m.joint(name).qposadr[0]] = value
-        d.qvel[m.joint(name).dofadr[0]] = PENDULUM_RATES[name]
-    mujoco.mj_forward(m, d)
-    turn = Frame(
-        quat_to_matrix(np.array([[math.cos(SCENE_AXES / 2), math.sin(SCENE_AXES / 2), 0, 0]]))[0],
-        np.zeros(3),
-    )
-    bodies, frames, velocity = [], [], np.zeros(6)
-    for link in PENDULUM_LINKS:
-        b = m.body(link).id
-        principal = quat_to_matrix(m.body_iquat[b][None])[0]
-        in_link = Frame(principal, m.body_ipos[b].copy()) * turn
-        link_frame = base * Frame(d.xmat[b].reshape(3, 3), d.xpos[b].copy())
-        body = link_frame * in_link
-        inertia = turn.rotation.T @ np.diag(m.body_inertia[b]) @ turn.rotation
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, velocity, 0)
-        w, x, y, z = (float(v) for v in _quat(body.rotation))
-        bodies.append(
-            {
-                "name": f"dp/{link}",
-                "shape": {"type": "sphere", "radius": 0.01},
-                "mass": float(m.body_mass[b]),
-                "inertia": inertia.tolist(),
-                "position": body.translation.tolist(),
-                "orientation": [w, x, y, z],
-                "velocity": (base.rotation @ velocity[3:]).tolist(),
-                "angular_velocity": (base.rotation @ velocity[:3]).tolist(),
-            }
-        )
-        frames.append(in_link)
-    joints = []
-    for name, parent in (("slider", "world"), ("hinge", "dp/cart"), ("hinge2", "dp/pole")):
-        j = m.joint(name).id
-        slid = PENDULUM_JOINTS[name] if name == "slider" else 0.0  # xanchor: the slide at 0
-        joints.append(
-            {
-                "name": f"dp/{name}",
-                "type": "slider" if name == "slider" else "hinge",
-                "parent": parent,
-                "child": f"dp/{PENDULUM_LINKS[list(PENDULUM_JOINTS).index(name)]}",
-                "anchor": (
-                    base.rotation @ (d.xanchor[j] + slid * d.xaxis[j]) + base.translation
-                ).tolist(),
-                "axis": (base.rotation @ d.xaxis[j]).tolist(),
-                "damping": 0.05,
-                **({"limits": [-1.2, 0.8]} if name == "slider" else {}),
-            }
-        )
-    document = {
-        "dt": 0.001,
-        "duration": 0.2,
-        "engines": [NATIVE],
-        "bodies": bodies,
-        "joints": joints,
+    """The pendulum at ``BASE``, its joints off zero and moving, beside ``BOB``."""
+    entry = {
+        "name": "dp",
+        "file": PENDULUM,
+        "position": list(BASE),
+        "orientation": list(BASE_TURN),
+        "joint_positions": PENDULUM_JOINTS,
+        "joint_velocities": PENDULUM_RATES,
     }
+    document = {"dt": 0.001, "duration": 0.2, "engines": [NATIVE], "models": [entry]}
+    document["bodies"] = [BOB]
     (folder / "dp.yaml").write_text(yaml.safe_dump(document, sort_keys=False))
-    scene = compile_scene(load_scenario(folder / "dp.yaml"))
-    scene.__dict__["models"] = (pendulum_layout(path, frames),)
-    return scene
-
-
-def _quat(rotation: np.ndarray) -> np.ndarray:
-    from validation.engines.frames import matrix_to_quat
-
-    return matrix_to_quat(rotation)
+    return compile_scene(load_scenario(folder / "dp.yaml"))
 
 
 def test_mjcf_pendulum_is_compiled_by_mujoco_under_the_scenes_options(tmp_path):
-    path = model_path(PENDULUM, tmp_path / "x.yaml")
-    layout = pendulum_layout(path, [Frame(np.eye(3), np.zeros(3))] * 3)
+    layout = pendulum_scene(tmp_path).models[0]
     scene_xml = '<mujoco><option timestep="0.001" integrator="Euler"/><worldbody/></mujoco>'
     model, notes = compile_with_models(scene_xml, [layout])
     data = mujoco.MjData(model)
@@ -360,7 +284,7 @@ def test_mjcf_pendulum_is_compiled_by_mujoco_under_the_scenes_options(tmp_path):
     for link, (radius, half) in CAPSULES.items():  # inertiafromgeom="true", density 1000
         volume = math.pi * radius**2 * 2 * half + 4 / 3 * math.pi * radius**3
         assert model.body(f"dp/{link}").mass[0] == pytest.approx(WATER * volume, rel=1e-12)
-    joints = [model.joint(f"dp/{name}") for name in PENDULUM_JOINTS]
+    joints = [model.joint(name) for name in PENDULUM_JOINTS]
     assert [model.dof_damping[j.dofadr[0]] for j in joints] == [0.05] * 3  # <default><joint>
     assert [data.qpos[j.qposadr[0]] for j in joints] == list(PENDULUM_JOINTS.values())
     assert [data.qvel[j.dofadr[0]] for j in joints] == list(PENDULUM_RATES.values())
@@ -369,18 +293,24 @@ def test_mjcf_pendulum_is_compiled_by_mujoco_under_the_scenes_options(tmp_path):
     assert not model.geom_contype.any() and not model.geom_conaffinity.any()
 
 
-def test_mjcf_pendulum_through_the_adapter_starts_reports_and_probes_as_the_scene(tmp_path):
+def test_mjcf_pendulum_natively_holds_physvals_reading_and_the_scenes_start(tmp_path):
     scene = pendulum_scene(tmp_path)
     adapter = loaded(scene)
-    assert adapter.xml.count("<body") == 0
+    assert adapter.xml.count("<body") == 1  # BOB: the model's bodies are MuJoCo's reading
     assert_starts_as_the_scene(adapter, scene)
-    report = adapter.joint_report()
-    assert report.types == ("slider", "hinge", "hinge")
-    assert report.damping.tolist() == [0.05] * 3
+    report = adapter.model_report()
+    bodies = scene.scenario.bodies
+    assert np.abs(report.mass - [b.mass for b in bodies]).max() <= FIELD_TOLERANCE
+    assert np.abs(report.com - [b.position for b in bodies]).max() <= FIELD_TOLERANCE
+    expected = np.array([world_inertia(b) for b in bodies])
+    assert np.abs(report.inertia_world - expected).max() <= FIELD_TOLERANCE
+    joints = adapter.joint_report()
+    assert joints.types == ("slider", "hinge", "hinge")
+    assert joints.damping.tolist() == [0.05] * 3
     # the file's range [-1, 1] m less the slider's initial 0.2 m; the hinges are unlimited
-    assert report.limits[0] == pytest.approx((-1.2, 0.8))
-    assert np.isnan(report.limits[1:]).all()
-    assert np.abs(report.anchors - [j.anchor for j in scene.scenario.joints]).max() <= 1e-12
+    assert joints.limits[0] == pytest.approx((-1.2, 0.8))
+    assert np.isnan(joints.limits[1:]).all()
+    assert np.abs(joints.anchors - [j.anchor for j in scene.scenario.joints]).max() <= 1e-12
     assert_probes_equal_the_reference(adapter, scene)
     notes = " ".join(adapter.provenance().notes)
     assert "model file's option not used" in notes and "timestep" in notes
@@ -393,7 +323,6 @@ def unit(rng) -> np.ndarray:
 
 
 LIBRARY = Path(__file__).resolve().parent.parent / "scenarios" / "joints"
-
 
 TURNED_BALLS = """dt: 0.001
 duration: 0.1

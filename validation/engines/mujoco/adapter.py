@@ -180,7 +180,7 @@ class MujocoAdapter:
         self.messages: list[str] = []  # MuJoCo's warning messages so far, as it words them
         self.tree = scene.joint_tree
         self.loader = model_loader(self.spec.name, self.settings)
-        self.natives, self.attach_notes, model_dofs = [], [], []
+        self.natives, self.attach_notes = [], []
         if self.loader == "native" and scene.models:
             rest, rest_tree = without_models(scene)
             self.xml, self.plan, self.solver = build_mjcf(rest, self.settings, rest_tree)
@@ -188,7 +188,7 @@ class MujocoAdapter:
                 self.model, self.attach_notes = compile_with_models(self.xml, scene.models)
                 self.natives = list(scene.models)
                 self.data = mujoco.MjData(self.model)
-            model_dofs = set_joint_state(self.model, self.data, self.natives)
+            set_joint_state(self.model, self.data, self.natives)
         else:
             self.xml, self.plan, self.solver = build_mjcf(scenario, self.settings, self.tree)
             with collected_warnings(self.messages):
@@ -197,7 +197,7 @@ class MujocoAdapter:
         self._index_bodies(scenario)
         self._set_initial_state(scenario)
         if self.tree is not None:
-            self._set_joint_velocities(scenario, model_dofs)
+            self._set_joint_velocities(scenario)
         self.qpos_start = self.data.qpos.copy()
 
     def _index_bodies(self, scenario: Scenario) -> None:
@@ -248,16 +248,17 @@ class MujocoAdapter:
             d.qvel[dof : dof + 3] = body.velocity
             d.qvel[dof + 3 : dof + 6] = rot.T @ np.asarray(body.angular_velocity)
 
-    def _set_joint_velocities(self, scenario: Scenario, model_dofs: list[int]) -> None:
+    def _set_joint_velocities(self, scenario: Scenario) -> None:
         """qvel of a scene with joints from the bodies' stated velocities, through MuJoCo's
         own Jacobians at the initial configuration (``mj_jacBody`` of each moving body's
         centre, world frame): the least-squares qvel of ``J qvel = (v, ω)``, exact for the
         velocities the scene's checks let through (the joints allow them). A native model's
-        dofs (``model_dofs``) are set already, from its joint rates: left out of the solve."""
+        dofs (those of its bodies) are set already, from its joint rates: left out of the
+        solve."""
         m, d = self.model, self.data
         mujoco.mj_forward(m, d)
         own = self.moving[~self.in_model[self.moving]]
-        columns = np.setdiff1d(np.arange(m.nv), model_dofs)
+        columns = np.flatnonzero(~np.isin(m.dof_bodyid, self.body_ids[self.in_model]))
         if not own.size or not columns.size:
             return
         rows, targets = [], []

@@ -47,7 +47,8 @@ NATIVE_COMPILER = {"fusestatic": False}
 joints stay bodies, addressable by the scene's names."""
 
 WORLD_BODY = "world"
-"""MuJoCo's world body: its geoms weigh nothing."""
+"""MuJoCo's world body: its geoms weigh nothing; an MJCF model's root when no top-level body
+is free (``validation/scenario/mjcf.py``)."""
 
 AXIS_JOINTS = (2, 3)
 """MuJoCo's ``mjtJoint`` codes of the joints with one coordinate: mjJNT_SLIDE 2, mjJNT_HINGE 3."""
@@ -114,6 +115,8 @@ def _set_base(child, layout) -> None:
     """Weld or free the root (module docstring)."""
     import mujoco
 
+    if layout.root_link == WORLD_BODY:
+        return  # an MJCF without a free top-level body: its bodies hang from the world
     root = _root_body(child, layout)
     free = [j for j in root.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
     if layout.spec.fixed_base:
@@ -184,11 +187,10 @@ def switch_off_collisions(model, layouts) -> None:
                 model.geom_conaffinity[geom] = 0
 
 
-def set_joint_state(model, data, layouts) -> list[int]:
+def set_joint_state(model, data, layouts) -> None:
     """Each model's hinges and slides at the scene's t = 0 coordinates (qpos, qvel: the file's
     own convention; a ball joint, which ``joint_positions`` cannot state, and a free root stay
-    at ``qpos0``, at rest); every dof of the models (the adapter leaves them out of its own
-    solve of the other bodies' velocities)."""
+    at ``qpos0``, at rest)."""
     import mujoco
 
     for layout in layouts:
@@ -200,11 +202,6 @@ def set_joint_state(model, data, layouts) -> list[int]:
                 continue  # welded (a fixed joint, the base's weld), or a ball
             data.qpos[model.jnt_qposadr[jid]] = layout.initial_position(file_joint)
             data.qvel[model.jnt_dofadr[jid]] = layout.initial_velocity(file_joint)
-    roots = [
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_name(layout, layout.root_link))
-        for layout in layouts
-    ]
-    return [dof for dof in range(model.nv) if model.body_rootid[model.dof_bodyid[dof]] in roots]
 
 
 def body_offsets(scene, body_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
