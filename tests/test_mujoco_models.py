@@ -417,3 +417,29 @@ def test_a_scene_joint_to_a_models_body_is_an_error_row_naming_the_way_out(tmp_p
     assert native.status == "error"
     assert "model_loader=physval" in native.message and "hook" in native.message
     assert run_engine(scene, parse_engine_spec(PHYSVAL)).status == "ok"
+
+
+def test_package_meshes_resolve_as_physvals_load_resolves_them(tmp_path):
+    """``package://NAME/...`` (which MuJoCo's importer would read as a relative path) by the
+    model file's folder tree, else ``--package-path``; other paths are left to MuJoCo."""
+    from types import SimpleNamespace
+
+    from validation.engines.mujoco.native import _resolve_meshes
+
+    (tmp_path / "robot" / "meshes").mkdir(parents=True)
+    (tmp_path / "robot" / "meshes" / "arm.stl").write_bytes(b"")
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "hand.stl").write_bytes(b"")
+    spec = mujoco.MjSpec()
+    for file in ("package://robot/meshes/arm.stl", "package://tools/hand.stl", "meshes/x.stl"):
+        spec.add_mesh(file=file)
+    layout = SimpleNamespace(
+        path=tmp_path / "robot" / "robot.urdf",
+        package_paths=(("tools", str(tmp_path / "elsewhere")),),
+    )
+    _resolve_meshes(spec, layout)
+    assert [mesh.file for mesh in spec.meshes] == [
+        str(tmp_path / "robot" / "meshes" / "arm.stl"),
+        str(tmp_path / "elsewhere" / "hand.stl"),
+        "meshes/x.stl",
+    ]

@@ -38,6 +38,7 @@ import warnings
 import numpy as np
 
 from validation.engines.frames import matrix_to_quat
+from validation.scenario.packages import PACKAGE_URI, resolve
 
 FREE_JOINT = "free"
 """The name (after the root link's name) of the free joint a free-base model's root gets."""
@@ -53,9 +54,6 @@ is free (``validation/scenario/mjcf.py``)."""
 AXIS_JOINTS = (2, 3)
 """MuJoCo's ``mjtJoint`` codes of the joints with one coordinate: mjJNT_SLIDE 2, mjJNT_HINGE 3."""
 
-PACKAGE_URL = "package://"
-"""A URDF mesh reference resolved by ``ModelLayout.package_paths`` or the file's folder."""
-
 
 def mujoco_name(layout, name: str) -> str:
     """The MuJoCo name of a file's link or joint once attached: the scene's name."""
@@ -63,15 +61,13 @@ def mujoco_name(layout, name: str) -> str:
 
 
 def _resolve_meshes(child, layout) -> None:
-    """``package://NAME/path`` mesh files resolved (``--package-path NAME=DIR``, else the
-    model file's folder): MuJoCo's URDF importer takes the URL as a relative path."""
-    packages = dict(layout.package_paths)
-    folder = layout.path.parent
+    """``package://NAME/path`` mesh files resolved as physval's load resolves them
+    (``validation.scenario.packages.resolve``: the file's folder tree, then ``--package-path``):
+    MuJoCo's importer would take the URL as a relative path. Other paths are MuJoCo's own."""
     for mesh in child.meshes:
-        if mesh.file.startswith(PACKAGE_URL):
-            package, _, inside = mesh.file[len(PACKAGE_URL) :].partition("/")
-            base = packages.get(package)
-            mesh.file = str((folder if base is None else type(folder)(base)) / inside)
+        if mesh.file.startswith(PACKAGE_URI):
+            found = resolve(mesh.file, layout.path, layout.package_paths)
+            mesh.file = mesh.file if found is None else str(found)
 
 
 def _weighs(child, body) -> bool:
