@@ -87,8 +87,8 @@ def _weighs(child, body) -> bool:
 def drop_idle_geoms(child) -> None:
     """Under ``collisions: false``: the geoms that take no part in the model (they collide with
     nothing, and their body's inertia is stated, ``_weighs``) removed before compiling, and the
-    meshes no geom uses left: a model's meshes are read only where MuJoCo weighs them, so a
-    copy of a URDF without its mesh files loads."""
+    meshes no geom uses left: a model's meshes are read only where MuJoCo weighs them (a mesh
+    file MuJoCo cannot read, or an empty one, then does not matter)."""
     for body in child.bodies:
         if not _weighs(child, body):
             for geom in list(body.geoms):
