@@ -5,7 +5,6 @@ before any work. ``--package-path NAME=DIR`` on run, check and sim2sim."""
 
 from __future__ import annotations
 
-import importlib.util
 import re
 from pathlib import Path
 
@@ -347,10 +346,6 @@ def test_an_out_folder_of_the_users_is_refused_and_left_as_it_was(tmp_path, caps
     assert (out / "chapter1.tex").read_text() == "precious"
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("validation.scenario.mjcf") is None,
-    reason="physval's MJCF reader (validation/scenario/mjcf.py, issue 36) is not on this branch",
-)
 def test_an_mjcf_model_runs(tmp_path, capsys):
     out = tmp_path / "run"
     engines = ["mujoco", "pybullet"]
@@ -372,13 +367,11 @@ def test_package_path_on_check_sets_the_resolvers_folders(tmp_path, capsys, monk
     assert dict(urdf.PACKAGE_PATHS) == {"robots": str(tmp_path)}
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("validation.scenario.packages") is None,
-    reason="package:// resolution (validation/scenario/packages.py, issue 36) is not on this branch",
-)
-def test_package_path_finds_a_users_meshes(tmp_path, capsys):
+def test_package_path_finds_a_users_meshes(tmp_path, capsys, monkeypatch):
     """A URDF whose mesh is ``package://desc/...``, away from its package folder: one line
-    naming the mesh and exit 2 without ``--package-path``, a run with it."""
+    naming the mesh and exit 2 without ``--package-path``, a run with it; ``physval check``
+    of the scene it wrote likewise."""
+    monkeypatch.setattr(urdf, "PACKAGE_PATHS", {})
     meshes = tmp_path / "ws" / "desc" / "meshes"
     meshes.mkdir(parents=True)
     (meshes / "fore.stl").write_text("solid fore\nendsolid fore\n")
@@ -396,3 +389,6 @@ def test_package_path_finds_a_users_meshes(tmp_path, capsys):
     )
     assert code in (EXIT_OK, EXIT_FAILED), printed  # it ran
     assert_verdicts_follow_the_rows(tmp_path / "run", printed, ["mini"])
+    scene = str(tmp_path / "run" / SCENE_FILE)  # physval check takes the same flag
+    assert main(["check", scene]) == EXIT_BAD_INPUT
+    assert main(["check", scene, "--package-path", f"desc={tmp_path / 'ws' / 'desc'}"]) == 0
