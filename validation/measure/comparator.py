@@ -203,8 +203,11 @@ def judge_divergence(rows: list[dict], reference: str) -> list[dict]:
 
 
 def measure_run(scene: CompiledScene, run: EngineRun) -> list[Measurement]:
-    """Every metric of one engine run that needs only that run (empty without a recording)."""
-    return [] if run.recording is None else measure(Context(scene, run.recording))
+    """Every metric of one engine run that needs only that run, the model tiers it carries
+    included (``EngineRun.tiers``); empty without a recording."""
+    if run.recording is None:
+        return []
+    return measure(Context(scene, run.recording)) + list(run.tiers)
 
 
 def compare_scene(
