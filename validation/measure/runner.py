@@ -122,7 +122,9 @@ def run_engine(
         run.message = run.recording.unstable or ""
         if scene.models:
             mass_matrix = None if joints is None else joints.mass_matrix
-            run.tiers += probe_tiers(scene, adapter, lambda: create_adapter(spec), mass_matrix)
+            run.tiers += probe_tiers(
+                scene, adapter, lambda: create_adapter(spec), mass_matrix, capabilities.precision
+            )
     except Exception as error:  # an engine's crash is a result for the report, not the harness's
         run.status, run.message = "error", raised_message(error)
     finally:

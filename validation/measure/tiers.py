@@ -39,6 +39,7 @@ from validation.engines.base import JointReport, ModelProbe, ModelReport
 from validation.engines.joint_parity import expected_report
 from validation.engines.reference import dynamic_bodies, reference_report
 from validation.measure.measurement import Measurement
+from validation.measure.resolution import FLOAT32_UNIT_ROUNDOFF
 from validation.measure.tier_scales import (
     FINITE_DIFFERENCE,
     LIMIT_FLOOR,
@@ -82,6 +83,10 @@ CONTINUOUS_RANGE = math.pi
 
 SLIDE_RANGE = 0.1
 """m: an unlimited slider's travel is drawn in ±this."""
+
+UNIT_ROUNDOFF = {"float64": 2.0**-53, "float32": FLOAT32_UNIT_ROUNDOFF}
+"""Half an ulp, relative, per declared precision (``engine_api.PRECISIONS``): how finely an
+engine's observed poses, and the joint coordinates read from them, are resolved."""
 
 
 # --- tier 1: the fields the engine holds ---------------------------------------------------
@@ -459,6 +464,7 @@ def probe_by_loading(
     scene: CompiledScene,
     states: list[ProbeState],
     mass_matrix_q0: np.ndarray | None,
+    precision: str,
 ) -> list[Probed]:
     """Each state as a scene of its own (``with_joint_state``), loaded in a fresh adapter
     (``make_adapter()``): its first observed poses, and the bias by ``_finite_difference``;
@@ -477,7 +483,7 @@ def probe_by_loading(
             adapter.close()
         pos = np.stack([s.pos for s in snapshots])
         rot = quat_to_matrix(np.stack([s.quat for s in snapshots]))
-        residual, expected, band = _finite_difference(scene, pos, rot)
+        residual, expected, band = _finite_difference(scene, pos, rot, precision)
         probed.append(
             Probed(
                 pos[0],
@@ -492,16 +498,23 @@ def probe_by_loading(
     return probed
 
 
-def _finite_difference(scene: CompiledScene, pos: np.ndarray, rot: np.ndarray):
+def _finite_difference(scene: CompiledScene, pos: np.ndarray, rot: np.ndarray, precision: str):
     """The engine's bias from three observed states two steps apart with no applied torque:
     the joint coordinates read from the poses (``articulated.joint_coordinates``), q̈ their
     second difference / dt², and the residual of the reference's equation at the middle
     state, ``M_ref(q1) q̈ + b_ref(q1, ν) + d ν`` (zero for an engine whose dynamics is the
-    reference's), with ν the central difference (q2 - q0) / 2dt. A first-order integrator's
-    second difference is the acceleration at (q1, ν_back), ν_back = (q1 - q0) / dt, not at
-    ν: the band is the residual's change between the two readings of the rate, relative,
-    O(dt). Returns (residual (nv,), b_ref (nv,), band). A tree with a ball or free joint has
-    no such difference (``ValueError``)."""
+    reference's), ν the central difference (q2 - q0) / 2dt.
+
+    The band: an integrator of order one reads the velocity terms at an end of the step, not
+    in its middle (semi-implicit Euler's q̈ is the acceleration at ν_back = (q1 - q0) / dt;
+    MuJoCo's implicit damping reads d ν at ν_fwd = (q2 - q1) / dt), so each of b's velocity
+    terms and the damping may sit anywhere between the two readings: per coordinate, the
+    largest change of b_ref and of d ν from ν to either, added (they need not cancel), O(dt),
+    relative like the error. To it is added what the engine's ``precision`` cannot resolve:
+    coordinates read to ``UNIT_ROUNDOFF`` × (1 + |q|) each, whose second difference is off by
+    up to 4 of them / dt², times each row of |M_ref| (a float32 engine's bias is noise at
+    small dt; a float64 engine's term is round-off). Returns (residual (nv,), b_ref (nv,),
+    band). A tree with a ball or free joint has no such difference (``ValueError``)."""
     tree = scene.joint_tree
     if any(joint.type in ("ball", "free") for joint in tree.joints):
         raise ValueError(f"a {FINITE_DIFFERENCE} needs hinges and sliders only")
@@ -512,18 +525,18 @@ def _finite_difference(scene: CompiledScene, pos: np.ndarray, rot: np.ndarray):
         if joint.type in AXIS_TYPES:
             q[:, joint.q_slice.start] = coordinates[joint.name]
     acceleration = (q[2] - 2.0 * q[1] + q[0]) / dt**2
-    central, backward = (q[2] - q[0]) / (2.0 * dt), (q[1] - q[0]) / dt
+    central = (q[2] - q[0]) / (2.0 * dt)
+    ends = ((q[1] - q[0]) / dt, (q[2] - q[1]) / dt)
     loads = _loads(scene)
-    matrix = mass_matrix(tree, q[1])
-
-    def residual(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        bias = bias_forces(tree, q[1], nu, loads)
-        return matrix @ acceleration + bias - joint_forces(tree, nu), bias
-
-    found, expected = residual(central)
-    other, _ = residual(backward)
+    expected, matrix = bias_forces(tree, q[1], central, loads), mass_matrix(tree, q[1])
+    residual = matrix @ acceleration + expected - joint_forces(tree, central)
+    bias_spread = np.max([np.abs(bias_forces(tree, q[1], nu, loads) - expected) for nu in ends], 0)
+    damping_spread = np.max([np.abs(joint_forces(tree, nu - central)) for nu in ends], axis=0)
+    resolution = 4.0 * UNIT_ROUNDOFF[precision] * (1.0 + np.abs(q).max()) / dt**2
+    unresolved = np.abs(matrix).sum(axis=1) * resolution
     scale = max(float(np.abs(expected).max(initial=0.0)), ARMATURE_FLOOR)
-    return found, expected, float(np.abs(found - other).max(initial=0.0)) / scale
+    band = (bias_spread + damping_spread + unresolved).max(initial=0.0)
+    return residual, expected, float(band) / scale
 
 
 def not_computed(name: str, error: Exception) -> Measurement:
@@ -546,16 +559,18 @@ def probe_tiers(
     adapter,
     make_adapter: Callable[[], object],
     mass_matrix_q0: np.ndarray | None,
+    precision: str = "float64",
 ) -> list[Measurement]:
     """Tiers 2 and 3 of a scene with models: the probed states through the engine's
-    ``model_probe`` when it has one, else each loaded afresh (``probe_by_loading``); every
-    failure a NaN row naming it."""
+    ``model_probe`` when it has one, else each loaded afresh (``probe_by_loading``; the
+    engine's declared ``precision`` sets what its finite difference resolves); every failure a
+    NaN row naming it."""
     try:
         states = probe_states(scene)
         if hasattr(adapter, "model_probe"):
             probed, how = probe_with(adapter, scene, states), PROBED_BY["model_probe"]
         else:
-            probed = probe_by_loading(make_adapter, scene, states, mass_matrix_q0)
+            probed = probe_by_loading(make_adapter, scene, states, mass_matrix_q0, precision)
             how = PROBED_BY["loading"]
     except Exception as error:  # the probe's failure is every probed row's finding
         return [not_computed(name, error) for name in MODEL_METRICS[1:]]
