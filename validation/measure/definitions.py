@@ -72,7 +72,7 @@ METRIC_DEFINITIONS: dict[str, str] = {
     f"reach, the largest link-centre distance from its base, at least {REACH_FLOOR} m) and world "
     "inertia at q0 (to the link's largest principal moment), and every model joint's type "
     f"({TYPE_DIFFERENCE:g} when it differs), anchor (to the reach), axis (|Δ unit vector|), limits "
-    f"(to max(|limit|, {LIMIT_FLOOR:g})), damping (to max(stated, M_kk(q0)/duration)) and "
+    f"(to max(|limit|, {LIMIT_FLOOR:g})), damping (to the stated damping, or, where none is stated, to M_kk(q0)/duration) and "
     "armature (to M_kk(q0)), where the engine reports them; the message names the worst link or "
     "joint and field. Under native model loading a difference is this row, never a "
     "model_mismatch",

@@ -208,11 +208,11 @@ def _joint_differences(
 
 
 def damping_scale(scene: CompiledScene, stated: float, inertia: float) -> float:
-    """N·m·s/rad or N·s/m: a damping difference is relative to the stated damping, or, where
-    that is smaller, to the joint's inertia over the run's duration (M_kk / t_end, the damping
-    that would take away the joint's rate over the run): a difference small on that scale
-    changes nothing the run can show."""
-    return max(abs(float(stated)), inertia / scene.scenario.duration)
+    """N·m·s/rad or N·s/m: a damping difference is relative to the stated damping (a dropped
+    one differs by 1), or, where the file states none, to the joint's inertia over the run's
+    duration (M_kk / t_end, the damping that would take away the joint's rate over the run):
+    an engine's own default damping is judged by what it would do to the run."""
+    return abs(float(stated)) if stated else inertia / scene.scenario.duration
 
 
 def _joint_inertia(scene: CompiledScene) -> dict[str, float]:
