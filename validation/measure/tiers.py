@@ -67,9 +67,10 @@ from validation.scenario.urdf import ModelLayout, with_joint_state
 
 __all__ = ["TIERS", "model_fields", "probe_tiers"]
 
-ARMATURE_FLOOR = 1e-12
-"""kg·m² or kg: the smallest joint inertia an armature difference is relative to (its
-joint's diagonal of M(q0), of which armature is a part); below it, round-off."""
+SCALE_FLOOR = 1e-12
+"""The smallest scale a tier's difference is divided by, in the scale's SI unit (a joint's
+inertia for its armature, the largest entry of M or b): below it a scale is round-off (a joint
+with no inertia, a bias at rest without gravity), and the difference is read as absolute."""
 
 PROBE_SEED = 36
 """The seed of the probed states (issue 36): the same states in every engine and run."""
@@ -147,7 +148,7 @@ def _difference(item: str, field: str, engine, expected, scale: float) -> Differ
     engine, expected = np.asarray(engine, dtype=float), np.asarray(expected, dtype=float)
     if not np.isfinite(engine).all():
         return Difference(item, field, math.inf, "not finite")
-    value = float(np.abs(engine - expected).max(initial=0.0)) / max(scale, ARMATURE_FLOOR)
+    value = float(np.abs(engine - expected).max(initial=0.0)) / max(scale, SCALE_FLOOR)
     return Difference(item, field, value)
 
 
@@ -390,7 +391,7 @@ def mass_matrix_error(
             continue
         expected = mass_matrix(tree, state.q)
         difference = np.abs(np.asarray(got.mass_matrix, dtype=float) - expected)
-        value = float(difference.max()) / max(float(np.abs(expected).max()), ARMATURE_FLOOR)
+        value = float(difference.max()) / max(float(np.abs(expected).max()), SCALE_FLOOR)
         if not value <= worst:
             worst = value
             row, column = np.unravel_index(int(np.nanargmax(difference)), difference.shape)
@@ -408,8 +409,9 @@ def mass_matrix_error(
 def bias_force_error(
     scene: CompiledScene, states: list[ProbeState], probed: list[Probed], how: str
 ) -> Measurement | None:
-    """Tier 3: max over the probed states of max |Δb| / max |b_ref| (relative), None when the
-    engine gave no bias; a finite difference's row carries its band."""
+    """Tier 3: max |Δb| / max |b_ref| (relative) at the probed state farthest beyond its band
+    (an engine's own bias has none: the largest), None when the engine gave no bias; a finite
+    difference's row carries that state's band."""
     tree = scene.joint_tree
     worst, where, band = -math.inf, "", 0.0
     for k, (state, got) in enumerate(zip(states, probed, strict=True)):
@@ -420,7 +422,7 @@ def bias_force_error(
             residual = np.asarray(got.bias, dtype=float) - expected
         else:
             continue
-        scale = max(float(np.abs(expected).max(initial=0.0)), ARMATURE_FLOOR)
+        scale = max(float(np.abs(expected).max(initial=0.0)), SCALE_FLOOR)
         value = float(np.abs(residual).max(initial=0.0)) / scale
         if not value - got.bias_band <= worst - band:
             worst, band = value, got.bias_band
@@ -534,7 +536,7 @@ def _finite_difference(scene: CompiledScene, pos: np.ndarray, rot: np.ndarray, p
     damping_spread = np.max([np.abs(joint_forces(tree, nu - central)) for nu in ends], axis=0)
     resolution = 4.0 * UNIT_ROUNDOFF[precision] * (1.0 + np.abs(q).max()) / dt**2
     unresolved = np.abs(matrix).sum(axis=1) * resolution
-    scale = max(float(np.abs(expected).max(initial=0.0)), ARMATURE_FLOOR)
+    scale = max(float(np.abs(expected).max(initial=0.0)), SCALE_FLOOR)
     band = (bias_spread + damping_spread + unresolved).max(initial=0.0)
     return residual, expected, float(band) / scale
 
