@@ -395,9 +395,15 @@ def test_a_resumed_run_keeps_the_tier_rows_from_its_journal(tmp_path):
     whole = physval("run", "arm.yaml", "--out", "whole", "--jobs", "1", cwd=tmp_path)
     assert whole.returncode == 0, whole.stderr
     columns = ["engine", "metric", "value", "band", "message"]
-    tiers = ["model_fields", "fk_error", "mass_matrix_error", "bias_force_error"]
+    tiers = [
+        "model_fields",
+        "fk_error",
+        "mass_matrix_error",
+        "bias_force_error",
+        "joint_divergence",
+    ]
     kept = pd.read_csv(tmp_path / "out" / "results.csv")
     again = pd.read_csv(tmp_path / "whole" / "results.csv")
     kept, again = (t[t.metric.isin(tiers)][columns].reset_index(drop=True) for t in (kept, again))
-    assert len(kept) == 7, kept
+    assert len(kept) == 8, kept
     pd.testing.assert_frame_equal(kept, again)

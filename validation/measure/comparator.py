@@ -220,8 +220,7 @@ def measure_run(scene: CompiledScene, run: EngineRun) -> list[Measurement]:
 
 def pair_metrics(engine: str, ctx: Context, reference: Context, label: str) -> list[Measurement]:
     """The rows of the engine spec ``engine`` against the scene's reference engine ``label``:
-    ``divergence``,
-    and where the scene defines them (a scene with models, ``definability``)
+    ``divergence``, and where the scene defines them (a scene with models, ``definability``)
     ``joint_divergence`` and ``agreement_time`` (its band the scene's ``joint_divergence``
     tolerance for this engine)."""
     band = ctx.scenario.tolerance("joint_divergence", engine)
