@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from validation.engine_api import declaration_of, model_loader
-from validation.engines.base import JointReport, Provenance
+from validation.engines.base import JointReport, ModelReport, Provenance
 from validation.engines.joint_parity import compare_joint_report, compare_joints
 from validation.engines.parity import PER_BODY, PRECISION_TOLERANCE, Mismatch, compare
 from validation.engines.reference import dynamic_bodies, reference_report
@@ -101,15 +101,7 @@ def run_engine(
         run.provenance = checked_provenance(adapter.provenance())
         tolerance = PRECISION_TOLERANCE[capabilities.precision]
         model, joints = adapter.model_report(), _joint_report(adapter, scene)
-        run.mismatches = compare(model, reference_report(scene), tolerance)
-        if scene.joint_tree is not None:
-            run.mismatches += (
-                compare_joints(adapter, scene, tolerance)
-                if joints is None
-                else compare_joint_report(joints, scene, tolerance)
-            )
-        if scene.models and loader_of(adapter, spec) == "native":
-            run.mismatches = model_owned(scene, run.mismatches)[1]
+        run.mismatches = refusing(scene, adapter, spec, (model, joints), tolerance)
         if run.mismatches:
             run.status = "model_mismatch"
             run.message = "; ".join(str(m) for m in run.mismatches)
@@ -131,6 +123,30 @@ def run_engine(
         _close(adapter, run)
         run.wall_time_s = time.perf_counter() - start
     return run
+
+
+def refusing(
+    scene: CompiledScene,
+    adapter: Any,
+    spec: EngineSpec,
+    reports: tuple[ModelReport, JointReport | None],
+    tolerance: float,
+) -> list[Mismatch]:
+    """The parity gate's mismatches that refuse the run: every difference of the engine's
+    ``reports`` at load (``model_report()``, ``joint_report()``) from the scene beyond
+    ``tolerance``, but for an engine that loaded the models natively, the models' own
+    (``model_owned``: tier 1 measures them)."""
+    model, joints = reports
+    found = compare(model, reference_report(scene), tolerance)
+    if scene.joint_tree is not None:
+        found += (
+            compare_joints(adapter, scene, tolerance)
+            if joints is None
+            else compare_joint_report(joints, scene, tolerance)
+        )
+    if scene.models and loader_of(adapter, spec) == "native":
+        found = model_owned(scene, found)[1]
+    return found
 
 
 def _joint_report(adapter: Any, scene: CompiledScene) -> JointReport | None:

@@ -295,8 +295,11 @@ def _drawn(rng: np.random.Generator, joint_type: str, limits) -> float:
 def probe_states(scene: CompiledScene) -> list[ProbeState]:
     """The initial state (q0, ν0 the stated rates) and ``RANDOM_STATES`` seeded random ones,
     in which every model hinge and slider takes a coordinate within its limits (``_drawn``)
-    and a rate within ±``PROBE_SPEED``; every other coordinate keeps its initial value."""
+    and a rate within ±``PROBE_SPEED``; every other coordinate keeps its initial value
+    (``ValueError`` for a scene without joints: the probed rows say so)."""
     tree = scene.joint_tree
+    if tree is None:
+        raise ValueError("the scene has no joints: there is no joint state to probe")
     start = scene.start
     nu0, _ = initial_velocities(tree, start.vel[0], start.ang_vel[0])
     owned = _model_joints(scene)
