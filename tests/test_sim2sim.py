@@ -15,6 +15,7 @@ import pytest
 from validation.cli import main
 from validation.contract import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, RESULTS_FILE, SCENE_FILE
 from validation.engine_api import MODEL_LOADER_OPTION, declarations
+from validation.engines.sabotage import SABOTAGE_VARIABLE
 from validation.jobs import sim2sim
 from validation.scenario import load_scenario, urdf
 from validation.scenario.engine_spec import not_installed
@@ -392,3 +393,22 @@ def test_package_path_finds_a_users_meshes(tmp_path, capsys, monkeypatch):
     scene = str(tmp_path / "run" / SCENE_FILE)  # physval check takes the same flag
     assert main(["check", scene]) == EXIT_BAD_INPUT
     assert main(["check", scene, "--package-path", f"desc={tmp_path / 'ws' / 'desc'}"]) == 0
+
+
+def test_a_planted_model_difference_is_named_at_tier_one(tmp_path, capsys, monkeypatch):
+    """The issue's planted difference through the command: mini, sabotaged to read the Kuka
+    from a copy whose third link's inertial frame is turned (``inertial_frame_rotated``), is
+    named at tier 1 by that link and "inertia" against MuJoCo; unsabotaged, they agree."""
+    out = tmp_path / "run"
+    args = [KUKA, "--engines", "mujoco", "mini", "--out", out, *SHORT]
+    monkeypatch.setenv(SABOTAGE_VARIABLE, "inertial_frame_rotated")
+    code, printed, _ = sim2sim_run(capsys, *args)
+    assert code == EXIT_FAILED
+    (line,) = verdict_lines(printed)
+    assert line.startswith(
+        "mujoco vs mini: tier 1 (model_fields): mini: link model/lbr_iiwa_link_3: inertia differs"
+    ), line
+    assert_verdicts_follow_the_rows(out, printed, ["mujoco", "mini"])
+    monkeypatch.delenv(SABOTAGE_VARIABLE)
+    code, printed, _ = sim2sim_run(capsys, *args)
+    assert (code, verdict_lines(printed)) == (EXIT_OK, ["mujoco vs mini: " + sim2sim.AGREEING])
