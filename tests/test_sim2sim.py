@@ -127,8 +127,8 @@ def test_the_kuka_runs_in_mini_and_rapier_and_gets_a_verdict(tmp_path, capsys):
 
 
 def test_mujoco_and_pybullet_agree_on_the_kuka(tmp_path, capsys):
-    """Two float64 engines in reduced coordinates, by their own loaders once native loading
-    lands (until then by physval's reading), hold the same arm and swing it alike."""
+    """Two float64 engines in reduced coordinates, each reading the file with its own loader,
+    hold the same arm and swing it alike."""
     out = tmp_path / "run"
     engines = ["mujoco", "pybullet"]
     code, printed, _ = sim2sim_run(capsys, KUKA, "--engines", *engines, "--out", out, *SHORT)

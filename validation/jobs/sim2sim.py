@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 from validation.contract import EXIT_BAD_INPUT, RESULTS_FILE, SCENE_FILE
 from validation.engine_api import MODEL_LOADER_OPTION, declarations
 from validation.jobs.plan import BadInputError, use_package_paths
+from validation.measure.definitions import TIERS
 from validation.scenario import Scenario, ScenarioError, load_scenario
 from validation.scenario.compiled import compile_scene
 from validation.scenario.definability import scene_traits, why_undefined
@@ -49,16 +50,6 @@ from validation.scenario.engine_spec import (
 from validation.scenario.problems import printable
 from validation.scenario.schema import METRIC_NAMES
 from validation.scenario.urdf import PACKAGE_PREFIX, READERS, model_path
-
-try:  # the tier order, where the report reads it (issue 36's plan, item 1)
-    from validation.measure.definitions import TIERS
-except ImportError:  # until the tiers land on main: the same order (MODELS.md)
-    TIERS = (
-        ("model_fields",),
-        ("fk_error",),
-        ("mass_matrix_error", "bias_force_error"),
-        ("joint_divergence", "agreement_time", "energy_drift", "joint_violation"),
-    )
 
 DEFAULT_OUT = Path("reports") / "sim2sim"
 """Where ``physval sim2sim`` publishes without ``--out``."""
