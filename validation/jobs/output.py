@@ -91,7 +91,8 @@ RUN_FOLDER_FILES = frozenset(
     }
 )
 """Every file a run folder holds (``run.write_run``, ``render_report``, the baseline and
-sweep rows, the scene of ``physval sim2sim``): a folder holding anything else is not replaced by a run."""
+sweep rows, the scene of ``physval sim2sim``): a folder holding anything else is not replaced
+by a run."""
 
 RUN_MARK_FIELDS = ("command", "git_commit", "created")
 """The provenance.json fields every physval run writes (``run._provenance``): with the file

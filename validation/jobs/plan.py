@@ -10,7 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.scenario import MAX_STEPS, Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scenario import (
+    MAX_STEPS,
+    Scenario,
+    ScenarioError,
+    load_scenario,
+    scenario_files,
+    urdf,
+)
 from validation.scenario.compiled import CompiledScene, compile_scene
 from validation.scenario.engine_spec import (
     EngineSpec,
@@ -189,7 +196,5 @@ def package_paths(flags: list[str] | None) -> dict[str, str]:
 def use_package_paths(flags: list[str] | None) -> None:
     """Set ``urdf.PACKAGE_PATHS`` (where ``package://NAME`` resolves) from the flags, before any
     scene is loaded; ``BadInputError`` as ``package_paths``."""
-    from validation.scenario import urdf
-
     urdf.PACKAGE_PATHS.clear()
     urdf.PACKAGE_PATHS.update(package_paths(flags))
