@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 
 from validation.cli import BUNDLED_SCENARIOS, main
 from validation.contract import RESULTS_FILE
+from validation.jobs.plan import plan_run
 from validation.reference.articulated import (
     Loads,
     acceleration,
@@ -108,6 +109,21 @@ def test_the_a1_swing_ends_before_its_knees_reach_their_limits():
     # the duration is what keeps the A1 off its limits: 25 ms longer and the knees are on them
     _, first = limit_slack("a1_hanging", end=A1_FIRST_LIMIT + 0.025)
     assert first == pytest.approx(A1_FIRST_LIMIT, abs=2e-3)
+
+
+WITHOUT_MODELS = "*scenarios/[!m]*"
+"""The ``--only`` pattern the docs give for the library without ``models/`` (nightly.md)."""
+
+
+def test_only_can_leave_the_model_scenes_out_of_a_library_run():
+    everything = {
+        job[0].scenario.name for job in plan_run([BUNDLED_SCENARIOS], None, None, None).jobs
+    }
+    kept = {
+        job[0].scenario.name
+        for job in plan_run([BUNDLED_SCENARIOS], None, None, WITHOUT_MODELS).jobs
+    }
+    assert everything - kept == set(EXPANSION)
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,8 @@ from validation.contract import RESULTS_COLUMNS, RESULTS_FILE
 from validation.report import render, sim2sim
 
 SCENE = "kuka_iiwa_swing"
+SECOND = "cartpole_swing"
+"""A second scene with tier rows, its engines in another order than the first's."""
 PLAIN = "projectile"
 """A scene with energy and joint rows but no tier rows: it gets no card."""
 
@@ -80,6 +82,8 @@ def tier_rows() -> list[dict]:
         row(drake, "agreement_time", 0.25, 0.1, outcome="known", known=KNOWN_REASON),
         row(drake, "energy_drift", 2.5e-2, 1e-3, ENERGY_MESSAGE),
         row(rapier, "status", None, None, CRASH_MESSAGE, status="crashed", error=None),
+        row("mujoco", "model_fields", 1e-15, 1e-6, scene=SECOND),
+        row("mini", "model_fields", 1e-15, 1e-6, scene=SECOND),
         row("mini", "energy_drift", 1e-4, 1e-3, scene=PLAIN),
         row("mujoco", "energy_drift", 1e-4, 1e-3, scene=PLAIN),
     ]
@@ -122,21 +126,25 @@ def page(tmp_path_factory) -> str:
     return Path(render.render_report(run_dir)).read_text()
 
 
-def card(html: str) -> dict[str, list[str]]:
-    """Engine -> the texts of its card line after the engine's own cell."""
-    parser = CardCells()
-    parser.feed(html)
-    return {engine: cells[1:] for engine, cells in parser.rows}
+def cards(html: str) -> dict[str, dict[str, list[str]]]:
+    """Scene anchor -> its card: engine -> the texts of its line after the engine's own cell,
+    engines in page order."""
+    found = {}
+    for section in html.split('<section class="scene" id="')[1:]:
+        parser = CardCells()
+        parser.feed(section)
+        if parser.rows:
+            found[section.split('"', 1)[0]] = {e: cells[1:] for e, cells in parser.rows}
+    return found
 
 
-def test_the_card_lists_every_engine_of_the_scene_in_its_order(page):
-    parser = CardCells()
-    parser.feed(page)
-    assert [engine for engine, _ in parser.rows] == list(ENGINES)
+def test_each_card_lists_its_scenes_engines_in_the_scenes_order(page):
+    order = {scene: list(card) for scene, card in cards(page).items()}
+    assert order == {f"scene-{SCENE}": list(ENGINES), f"scene-{SECOND}": ["mujoco", "mini"]}
 
 
 def test_each_engine_shows_its_first_disagreeing_tier_with_the_rows_message_and_numbers(page):
-    lines = card(page)
+    lines = cards(page)[f"scene-{SCENE}"]
     assert lines["mini"] == [sim2sim.AGREES]
     # engine, then: tier, metric, outcome, value, tolerance, ratio, message, fix
     assert lines["mujoco"][:5] == [
@@ -173,11 +181,6 @@ def test_a_known_finding_is_a_disagreement_and_shows_its_reason():
 
 
 def test_only_a_scene_with_tier_rows_gets_a_card(page):
-    scene_sections = page.split('<section class="scene"')
-    with_card = [
-        s.split('"', 2)[1] for s in scene_sections[1:] if 'table class="data sim2sim"' in s
-    ]
-    assert with_card == [f"scene-{SCENE}"]
-    assert (
-        sim2sim.build_sim2sim_card([{"metric": "energy_drift", "engine": "mini"}], ["mini"]) is None
-    )
+    assert f"scene-{PLAIN}" not in cards(page)
+    card_of = sim2sim.build_sim2sim_card
+    assert card_of([{"metric": "energy_drift", "engine": "mini"}], ["mini"]) is None

@@ -524,7 +524,7 @@ def build_scene(
         "description": description,
         "source": source,
         "runs": build_runs(rows, engines, run.provenance),
-        "sim2sim": build_sim2sim_card(build_rows(rows), scene_engines),
+        "sim2sim": build_sim2sim_card(build_rows(rows), list(dict.fromkeys(rows["engine"]))),
         "engine_legend": Markup(engine_legend(scene_engines)),
         "charts": [Markup(figure_html(chart, set(scene_engines))) for chart in charts],
         "plot_note": "; ".join(notes),

@@ -119,8 +119,8 @@ def engine_line(engine: str, rows: list[dict[str, Any]]) -> CardLine:
 
 def build_sim2sim_card(rows: list[dict[str, Any]], engines: list[str]) -> dict[str, Any] | None:
     """A scene's sim2sim card from its display rows (``build.build_rows``, worst first), one
-    line per engine in ``engines``'s order, or None when the scene has no tier rows
-    (``CARD_METRICS``)."""
+    line per engine in ``engines``'s order (the scene's own, its reference engine first), or
+    None when the scene has no tier rows (``CARD_METRICS``)."""
     if not any(r["metric"] in CARD_METRICS for r in rows):
         return None
     return {
