@@ -15,17 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from validation.measure.definitions import TIERS
 from validation.report.outcomes import RED_OUTCOMES
-
-TIERS: tuple[tuple[str, ...], ...] = (
-    ("model_fields",),
-    ("fk_error",),
-    ("mass_matrix_error", "bias_force_error"),
-    ("joint_divergence", "agreement_time", "energy_drift", "joint_violation"),
-)
-"""The tiers' metrics in the order the card checks them: the contract's ``TIERS`` (issue 36,
-``validation.measure.definitions.TIERS`` once the tiers' metrics are merged, which this then
-imports instead of stating)."""
 
 TIER_LABELS = (
     "tier 1: model fields",
