@@ -2,9 +2,9 @@
 
 ``build_context(run)`` judges the rows (``outcomes``) and builds, in the page's order:
 the verdict and summary chips, the scene x engine matrix (``build_cell``), the worst
-offenders (``build_rows``), one section per scene (``build_scene``: runs, the sim2sim card from
-``sim2sim``, the plot from ``plots``, impacts, checks), the legend (``build_legend``) and the provenance
-(``build_provenance``).
+offenders (``build_rows``), one section per scene (``build_scene``: runs, the sim2sim card
+from ``sim2sim``, the plot from ``plots``, impacts, checks), the legend (``build_legend``) and
+the provenance (``build_provenance``).
 """
 
 from __future__ import annotations
