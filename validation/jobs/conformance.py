@@ -246,6 +246,15 @@ CAPABILITY_SCENES: dict[str, Callable[[], Scenario]] = {
         100 * DT,
         joints=[{**_hinge(), "limits": [-0.2, 0.2]}],
     ),
+    "non_colliding": lambda: _scene(
+        "conformance_non_colliding",
+        [
+            _body("b", "sphere", position=[0, 0, 0.1]),
+            _body("ghost", "sphere", position=[0, 0, 0.15], collides=False),
+        ],
+        50 * DT,
+        ground={},
+    ),
 }
 """Capability -> a small scene that needs it (and perhaps others: ``restitution`` needs a
 ground and contacts)."""
