@@ -21,7 +21,13 @@ from __future__ import annotations
 
 import math
 
-from validation.engine_api import API_VERSION, Capabilities, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    MODEL_LOADER_OPTION,
+    Capabilities,
+    EngineDeclaration,
+    EngineOption,
+)
 
 NAME = "drake"
 """The engine's spec name."""
@@ -128,8 +134,14 @@ OPTIONS = (
         "(Drake's default)",
         INTEGRATORS,
     ),
+    MODEL_LOADER_OPTION,
 )
-"""The settings a Drake spec may carry."""
+"""The settings a Drake spec may carry; ``model_loader`` (native, the default: Drake's
+``Parser`` reads a scene's model files, ``validation.engines.drake.models``; physval: the
+bodies and joints physval expanded them into)."""
+
+NATIVE = str(MODEL_LOADER_OPTION.default)
+"""The ``model_loader`` value of Drake's own parser."""
 
 CONTINUOUS_ONLY = ("accuracy", "integrator")
 DISCRETE_ONLY = ("contact_approximation",)

@@ -1,0 +1,193 @@
+"""A scene's ``models`` read by Drake's own ``Parser`` (``model_loader=native``, issue 36):
+each file added to the plant as its own model instance, placed, set to its stated joint
+state, and mapped onto the scene's bodies and joints (``validation.scenario.urdf.ModelLayout``)
+so that the adapter reads Drake's links as the scene's bodies (docs/engines-drake.md 10).
+
+- Parsing: ``Parser(plant, model_name_prefix=<model name>)`` (two models of one file stay two
+  instances); ``package://NAME/...`` resolves through the parser's ``PackageMap``: the file's
+  folder under its own name, and ``ModelLayout.package_paths``. URDF (``.urdf``) and MJCF
+  (``.xml``, Drake's MuJoCo parser).
+- ``collisions: false``: none of the model's geometry may collide. A URDF is parsed with its
+  ``<collision>`` and ``<visual>`` elements removed (the geometry is never registered: Drake
+  1.51 refuses a ``.stl`` collision mesh outright, and Kuka's are ``.stl``); an MJCF keeps its
+  geoms (Drake computes the bodies' inertia from them, ``inertiafromgeom``), and every
+  proximity geometry the file added is filtered from everything (``filter_model_geometry``).
+- Placement: a URDF's root link is welded to the world at the model's position and
+  orientation (``fixed_base``: through a ``FixedOffsetFrame`` of the world at that pose, so the
+  weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
+  the file's top-level bodies to the world itself, so an MJCF model is placed where its file
+  puts it (a ``position``/``orientation`` other than the origin is refused, one line).
+- Joint state: each file joint's default position is ``layout.initial_position`` (so every
+  context, the simulator's and a scratch one, starts there); its rate,
+  ``layout.initial_velocity``, is set in the simulator's context (``model_velocities``).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ElementTree
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, Role
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.tree import FixedOffsetFrame
+
+from validation.scenario.urdf import ModelLayout
+
+GEOMETRY_ELEMENTS = ("collision", "visual")
+"""A URDF link's geometry elements, removed before Drake parses a model that does not collide."""
+
+FILE_TYPES = {"urdf": "urdf", "mjcf": "xml"}
+"""``ModelLayout.format`` -> Drake's ``file_type`` for ``AddModelsFromString``."""
+
+BASE_FRAME = "physval_base"
+"""The name of the world frame at a fixed base's pose (the weld's frame on the parent)."""
+
+
+@dataclass(frozen=True)
+class NativeModel:
+    """One model as Drake holds it.
+
+    Attributes:
+        layout: the scene's ``ModelLayout``. instance: Drake's ``ModelInstanceIndex``.
+        links: the Drake body of each of ``layout.bodies`` (the file's link).
+        in_link: each body's frame (centre of mass, the scene body's axes) in its link's
+            frame (``layout.body_in_link``) as a ``RigidTransform``.
+        joints: scene joint name -> the Drake joint (the fixed-base weld included).
+        geometry: the proximity geometry the file added (filtered when it must not collide).
+    """
+
+    layout: ModelLayout
+    instance: object
+    links: tuple
+    in_link: tuple
+    joints: dict
+    geometry: tuple
+
+
+def transform(frame) -> RigidTransform:
+    """A ``validation.scenario.urdf.Frame`` as Drake's ``RigidTransform``."""
+    return RigidTransform(
+        RotationMatrix.ProjectToRotationMatrix(np.asarray(frame.rotation, dtype=float)),
+        np.asarray(frame.translation, dtype=float),
+    )
+
+
+def base_pose(layout: ModelLayout) -> RigidTransform:
+    """The model's base in the world: its ``position`` and ``orientation`` (w x y z)."""
+    from pydrake.common.eigen_geometry import Quaternion
+
+    w, x, y, z = (float(v) for v in layout.spec.orientation)
+    norm = float(np.linalg.norm([w, x, y, z]))
+    return RigidTransform(
+        Quaternion(w / norm, x / norm, y / norm, z / norm),
+        np.asarray(layout.spec.position, dtype=float),
+    )
+
+
+def _without_geometry(path) -> str:
+    """The URDF at ``path`` as text with every link's geometry elements removed."""
+    tree = ElementTree.parse(path)
+    for link in tree.getroot().iter("link"):
+        for tag in GEOMETRY_ELEMENTS:
+            for element in link.findall(tag):
+                link.remove(element)
+    return ElementTree.tostring(tree.getroot(), encoding="unicode")
+
+
+def _parser(plant, layout: ModelLayout) -> Parser:
+    """A parser scoped by the model's name, ``package://`` resolving to the file's folder
+    (by its own name) and the layout's package paths."""
+    parser = Parser(plant, layout.name)
+    packages = parser.package_map()
+    folder = layout.path.parent
+    for name, where in ((folder.name, folder), *layout.package_paths):
+        if not packages.Contains(name):
+            packages.Add(name, str(where))
+    return parser
+
+
+def _parse(plant, layout: ModelLayout) -> list:
+    """The model instances Drake's parser makes of the file (one, for URDF and MJCF)."""
+    parser = _parser(plant, layout)
+    if layout.format == "urdf" and not layout.spec.collisions:
+        return parser.AddModelsFromString(_without_geometry(layout.path), FILE_TYPES["urdf"])
+    return parser.AddModels(str(layout.path))
+
+
+def _is_origin(layout: ModelLayout) -> bool:
+    return not np.any(layout.spec.position) and tuple(layout.spec.orientation) == (1, 0, 0, 0)
+
+
+def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
+    """``layout``'s file on ``plant`` (not finalized) by Drake's parser, placed and at its
+    stated joint positions (module docstring); ValueError for what Drake cannot take."""
+    if layout.format == "mjcf" and not _is_origin(layout):
+        raise ValueError(
+            f"model {layout.name!r}: Drake's MJCF parser attaches the file's top-level bodies "
+            "to the world itself: its position and orientation must be the origin's"
+        )
+    inspector = scene_graph.model_inspector()
+    before = set(inspector.GetAllGeometryIds(Role.kProximity))
+    (instance,) = _parse(plant, layout)
+    geometry = tuple(set(inspector.GetAllGeometryIds(Role.kProximity)) - before)
+    joints = {}
+    if layout.format == "urdf":
+        root = plant.GetBodyByName(layout.root_link, instance)
+        if layout.spec.fixed_base:
+            on_world = plant.AddFrame(
+                FixedOffsetFrame(BASE_FRAME, plant.world_frame(), base_pose(layout), instance)
+            )
+            weld = plant.WeldFrames(on_world, root.body_frame())
+            joints.update({name: weld for name, file in _named(layout) if file is None})
+        else:
+            plant.SetDefaultFreeBodyPose(root, base_pose(layout))
+    for name, file in _named(layout):
+        if file is None:
+            continue
+        joint = plant.GetJointByName(file, instance)
+        joints[name] = joint
+        if joint.num_positions() == 1:
+            joint.set_default_positions([layout.initial_position(file)])
+    links = tuple(plant.GetBodyByName(link, instance) for link in layout.links)
+    return NativeModel(
+        layout, instance, links, tuple(transform(f) for f in layout.body_in_link), joints, geometry
+    )
+
+
+def _named(layout: ModelLayout):
+    return zip(layout.joints, layout.file_joints, strict=True)
+
+
+def filter_model_geometry(scene_graph, models: list[NativeModel]) -> int:
+    """Every proximity geometry of the models with ``collisions: false`` excluded from contact
+    with every geometry (after ``Finalize``); the number of geometries filtered."""
+    quiet = [g for model in models if not model.layout.spec.collisions for g in model.geometry]
+    if not quiet:
+        return 0
+    every = scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity)
+    declaration = CollisionFilterDeclaration()
+    declaration.ExcludeBetween(GeometrySet(quiet), GeometrySet(every))
+    declaration.ExcludeWithin(GeometrySet(quiet))
+    scene_graph.collision_filter_manager().Apply(declaration)
+    return len(quiet)
+
+
+def model_velocities(plant, context, models: list[NativeModel]) -> np.ndarray:
+    """(nv,) bool: the velocities the models own (their joints' and floating roots'), after
+    each model joint's rate is set to ``layout.initial_velocity`` in ``context``."""
+    owned = np.zeros(plant.num_velocities(), dtype=bool)
+    v = plant.GetVelocities(context)
+    for model in models:
+        for index in plant.GetJointIndices(model.instance):
+            joint = plant.get_joint(index)
+            owned[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = True
+        for file in model.layout.file_joints:
+            if file is None:
+                continue
+            joint = plant.GetJointByName(file, model.instance)
+            if joint.num_velocities() == 1:
+                v[joint.velocity_start()] = model.layout.initial_velocity(file)
+    plant.SetVelocities(context, v)
+    return owned
