@@ -100,7 +100,8 @@ from validation.engines.drake.joints import (
     set_tree_positions,
     tree_velocities,
 )
-from validation.engines.drake.models import add_model, filter_model_geometry, model_velocities
+from validation.engines.drake.models import add_models, filter_model_geometry, model_velocities
+from validation.engines.drake.models import notes as model_notes
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import WORLD
 from validation.scenario import BodySpec, Scenario
@@ -259,7 +260,8 @@ class DrakeAdapter:
             None if b.name in owned else self._create_body(k, b)
             for k, b in enumerate(scenario.bodies)
         ]
-        self.models = [add_model(plant, scene_graph, layout) for layout in layouts]
+        self.models = add_models(plant, scene_graph, layouts, scenario.gravity)
+        self.notes += model_notes(self.models)
         placed = self._place_models(scenario)
         self.tree = scene.joint_tree
         self.joints = [] if self.tree is None else self._create_joints(scenario, placed, owned)

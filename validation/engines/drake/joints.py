@@ -296,9 +296,10 @@ def kinematic_states(plant, placement: Placement, moving, times, raw, fixed_pose
 
 def joint_report(plant, context, scenario, tree, placement: Placement) -> JointReport:
     """The joints Drake holds, at the state of ``context`` (t = 0 after loading), in the
-    scene's order: each one's type (``type_name``), anchor (the origin of its frame F in the
-    world, ``CalcPoseInWorld``) and axis (``revolute_axis`` or ``translation_axis``, F's, in
-    the world); limits relative to the coordinate at t = 0 (``default_positions``; NaN rows
+    scene's order: each one's type (``type_name``), anchor (the origin of its frame M in the
+    world, ``CalcPoseInWorld``: the scene's anchor is the child's joint frame at t = 0, which
+    a native model's slider has moved from F by its initial position) and axis
+    (``revolute_axis`` or ``translation_axis``, F's, in the world); limits relative to the coordinate at t = 0 (``default_positions``; NaN rows
     where unlimited or not a hinge or slider), damping (``default_damping_vector``) and
     armature (the reflected inertia of an actuator on the joint, ``joint_armature``); and
     Drake's ``CalcMassMatrix`` carried into the joint tree's coordinates, ``Tᵀ M T`` with T
@@ -309,7 +310,7 @@ def joint_report(plant, context, scenario, tree, placement: Placement) -> JointR
         joint = placement.joints[stated.name]
         where = joint.frame_on_parent().CalcPoseInWorld(context)
         types.append(SCENE_WORDS[joint.type_name()])
-        anchors.append(where.translation())
+        anchors.append(joint.frame_on_child().CalcPoseInWorld(context).translation())
         reader = AXIS_READERS.get(joint.type_name())
         axes.append(np.zeros(3) if reader is None else where.rotation().multiply(reader(joint)))
         limits.append(_limits(joint) if reader is not None else (np.nan, np.nan))

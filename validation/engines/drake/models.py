@@ -17,6 +17,9 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
   weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
   the file's top-level bodies to the world itself, so an MJCF model is placed where its file
   puts it (a ``position``/``orientation`` other than the origin is refused, one line).
+- Gravity: Drake's MJCF parser sets the plant's gravity from the file's ``<option gravity>``
+  (MuJoCo's default when absent); the scene's gravity is set again after every model is
+  parsed (``add_models``).
 - Joint state: each file joint's default position is ``layout.initial_position`` (so every
   context, the simulator's and a scratch one, starts there); its rate,
   ``layout.initial_velocity``, is set in the simulator's context (``model_velocities``).
@@ -24,6 +27,8 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
 
@@ -41,6 +46,9 @@ GEOMETRY_ELEMENTS = ("collision", "visual")
 FILE_TYPES = {"urdf": "urdf", "mjcf": "xml"}
 """``ModelLayout.format`` -> Drake's ``file_type`` for ``AddModelsFromString``."""
 
+DRAKE_LOGGER = "drake"
+"""pydrake forwards Drake's C++ log (the parser's warnings among it) to this Python logger."""
+
 BASE_FRAME = "physval_base"
 """The name of the world frame at a fixed base's pose (the weld's frame on the parent)."""
 
@@ -56,6 +64,8 @@ class NativeModel:
             frame (``layout.body_in_link``) as a ``RigidTransform``.
         joints: scene joint name -> the Drake joint (the fixed-base weld included).
         geometry: the proximity geometry the file added (filtered when it must not collide).
+        warnings: what Drake's parser logged while reading the file (its differences from
+            the file: attributes it ignores, inertias it cannot take), for the provenance.
     """
 
     layout: ModelLayout
@@ -64,6 +74,7 @@ class NativeModel:
     in_link: tuple
     joints: dict
     geometry: tuple
+    warnings: tuple = ()
 
 
 def transform(frame) -> RigidTransform:
@@ -116,6 +127,26 @@ def _parse(plant, layout: ModelLayout) -> list:
     return parser.AddModels(str(layout.path))
 
 
+@contextlib.contextmanager
+def parser_log():
+    """The messages Drake logs in the block, kept (a list) instead of printed."""
+    logger = logging.getLogger(DRAKE_LOGGER)
+    found: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            found.append(record.getMessage())
+
+    handler, propagate = Keep(), logger.propagate
+    logger.addHandler(handler)
+    logger.propagate = False
+    try:
+        yield found
+    finally:
+        logger.removeHandler(handler)
+        logger.propagate = propagate
+
+
 def _is_origin(layout: ModelLayout) -> bool:
     return not np.any(layout.spec.position) and tuple(layout.spec.orientation) == (1, 0, 0, 0)
 
@@ -130,7 +161,8 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
         )
     inspector = scene_graph.model_inspector()
     before = set(inspector.GetAllGeometryIds(Role.kProximity))
-    (instance,) = _parse(plant, layout)
+    with parser_log() as warnings:
+        (instance,) = _parse(plant, layout)
     geometry = tuple(set(inspector.GetAllGeometryIds(Role.kProximity)) - before)
     joints = {}
     if layout.format == "urdf":
@@ -142,7 +174,7 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
             weld = plant.WeldFrames(on_world, root.body_frame())
             joints.update({name: weld for name, file in _named(layout) if file is None})
         else:
-            plant.SetDefaultFreeBodyPose(root, base_pose(layout))
+            plant.SetDefaultFloatingBaseBodyPose(root, base_pose(layout))
     for name, file in _named(layout):
         if file is None:
             continue
@@ -151,9 +183,32 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
         if joint.num_positions() == 1:
             joint.set_default_positions([layout.initial_position(file)])
     links = tuple(plant.GetBodyByName(link, instance) for link in layout.links)
-    return NativeModel(
-        layout, instance, links, tuple(transform(f) for f in layout.body_in_link), joints, geometry
-    )
+    in_link = tuple(transform(frame) for frame in layout.body_in_link)
+    return NativeModel(layout, instance, links, in_link, joints, geometry, tuple(warnings))
+
+
+def add_models(plant, scene_graph, layouts, gravity) -> list[NativeModel]:
+    """Every layout's model (``add_model``), then the scene's ``gravity`` (3,) m/s² on the
+    plant again (the MJCF parser sets the file's)."""
+    models = [add_model(plant, scene_graph, layout) for layout in layouts]
+    plant.mutable_gravity_field().set_gravity_vector(np.asarray(gravity, dtype=float))
+    return models
+
+
+def notes(models: list[NativeModel]) -> list[str]:
+    """The provenance notes of the native models: how each was parsed and what Drake's
+    parser said of it."""
+    found = []
+    for model in models:
+        layout = model.layout
+        stripped = layout.format == "urdf" and not layout.spec.collisions
+        found.append(
+            f"model {layout.name}: {layout.path.name} read by Drake's Parser"
+            + (" without its <collision> and <visual> elements (collisions: false)" if stripped
+               else f"; {len(model.geometry)} proximity geometries")
+        )  # fmt: skip
+        found += [f"model {layout.name}: Drake's parser: {w}" for w in model.warnings]
+    return found
 
 
 def _named(layout: ModelLayout):
