@@ -223,8 +223,7 @@ def filter_model_geometry(scene_graph, models: list[NativeModel]) -> int:
         return 0
     every = scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity)
     declaration = CollisionFilterDeclaration()
-    declaration.ExcludeBetween(GeometrySet(quiet), GeometrySet(every))
-    declaration.ExcludeWithin(GeometrySet(quiet))
+    declaration.ExcludeBetween(GeometrySet(quiet), GeometrySet(every))  # themselves among them
     scene_graph.collision_filter_manager().Apply(declaration)
     return len(quiet)
 

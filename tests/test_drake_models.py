@@ -1,0 +1,434 @@
+"""Drake's native loader for a scene's ``models`` (issue 36; docs/engines-drake.md 10): the
+Kuka iiwa and the cartpole of pybullet_data read by Drake's own ``Parser`` hold the masses,
+inertias, joints and start state physval's reading of the same files states, their mass
+matrix and bias forces equal the reference side's at random states, a model with a floating
+root and turned inertial frames too, both profiles; a 1 s passive swing runs through
+``physval run`` with both loaders; an MJCF file goes through the loader function itself
+(physval's own MJCF reader is another change: the scene path is tested after the merge). One
+adapter per scene and profile for the whole module: Drake builds a plant in ~0.1 s, but the
+import is the slow part. pydrake is a test dependency (``tests/test_engine_drake.py``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from validation.cli import main
+from validation.engines import joint_parity
+from validation.engines.parity import compare
+from validation.engines.registry import create_adapter
+from validation.engines.reference import reference_report
+from validation.reference.articulated import (
+    Loads,
+    bias_forces,
+    forward_kinematics,
+    mass_matrix,
+)
+from validation.scenario.compiled import compile_scene
+from validation.scenario.engine_spec import parse_engine_spec
+from validation.scenario.load import load_scenario
+from validation.scenario.schema import ModelSpec
+from validation.scenario.urdf import Frame, ModelLayout, model_path
+
+KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
+CARTPOLE = "pkg:pybullet_data/cartpole.urdf"
+PENDULUM = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
+
+NATIVE = "drake"
+PHYSVAL = "drake(model_loader=physval)"
+CONTINUOUS = "drake(profile=continuous)"
+
+TURN = (math.cos(0.2), 0.0, 0.0, math.sin(0.2))  # 0.4 rad about z
+TILT = (math.cos(0.1), 0.0, math.sin(0.1), 0.0)  # 0.2 rad about y
+
+CHAIN = """<robot name="chain">
+  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
+  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1"/></joint>
+  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
+    <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
+    <limit lower="-0.5" upper="0.5"/></joint>
+</robot>
+"""
+"""A hinge and a slider on off-axis axes, every origin and inertial frame turned (as in
+``tests/test_models.py``): a model link's frame is not its scene body's."""
+
+MODELS = {
+    "kuka": {
+        "name": "arm",
+        "file": KUKA,
+        "position": [0.3, -0.2, 1.0],
+        "orientation": list(TURN),
+        "joint_positions": {"arm/lbr_iiwa_joint_2": 0.5, "arm/lbr_iiwa_joint_4": -0.7},
+        "joint_velocities": {"arm/lbr_iiwa_joint_1": 0.3, "arm/lbr_iiwa_joint_5": -0.4},
+    },
+    "cartpole": {
+        "name": "cp",
+        "file": CARTPOLE,
+        "position": [0.0, 0.0, 1.0],
+        "joint_positions": {"cp/cart_to_pole": 0.4},
+        "joint_velocities": {"cp/slider_to_cart": 0.2, "cp/cart_to_pole": -0.3},
+    },
+    "floating_chain": {
+        "name": "c",
+        "file": "chain.urdf",
+        "position": [0.1, 0.2, 1.0],
+        "orientation": list(TILT),
+        "fixed_base": False,
+        "joint_positions": {"c/pin": 0.3, "c/rail": 0.1},
+        "joint_velocities": {"c/pin": 0.5, "c/rail": -0.2},
+    },
+}
+"""The scenes (one model each): the Kuka on a turned base at a pose with joint rates, the
+cartpole (a massless root link: its slider hangs from the world) swinging, the chain
+floating from a tilted pose."""
+
+SAME_MODEL = 1e-9
+"""Relative (the parity gate's ``PARITY_TOLERANCE``): Drake's reading of a URDF against
+physval's. Measured 2.2e-16 m (COM), 1.4e-17 kg·m² (inertia) and 0 kg (mass) on the Kuka:
+both read the same decimal numbers and compose the same transforms."""
+
+ROUND_OFF = 1e-12
+"""Relative or m: Drake's M, bias and link poses at one state against the reference side's
+(composite rigid body, Newton-Euler, forward kinematics in double precision): measured at
+most 1.1e-15 (M, bias) and 7.8e-16 m (poses) on the three models here."""
+
+STATES = 4
+"""Random joint states probed per model (seeded)."""
+
+SWING_AGREEMENT = 1e-9
+"""m: the native and the physval-built Kuka over a 1 s swing at dt = 1 ms (the run's
+``divergence``): measured 4.7e-12 m, the round-off of two equal models' floats (physval's
+bodies carry the URDF's frames through a quaternion and back) grown over 1000 steps."""
+
+
+def write_scene(folder: Path, key: str, engines=(NATIVE,), duration: float = 1.0) -> Path:
+    """A scene of one model (``MODELS[key]``) in ``folder``, 1 s at dt = 1 ms."""
+    import yaml
+
+    (folder / "chain.urdf").write_text(CHAIN)
+    path = folder / f"{key}.yaml"
+    document = {"dt": 1e-3, "duration": duration, "engines": list(engines)}
+    path.write_text(yaml.safe_dump({**document, "models": [MODELS[key]]}, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("drake_models")
+    return {key: compile_scene(load_scenario(write_scene(folder, key))) for key in MODELS}
+
+
+@pytest.fixture(scope="module")
+def loaded(scenes):
+    """(model, spec) -> an adapter loaded with that scene: one per pair for the module."""
+    adapters = {}
+
+    def get(key: str, spec: str = NATIVE):
+        if (key, spec) not in adapters:
+            adapter = create_adapter(parse_engine_spec(spec))
+            adapter.load(scenes[key])
+            adapters[key, spec] = adapter
+        return adapters[key, spec]
+
+    yield get
+    for adapter in adapters.values():
+        adapter.close()
+
+
+PROFILES = (NATIVE, CONTINUOUS)
+CASES = [(key, spec) for key in MODELS for spec in PROFILES]
+
+
+@pytest.mark.parametrize(("key", "spec"), CASES)
+def test_native_model_report_is_the_scenes(scenes, loaded, key, spec):
+    """Mass, centre of mass and world inertia of every body, the energy and momenta: Drake's
+    reading of the file is physval's (the parity gate's comparison finds nothing)."""
+    adapter, scene = loaded(key, spec), scenes[key]
+    report, expected = adapter.model_report(), reference_report(scene)
+    assert compare(report, expected) == []
+    assert np.abs(report.com - expected.com).max() <= SAME_MODEL
+    assert np.abs(report.inertia_world - expected.inertia_world).max() <= SAME_MODEL * np.abs(
+        expected.inertia_world
+    ).max()
+    settings = adapter.provenance().settings
+    assert settings["model_loader"] == "native"
+    assert list(settings["models"]) == [MODELS[key]["name"]]
+
+
+@pytest.mark.parametrize(("key", "spec"), CASES)
+def test_native_joint_report_is_the_scenes(scenes, loaded, key, spec):
+    """Types, anchors, axes and M(q0) as the joint parity gate checks them, and the limits
+    (relative to t = 0), damping and armature as the scene states them."""
+    adapter, scene = loaded(key, spec), scenes[key]
+    assert joint_parity.compare_joints(adapter, scene) == []
+    report = adapter.joint_report()
+    stated = scene.scenario.joints
+    limits = np.array([j.limits if j.limits else (np.nan, np.nan) for j in stated])
+    np.testing.assert_allclose(report.limits, limits, rtol=0, atol=SAME_MODEL)
+    np.testing.assert_array_equal(report.damping, [j.damping for j in stated])
+    np.testing.assert_array_equal(report.armature, np.zeros(len(stated)))
+
+
+def test_the_kukas_limits_move_with_its_start_and_its_damping_is_the_urdfs(loaded):
+    report = loaded("kuka").joint_report()
+    # joint_2's URDF limits ±2.09439510239 rad, its start 0.5 rad (MODELS)
+    assert report.limits[1] == pytest.approx((-2.09439510239 - 0.5, 2.09439510239 - 0.5))
+    assert np.all(report.damping == 0.5)  # model.urdf: <dynamics damping="0.5"/>
+
+
+@pytest.mark.parametrize(("key", "spec"), CASES)
+def test_native_start_is_the_scenes(scenes, loaded, key, spec):
+    """observe() at t = 0: every model body's centre, axes, velocity and spin as the scene
+    states them (a link's pose carried to its inertial frame, the joints' rates set)."""
+    start, stated = loaded(key, spec).observe(), scenes[key].start
+    assert np.abs(start.pos - stated.pos[0]).max() <= ROUND_OFF
+    same_axes = np.abs(np.einsum("ni,ni->n", start.quat, stated.quat[0]))
+    assert np.abs(same_axes - 1.0).max() <= ROUND_OFF
+    assert np.abs(start.vel - stated.vel[0]).max() <= ROUND_OFF
+    assert np.abs(start.ang_vel - stated.ang_vel[0]).max() <= ROUND_OFF
+    assert np.abs(stated.vel[0]).max() > 0.1  # the rates are really there to get wrong
+
+
+@pytest.mark.parametrize("spec", [NATIVE, CONTINUOUS, PHYSVAL])
+@pytest.mark.parametrize("key", list(MODELS))
+def test_model_probe_is_the_reference_sides(scenes, loaded, key, spec):
+    """M(q), the bias C(q, ν)ν + g(q) and every body's pose at seeded random states (tree
+    coordinates, relative to t = 0) against the reference side's."""
+    adapter, scene = loaded(key, spec), scenes[key]
+    tree = scene.joint_tree
+    loads = Loads(scene.gravity, scene.springs, scene.force, scene.torque)
+    rng = np.random.default_rng(36)
+    for _ in range(STATES):
+        q = tree.zero() + rng.uniform(-1.0, 1.0, tree.nq)
+        for joint in tree.joints:
+            if joint.type == "free":
+                q[joint.q_slice][3:] /= np.linalg.norm(q[joint.q_slice][3:])
+        nu = rng.uniform(-2.0, 2.0, tree.nv)
+        probe = adapter.model_probe(q, nu)
+        want_m, want_b = mass_matrix(tree, q), bias_forces(tree, q, nu, loads)
+        pose = forward_kinematics(tree, q)
+        tolerance = ROUND_OFF if spec != PHYSVAL else SAME_MODEL
+        assert np.abs(probe.mass_matrix - want_m).max() <= tolerance * np.abs(want_m).max()
+        assert np.abs(probe.bias - want_b).max() <= tolerance * np.abs(want_b).max()
+        assert np.abs(probe.pos - pose.pos).max() <= tolerance
+        turned = np.einsum("nij,nik->njk", pose.rot, _matrices(probe.quat))
+        assert np.abs(turned - np.eye(3)).max() <= tolerance
+
+
+def _matrices(quat: np.ndarray) -> np.ndarray:
+    from validation.reference.rotation import quat_to_matrix
+
+    return np.array([quat_to_matrix(q) for q in quat])
+
+
+def test_the_probe_leaves_the_simulation_where_it_was(loaded):
+    adapter = loaded("cartpole")
+    before = adapter.observe()
+    tree = adapter.tree
+    adapter.model_probe(tree.zero() + 0.5, np.ones(tree.nv))
+    after = adapter.observe()
+    np.testing.assert_array_equal(after.pos, before.pos)
+    np.testing.assert_array_equal(after.vel, before.vel)
+
+
+def test_physval_loading_builds_the_expanded_bodies(loaded):
+    settings = loaded("kuka", PHYSVAL).provenance().settings
+    assert settings["model_loader"] == "physval"
+    assert "models" not in settings
+    assert "arm/lbr_iiwa_joint_2" in settings["joints"]  # physval's joint, by its scene name
+
+
+def test_the_parsers_warnings_are_in_the_provenance(loaded):
+    """Kuka's lbr_iiwa_link_0 states mass 0 with an inertia: Drake's parser says it cannot
+    make that a central inertia (docs/engines-drake.md 10)."""
+    notes = loaded("kuka").provenance().notes
+    assert any("model arm: Drake's parser" in note and "mass > 0" in note for note in notes)
+    assert any("without its <collision> and <visual>" in note for note in notes)
+
+
+def test_a_passive_swing_runs_with_both_loaders(tmp_path):
+    """``physval run`` of the Kuka and the cartpole for 1 s in Drake with its own parser and
+    with physval's bodies: every row ``ok``, and the two swings agree (``divergence``)."""
+    import pandas as pd
+
+    paths = [
+        str(write_scene(tmp_path, key, engines=(NATIVE, PHYSVAL))) for key in ("kuka", "cartpole")
+    ]
+    out = tmp_path / "run"
+    history = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    assert main(["run", *paths, "--out", str(out), "--history", history, "--jobs", "1"]) == 0
+    rows = pd.read_csv(out / "results.csv")
+    assert set(rows["status"]) == {"ok"}
+    assert set(rows["engine"]) == {NATIVE, PHYSVAL}
+    divergence = rows[rows["metric"] == "divergence"]
+    assert len(divergence) == 2
+    assert divergence["value"].max() <= SWING_AGREEMENT
+    assert rows[rows["metric"] == "joint_violation"]["value"].max() <= ROUND_OFF
+
+
+# --- the loader itself: collisions, and MJCF (physval's MJCF reader is another change) ------
+
+
+def _plant():
+    from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+    from pydrake.systems.framework import DiagramBuilder
+
+    return AddMultibodyPlantSceneGraph(DiagramBuilder(), 1e-3)
+
+
+def _proximity(scene_graph) -> list:
+    from pydrake.geometry import Role
+
+    return scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity)
+
+
+def test_collisions_true_keeps_the_files_shapes_and_false_registers_none(scenes):
+    """The cartpole's two ``<collision>`` boxes: registered and colliding with collisions:
+    true, not registered with false (the URDF is parsed without them)."""
+    from validation.engines.drake.models import add_models, filter_model_geometry
+
+    layout = scenes["cartpole"].models[0]
+    for collides, count in ((True, 2), (False, 0)):
+        plant, scene_graph = _plant()
+        spec = layout.spec.model_copy(update={"collisions": collides})
+        add_models(plant, scene_graph, [dataclasses.replace(layout, spec=spec)], (0, 0, -9.81))
+        plant.Finalize()
+        assert filter_model_geometry(scene_graph, []) == 0
+        assert len(_proximity(scene_graph)) == count
+
+
+def test_drake_refuses_the_kukas_stl_collision_meshes(scenes):
+    """With collisions: true Drake must make a convex hull of each collision mesh, and its
+    hull reads .obj, .vtk and .gltf only: the Kuka's .stl meshes are an error (a result row,
+    under the runner), named."""
+    from validation.engines.drake.models import add_models
+
+    layout = scenes["kuka"].models[0]
+    spec = layout.spec.model_copy(update={"collisions": True})
+    plant, scene_graph = _plant()
+    with pytest.raises(RuntimeError, match=r"unsupported extension '\.stl'"):
+        add_models(plant, scene_graph, [dataclasses.replace(layout, spec=spec)], (0, 0, -9.81))
+
+
+PENDULUM_START = {"pend/slider": 0.2, "pend/hinge": 0.3, "pend/hinge2": -0.4}
+PENDULUM_RATES = {"pend/slider": -0.1, "pend/hinge": 0.6}
+
+
+def pendulum_layout(**fields) -> ModelLayout:
+    """The inverted double pendulum as a ``ModelLayout`` written by hand (what physval's MJCF
+    reader will give: a body per ``<body>`` at its centre of mass, the capsules' own axes)."""
+    spec = ModelSpec(
+        name="pend",
+        file=PENDULUM,
+        joint_positions=PENDULUM_START,
+        joint_velocities=PENDULUM_RATES,
+        **fields,
+    )
+    at = [np.zeros(3), np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.0, 0.3])]
+    return ModelLayout(
+        name="pend",
+        path=model_path(PENDULUM, Path(".")),
+        format="mjcf",
+        spec=spec,
+        bodies=("pend/cart", "pend/pole", "pend/pole2"),
+        links=("cart", "pole", "pole2"),
+        body_in_link=tuple(Frame(np.eye(3), a) for a in at),
+        joints=("pend/slider", "pend/hinge", "pend/hinge2"),
+        file_joints=("slider", "hinge", "hinge2"),
+        root_link="cart",
+    )
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    """(plant, scene_graph, model, context) of the MJCF pendulum loaded by ``add_models``
+    under a gravity the file does not state."""
+    from validation.engines.drake.models import (
+        add_models,
+        filter_model_geometry,
+        model_velocities,
+    )
+
+    plant, scene_graph = _plant()
+    (model,) = add_models(plant, scene_graph, [pendulum_layout()], (0.0, 0.0, -9.0))
+    plant.Finalize()
+    filtered = filter_model_geometry(scene_graph, [model])
+    context = plant.CreateDefaultContext()
+    model_velocities(plant, context, [model])
+    return plant, scene_graph, model, context, filtered
+
+
+def test_an_mjcf_models_joints_and_state_are_the_files_and_the_scenes(pendulum):
+    from validation.engines.drake.joints import Placement, body_states
+
+    plant, _, model, context, _ = pendulum
+    types = {name: joint.type_name() for name, joint in model.joints.items()}
+    assert types == {"pend/slider": "prismatic", "pend/hinge": "revolute",
+                     "pend/hinge2": "revolute"}  # fmt: skip
+    for name, joint in model.joints.items():
+        assert joint.GetOnePosition(context) == PENDULUM_START[name]
+        assert joint.GetOneVelocity(context) == PENDULUM_RATES.get(name, 0.0)
+        assert joint.default_damping_vector()[0] == 0.05  # <default><joint damping="0.05"/>
+    # the pole's centre: on the cart at the slider's 0.2 m, 0.3 m up the pole turned 0.3 rad
+    # about y (x = 0.2 + 0.3 sin 0.3, z = 0.3 cos 0.3)
+    placement = Placement(list(model.links), list(model.in_link), model.joints)
+    pos, _, vel, _ = body_states(plant, context, placement, [0, 1, 2], (np.zeros((3, 3)),
+                                 np.tile([1.0, 0, 0, 0], (3, 1))))  # fmt: skip
+    assert pos[1] == pytest.approx([0.2 + 0.3 * math.sin(0.3), 0.0, 0.3 * math.cos(0.3)])
+    # its velocity: the cart's -0.1 m/s plus 0.6 rad/s about y at 0.3 m
+    assert vel[1] == pytest.approx([-0.1 + 0.3 * 0.6 * math.cos(0.3), 0.0,
+                                    -0.3 * 0.6 * math.sin(0.3)])  # fmt: skip
+
+
+def test_an_mjcf_models_masses_are_mujocos_inertia_from_its_geoms(pendulum):
+    """inertiafromgeom: Drake's MJCF parser gives each body the mass and inertia of its
+    capsules at density 1000, as MuJoCo's own compiler does (principal moments compared)."""
+    import mujoco
+
+    plant, _, model, _, _ = pendulum
+    compiled = mujoco.MjModel.from_xml_path(str(model.layout.path))
+    for link in model.links:
+        body = compiled.body(link.name())
+        inertia = link.default_spatial_inertia()
+        central = inertia.Shift(inertia.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
+        assert link.default_mass() == pytest.approx(body.mass[0], rel=1e-12)
+        assert inertia.get_com() == pytest.approx(body.ipos, abs=1e-12)
+        assert np.sort(np.linalg.eigvalsh(central)) == pytest.approx(
+            np.sort(body.inertia), rel=1e-9
+        )
+
+
+def test_an_mjcf_files_gravity_does_not_replace_the_scenes(pendulum):
+    """The file's <option gravity="1e-5 0 -9.81">: Drake's parser sets it on the plant; the
+    loader sets the scene's again."""
+    plant = pendulum[0]
+    assert plant.gravity_field().gravity_vector() == pytest.approx([0.0, 0.0, -9.0], abs=0)
+
+
+def test_an_mjcf_model_that_must_not_collide_is_filtered_from_everything(pendulum):
+    """The file's floor, rail and three capsules stay registered (Drake computed the inertia
+    from them) but no pair with one of them is ever checked."""
+    _, scene_graph, model, _, filtered = pendulum
+    every = _proximity(scene_graph)
+    assert filtered == len(model.geometry) == 5
+    inspector = scene_graph.model_inspector()
+    assert all(inspector.CollisionFiltered(a, b) for a in model.geometry for b in every if a != b)
+
+
+def test_an_mjcf_model_away_from_the_origin_is_one_line():
+    from validation.engines.drake.models import add_models
+
+    plant, scene_graph = _plant()
+    with pytest.raises(ValueError, match="MJCF parser attaches the file's top-level bodies"):
+        add_models(plant, scene_graph, [pendulum_layout(position=(1.0, 0.0, 0.0))], (0, 0, -9.81))
