@@ -19,9 +19,10 @@ import pytest
 
 from validation.cli import main
 from validation.engines import joint_parity
+from validation.engines.drake.models import add_models
 from validation.engines.parity import compare
-from validation.engines.registry import create_adapter
 from validation.engines.reference import reference_report
+from validation.engines.registry import create_adapter
 from validation.reference.articulated import (
     Loads,
     bias_forces,
@@ -158,9 +159,10 @@ def test_native_model_report_is_the_scenes(scenes, loaded, key, spec):
     report, expected = adapter.model_report(), reference_report(scene)
     assert compare(report, expected) == []
     assert np.abs(report.com - expected.com).max() <= SAME_MODEL
-    assert np.abs(report.inertia_world - expected.inertia_world).max() <= SAME_MODEL * np.abs(
-        expected.inertia_world
-    ).max()
+    assert (
+        np.abs(report.inertia_world - expected.inertia_world).max()
+        <= SAME_MODEL * np.abs(expected.inertia_world).max()
+    )
     settings = adapter.provenance().settings
     assert settings["model_loader"] == "native"
     assert list(settings["models"]) == [MODELS[key]["name"]]
@@ -328,13 +330,8 @@ PENDULUM_RATES = {"pend/slider": -0.1, "pend/hinge": 0.6}
 def pendulum_layout(**fields) -> ModelLayout:
     """The inverted double pendulum as a ``ModelLayout`` written by hand (what physval's MJCF
     reader will give: a body per ``<body>`` at its centre of mass, the capsules' own axes)."""
-    spec = ModelSpec(
-        name="pend",
-        file=PENDULUM,
-        joint_positions=PENDULUM_START,
-        joint_velocities=PENDULUM_RATES,
-        **fields,
-    )
+    stated = {"joint_positions": PENDULUM_START, "joint_velocities": PENDULUM_RATES}
+    spec = ModelSpec(name="pend", file=PENDULUM, **{**stated, **fields})
     at = [np.zeros(3), np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.0, 0.3])]
     return ModelLayout(
         name="pend",
@@ -396,7 +393,7 @@ def test_an_mjcf_models_masses_are_mujocos_inertia_from_its_geoms(pendulum):
     capsules at density 1000, as MuJoCo's own compiler does (principal moments compared)."""
     import mujoco
 
-    plant, _, model, _, _ = pendulum
+    _, _, model, _, _ = pendulum
     compiled = mujoco.MjModel.from_xml_path(str(model.layout.path))
     for link in model.links:
         body = compiled.body(link.name())
@@ -432,3 +429,88 @@ def test_an_mjcf_model_away_from_the_origin_is_one_line():
     plant, scene_graph = _plant()
     with pytest.raises(ValueError, match="MJCF parser attaches the file's top-level bodies"):
         add_models(plant, scene_graph, [pendulum_layout(position=(1.0, 0.0, 0.0))], (0, 0, -9.81))
+
+
+GEARED = """<robot name="geared" xmlns:drake="http://drake.mit.edu">
+  <link name="base"><inertial><mass value="2"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="arm"><inertial><origin xyz="0.3 0 0"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="pin" type="continuous"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 1 0"/><dynamics damping="0.3" friction="0.4"/></joint>
+  <transmission type="SimpleTransmission" name="drive">
+    <actuator name="motor"><drake:rotor_inertia value="0.01"/>
+      <drake:gear_ratio value="3"/></actuator>
+    <joint name="pin"/><mechanicalReduction>1</mechanicalReduction></transmission>
+</robot>
+"""
+"""A hinge with a motor of rotor inertia 0.01 kg·m² behind a 3:1 gear (Drake's
+``drake:rotor_inertia`` and ``drake:gear_ratio``), and a joint friction Drake cannot take."""
+
+REFLECTED = 0.01 * 3.0**2
+"""kg·m²: the geared hinge's reflected inertia, rotor inertia × gear ratio²."""
+
+
+def test_a_motors_reflected_inertia_is_the_joints_armature_and_is_in_m(tmp_path):
+    """physval's reader knows no transmission, so the scene's M(q0) lacks what Drake adds
+    to the hinge's diagonal: the difference model tier 1 is to find, reported as armature;
+    the ignored friction is in the parser's notes."""
+    (tmp_path / "geared.urdf").write_text(GEARED)
+    document = {"dt": 1e-3, "duration": 0.1, "engines": [NATIVE],
+                "models": [{"name": "g", "file": "geared.urdf"}]}  # fmt: skip
+    import yaml
+
+    (tmp_path / "geared.yaml").write_text(yaml.safe_dump(document))
+    scene = compile_scene(load_scenario(tmp_path / "geared.yaml"))
+    adapter = create_adapter(parse_engine_spec(NATIVE))
+    adapter.load(scene)
+    try:
+        report = adapter.joint_report()
+        assert report.armature == pytest.approx([0.0, REFLECTED], rel=1e-15)  # weld, pin
+        stated = mass_matrix(scene.joint_tree, scene.joint_tree.zero())
+        assert (report.mass_matrix - stated).ravel() == pytest.approx([REFLECTED], rel=1e-12)
+        assert report.damping == pytest.approx([0.0, 0.3])
+        notes = adapter.provenance().notes
+        assert any("does not currently support non-zero joint friction" in n for n in notes)
+    finally:
+        adapter.close()
+
+
+def test_drakes_mjcf_parser_drops_an_armature_without_an_actuator(tmp_path):
+    """MuJoCo adds a joint's ``armature`` to M's diagonal; Drake's MJCF parser keeps it only
+    as the reflected inertia of an actuator on the joint, and silently drops it otherwise
+    (docs/engines-drake.md 10): 1.064 kg·m² against MuJoCo's 1.164 here."""
+    import mujoco
+
+    from validation.engines.drake.joints import joint_armature
+
+    bodies = """<worldbody><body name="a" pos="0 0 1">
+      <joint name="j" type="hinge" axis="0 1 0" armature="0.1"/>
+      <geom type="sphere" size="0.1" pos="0 0 -0.5"/></body></worldbody>"""
+    found = {}
+    for label, extra in (
+        ("bare", ""),
+        ("driven", '<actuator><motor joint="j" gear="2"/></actuator>'),
+    ):
+        path = tmp_path / f"{label}.xml"
+        path.write_text(f'<mujoco model="{label}">{bodies}{extra}</mujoco>')
+        plant, scene_graph = _plant()
+        layout = dataclasses.replace(
+            pendulum_layout(joint_positions={}, joint_velocities={}), path=path,
+            bodies=("pend/a",), links=("a",), body_in_link=(Frame(np.eye(3), np.zeros(3)),),
+            joints=("pend/j",), file_joints=("j",), root_link="a",
+        )  # fmt: skip
+        add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
+        plant.Finalize()
+        mass = plant.CalcMassMatrix(plant.CreateDefaultContext())[0, 0]
+        model = mujoco.MjModel.from_xml_path(str(path))
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        full = np.zeros((1, 1))
+        mujoco.mj_fullM(model, data, full)
+        found[label] = (mass, full[0, 0], sum(joint_armature(plant).values()))
+    bare, driven = found["bare"], found["driven"]
+    assert bare[1] - bare[0] == pytest.approx(0.1, rel=1e-9)  # Drake lacks the armature
+    assert bare[2] == 0.0
+    assert driven[1] - driven[0] == pytest.approx(0.0, abs=1e-12)  # kept as reflected inertia
+    assert driven[2] == pytest.approx(0.1, rel=1e-12)

@@ -98,7 +98,11 @@ def base_pose(layout: ModelLayout) -> RigidTransform:
 
 
 def _without_geometry(path) -> str:
-    """The URDF at ``path`` as text with every link's geometry elements removed."""
+    """The URDF at ``path`` as text with every link's geometry elements removed, its
+    namespace prefixes kept (Drake reads ``drake:rotor_inertia`` by its prefix; ElementTree
+    would write ``ns0:``)."""
+    for _, (prefix, uri) in ElementTree.iterparse(path, events=("start-ns",)):
+        ElementTree.register_namespace(prefix, uri)
     tree = ElementTree.parse(path)
     for link in tree.getroot().iter("link"):
         for tag in GEOMETRY_ELEMENTS:
