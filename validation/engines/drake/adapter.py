@@ -100,8 +100,13 @@ from validation.engines.drake.joints import (
     set_tree_positions,
     tree_velocities,
 )
-from validation.engines.drake.models import add_models, filter_model_geometry, model_velocities
-from validation.engines.drake.models import notes as model_notes
+from validation.engines.drake.models import (
+    DRAKE_LOGGER,
+    add_models,
+    filter_model_geometry,
+    model_notes,
+    model_velocities,
+)
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import WORLD
 from validation.scenario import BodySpec, Scenario
@@ -129,9 +134,6 @@ that differ by more than this are named in the provenance notes."""
 
 GROUND = "ground"
 """The name scene pairs use for the ground plane."""
-
-DRAKE_LOGGER = "drake"
-"""pydrake forwards Drake's C++ log to this Python logger (its level is synced to spdlog)."""
 
 QUIET_LOG_LEVEL = logging.ERROR
 """Drake's log level while the plant is finalized and the diagram built: a ground
@@ -717,7 +719,8 @@ class DrakeAdapter:
         if self.joints:
             settings["joints"] = {joint.name(): joint.type_name() for joint in self.joints}
             settings["jointed_pairs_filtered"] = self.filtered_pairs
-        settings["model_loader"] = s.model_loader
+        if self.scene.models:
+            settings["model_loader"] = s.model_loader
         if self.models:
             settings["models"] = {
                 m.layout.name: plant.GetModelInstanceName(m.instance) for m in self.models

@@ -47,7 +47,8 @@ FILE_TYPES = {"urdf": "urdf", "mjcf": "xml"}
 """``ModelLayout.format`` -> Drake's ``file_type`` for ``AddModelsFromString``."""
 
 DRAKE_LOGGER = "drake"
-"""pydrake forwards Drake's C++ log (the parser's warnings among it) to this Python logger."""
+"""pydrake forwards Drake's C++ log (the parser's warnings among it) to this Python logger
+(its level is synced to spdlog)."""
 
 BASE_FRAME = "physval_base"
 """The name of the world frame at a fixed base's pose (the weld's frame on the parent)."""
@@ -199,7 +200,7 @@ def add_models(plant, scene_graph, layouts, gravity) -> list[NativeModel]:
     return models
 
 
-def notes(models: list[NativeModel]) -> list[str]:
+def model_notes(models: list[NativeModel]) -> list[str]:
     """The provenance notes of the native models: how each was parsed and what Drake's
     parser said of it."""
     found = []
