@@ -97,6 +97,7 @@ from validation.engines.drake.joints import (
     joint_report,
     joint_velocities,
     kinematic_states,
+    pose,
     set_tree_positions,
     tree_velocities,
 )
@@ -147,14 +148,6 @@ SHAPE_BUILDERS = {
     "capsule": lambda s: Capsule(s.radius, 2.0 * s.half_length),
 }
 """Scene shape type -> Drake ``Shape`` (full widths and lengths, where the scene has halves)."""
-
-
-def pose(position, quat) -> RigidTransform:
-    """A world pose from a position (3,) m and a unit quaternion w x y z."""
-    from pydrake.common.eigen_geometry import Quaternion
-
-    q = np.asarray(quat, dtype=float)
-    return RigidTransform(Quaternion(q / np.linalg.norm(q)), np.asarray(position, dtype=float))
 
 
 def rotational_inertia(matrix: np.ndarray) -> RotationalInertia:

@@ -101,6 +101,12 @@ def _normal_to(vector: np.ndarray) -> np.ndarray:
     return _unit(np.cross(vector, trial), np.array([1.0, 0.0, 0.0]))
 
 
+def pose(position, quat) -> RigidTransform:
+    """A world pose from a position (3,) m and a quaternion w x y z (normalized here)."""
+    q = np.asarray(quat, dtype=float)
+    return RigidTransform(Quaternion(q / np.linalg.norm(q)), np.asarray(position, dtype=float))
+
+
 def frame_axes(joint, tree, gravity: np.ndarray) -> np.ndarray:
     """(3, 3) the axes of a joint's frame F in its parent's frame: a ball's ``ball_axes``
     (gravity, world frame, seen in the parent's axes at t = 0; the parent's hinge axis in its
@@ -299,11 +305,12 @@ def joint_report(plant, context, scenario, tree, placement: Placement) -> JointR
     scene's order: each one's type (``type_name``), anchor (the origin of its frame M in the
     world, ``CalcPoseInWorld``: the scene's anchor is the child's joint frame at t = 0, which
     a native model's slider has moved from F by its initial position) and axis
-    (``revolute_axis`` or ``translation_axis``, F's, in the world); limits relative to the coordinate at t = 0 (``default_positions``; NaN rows
-    where unlimited or not a hinge or slider), damping (``default_damping_vector``) and
-    armature (the reflected inertia of an actuator on the joint, ``joint_armature``); and
-    Drake's ``CalcMassMatrix`` carried into the joint tree's coordinates, ``Tᵀ M T`` with T
-    mapping the tree's ν to Drake's v (``tree_velocities``)."""
+    (``revolute_axis`` or ``translation_axis``, F's, in the world); limits relative to the
+    coordinate at t = 0 (``default_positions``; NaN rows where unlimited or not a hinge or
+    slider), damping (``default_damping_vector``) and armature (the reflected inertia of an
+    actuator on the joint, ``joint_armature``); and Drake's ``CalcMassMatrix`` carried into
+    the joint tree's coordinates, ``Tᵀ M T`` with T mapping the tree's ν to Drake's v
+    (``tree_velocities``)."""
     types, anchors, axes, limits, damping = [], [], [], [], []
     armature = joint_armature(plant)
     for stated in scenario.joints:
@@ -426,12 +433,12 @@ def set_tree_positions(plant, context, tree, placement: Placement, start, q) -> 
                 RollPitchYaw(RotationMatrix.ProjectToRotationMatrix(turned)).vector(),
             )
         elif joint.type == "free":
-            w, x, y, z = coordinates[3:] / np.linalg.norm(coordinates[3:])
-            body_pose = RigidTransform(Quaternion(w, x, y, z), coordinates[:3])
             plant.SetFreeBodyPose(
                 context,
                 placement.bodies[joint.child],
-                body_pose.multiply(placement.placed[joint.child].inverse()),
+                pose(coordinates[:3], coordinates[3:]).multiply(
+                    placement.placed[joint.child].inverse()
+                ),
             )
 
 

@@ -38,6 +38,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.tree import FixedOffsetFrame
 
+from validation.engines.drake.joints import pose
 from validation.scenario.urdf import ModelLayout
 
 GEOMETRY_ELEMENTS = ("collision", "visual")
@@ -88,14 +89,7 @@ def transform(frame) -> RigidTransform:
 
 def base_pose(layout: ModelLayout) -> RigidTransform:
     """The model's base in the world: its ``position`` and ``orientation`` (w x y z)."""
-    from pydrake.common.eigen_geometry import Quaternion
-
-    w, x, y, z = (float(v) for v in layout.spec.orientation)
-    norm = float(np.linalg.norm([w, x, y, z]))
-    return RigidTransform(
-        Quaternion(w / norm, x / norm, y / norm, z / norm),
-        np.asarray(layout.spec.position, dtype=float),
-    )
+    return pose(layout.spec.position, layout.spec.orientation)
 
 
 def _without_geometry(path) -> str:
@@ -181,12 +175,10 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
         else:
             plant.SetDefaultFloatingBaseBodyPose(root, base_pose(layout))
     for name, file in _named(layout):
-        if file is None:
-            continue
-        joint = plant.GetJointByName(file, instance)
-        joints[name] = joint
-        if joint.num_positions() == 1:
-            joint.set_default_positions([layout.initial_position(file)])
+        if file is not None:
+            joints[name] = plant.GetJointByName(file, instance)
+            if joints[name].num_positions() == 1:
+                joints[name].set_default_positions([layout.initial_position(file)])
     links = tuple(plant.GetBodyByName(link, instance) for link in layout.links)
     in_link = tuple(transform(frame) for frame in layout.body_in_link)
     return NativeModel(layout, instance, links, in_link, joints, geometry, tuple(warnings))
@@ -242,11 +234,8 @@ def model_velocities(plant, context, models: list[NativeModel]) -> np.ndarray:
         for index in plant.GetJointIndices(model.instance):
             joint = plant.get_joint(index)
             owned[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = True
-        for file in model.layout.file_joints:
-            if file is None:
-                continue
-            joint = plant.GetJointByName(file, model.instance)
+        for joint in model.joints.values():  # the file's joints, by the file's names
             if joint.num_velocities() == 1:
-                v[joint.velocity_start()] = model.layout.initial_velocity(file)
+                v[joint.velocity_start()] = model.layout.initial_velocity(joint.name())
     plant.SetVelocities(context, v)
     return owned
