@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_models import CHAIN  # every origin and inertial frame turned
 
 from validation.cli import main
 from validation.engines import joint_parity
@@ -46,24 +47,6 @@ CONTINUOUS = "drake(profile=continuous)"
 
 TURN = (math.cos(0.2), 0.0, 0.0, math.sin(0.2))  # 0.4 rad about z
 TILT = (math.cos(0.1), 0.0, math.sin(0.1), 0.0)  # 0.2 rad about y
-
-CHAIN = """<robot name="chain">
-  <link name="base"><inertial><origin xyz="0.05 0 0.1" rpy="0.2 0 0"/><mass value="2"/>
-    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="arm"><inertial><origin xyz="0.2 0 0.05" rpy="0 0.7 0.1"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.02" izz="0.025" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
-  <link name="tip"><inertial><origin xyz="0 0.1 0" rpy="0.4 0 0"/><mass value="0.5"/>
-    <inertia ixx="0.002" iyy="0.003" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="pin" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="0 0 0.3" rpy="0.3 0 0.5"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1"/></joint>
-  <joint name="rail" type="prismatic"><parent link="arm"/><child link="tip"/>
-    <origin xyz="0.4 0 0" rpy="0 0 0.2"/><axis xyz="0.6 0 0.8"/>
-    <limit lower="-0.5" upper="0.5"/></joint>
-</robot>
-"""
-"""A hinge and a slider on off-axis axes, every origin and inertial frame turned (as in
-``tests/test_models.py``): a model link's frame is not its scene body's."""
 
 MODELS = {
     "kuka": {
