@@ -119,10 +119,43 @@ def write_scene(folder: Path, key: str, engines=(NATIVE,), duration: float = 1.0
     return path
 
 
+def write_mixed_scene(folder: Path, kuka) -> Path:
+    """The Kuka scene (``kuka``, its loaded scenario) with two bodies of the scene's own: a
+    ball thrown free, and a bob hinged below the arm's last link (a scene joint whose parent
+    is a model's body), moving with it at t = 0."""
+    import yaml
+
+    tip = next(b for b in kuka.bodies if b.name == "arm/lbr_iiwa_link_7")
+    anchor, spin = np.array(tip.position), np.array(tip.angular_velocity)
+    bob = anchor - [0.0, 0.0, 0.3]
+    document = yaml.safe_load(write_scene(folder, "kuka").read_text())
+    document["bodies"] = [
+        {"name": "ball", "shape": {"type": "sphere", "radius": 0.05}, "mass": 0.5,
+         "position": [2.0, 0.0, 1.0], "velocity": [0.1, 0.2, 0.3],
+         "angular_velocity": [0.5, 0.0, 0.0]},
+        {"name": "bob", "shape": {"type": "sphere", "radius": 0.03}, "mass": 0.3,
+         "position": bob.tolist(), "angular_velocity": spin.tolist(),
+         "velocity": (np.array(tip.velocity) + np.cross(spin, bob - anchor)).tolist()},
+    ]  # fmt: skip
+    document["joints"] = [{"name": "swing", "type": "hinge", "parent": tip.name,
+                           "child": "bob", "anchor": anchor.tolist(), "axis": [1, 0, 0]}]  # fmt: skip
+    path = folder / "mixed.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+MIXED = "kuka_and_bodies"
+SCENES = (*MODELS, MIXED)
+"""Every scene tested: one per model, and the Kuka with bodies and a joint of the scene's
+own (``write_mixed_scene``)."""
+
+
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("drake_models")
-    return {key: compile_scene(load_scenario(write_scene(folder, key))) for key in MODELS}
+    found = {key: compile_scene(load_scenario(write_scene(folder, key))) for key in MODELS}
+    mixed = write_mixed_scene(folder, found["kuka"].scenario)
+    return {**found, MIXED: compile_scene(load_scenario(mixed))}
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +176,7 @@ def loaded(scenes):
 
 
 PROFILES = (NATIVE, CONTINUOUS)
-CASES = [(key, spec) for key in MODELS for spec in PROFILES]
+CASES = [(key, spec) for key in SCENES for spec in PROFILES]
 
 
 @pytest.mark.parametrize(("key", "spec"), CASES)
@@ -160,7 +193,7 @@ def test_native_model_report_is_the_scenes(scenes, loaded, key, spec):
     )
     settings = adapter.provenance().settings
     assert settings["model_loader"] == "native"
-    assert list(settings["models"]) == [MODELS[key]["name"]]
+    assert list(settings["models"]) == [layout.name for layout in scene.models]
 
 
 @pytest.mark.parametrize(("key", "spec"), CASES)
@@ -198,7 +231,7 @@ def test_native_start_is_the_scenes(scenes, loaded, key, spec):
 
 
 @pytest.mark.parametrize("spec", [NATIVE, CONTINUOUS, PHYSVAL])
-@pytest.mark.parametrize("key", list(MODELS))
+@pytest.mark.parametrize("key", SCENES)
 def test_model_probe_is_the_reference_sides(scenes, loaded, key, spec):
     """M(q), the bias C(q, ν)ν + g(q) and every body's pose at seeded random states (tree
     coordinates, relative to t = 0) against the reference side's."""
