@@ -451,12 +451,52 @@ def test_an_mjcf_model_that_must_not_collide_is_filtered_from_everything(pendulu
     assert all(inspector.CollisionFiltered(a, b) for a in model.geometry for b in every if a != b)
 
 
-def test_an_mjcf_model_away_from_the_origin_is_one_line():
-    from validation.engines.drake.models import add_models
+def test_an_mjcf_model_away_from_the_origin_is_placed_there():
+    """Its world moved into a body at the model's pose: the pole's centre (as in the test
+    above) turned 0.4 rad about z and lifted to (1, 2, 3)."""
+    from validation.engines.drake.joints import Placement, body_states, pose
 
     plant, scene_graph = _plant()
-    with pytest.raises(ValueError, match="MJCF parser attaches the file's top-level bodies"):
-        add_models(plant, scene_graph, [pendulum_layout(position=(1.0, 0.0, 0.0))], (0, 0, -9.81))
+    (model,) = add_models(plant, scene_graph, [pendulum_layout(
+        position=(1.0, 2.0, 3.0), orientation=TURN)], (0.0, 0.0, -9.81))  # fmt: skip
+    plant.Finalize()
+    placement = Placement(list(model.links), list(model.in_link), model.joints)
+    fixed = (np.zeros((3, 3)), np.tile([1.0, 0, 0, 0], (3, 1)))
+    pos = body_states(plant, plant.CreateDefaultContext(), placement, [0, 1, 2], fixed)[0]
+    in_file = [0.2 + 0.3 * math.sin(0.3), 0.0, 0.3 * math.cos(0.3)]
+    assert pos[1] == pytest.approx(pose((1.0, 2.0, 3.0), TURN).multiply(in_file), abs=1e-12)
+
+
+MESHED_MJCF = """<mujoco model="meshed"><compiler meshdir="parts"/>
+  <asset><mesh name="cube" file="cube.obj"/></asset>
+  <worldbody>{free}<body name="box" pos="0 0 1">{joint}
+    <geom type="mesh" mesh="cube" mass="1"/></body></worldbody></mujoco>
+"""
+
+
+def test_a_placed_mjcf_finds_its_meshes_and_a_free_one_is_one_line(tmp_path):
+    """Parsed from text, the placed file's mesh folder is made absolute; a free top-level
+    body (a free joint is a top-level body's only) cannot be moved into a base."""
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "cube.obj").write_text(CUBE)
+    for label, joint, free in (("hinged", '<joint name="j" axis="0 1 0"/>', ""),
+                               ("free", "<freejoint/>", "")):  # fmt: skip
+        path = tmp_path / f"{label}.xml"
+        path.write_text(MESHED_MJCF.format(joint=joint, free=free))
+        layout = dataclasses.replace(
+            pendulum_layout(joint_positions={}, joint_velocities={}, position=(0.0, 0.0, 1.0),
+                            collisions=True),
+            path=path, bodies=("pend/box",), links=("box",),
+            body_in_link=(Frame(np.eye(3), np.zeros(3)),), joints=(), file_joints=(),
+        )  # fmt: skip
+        plant, scene_graph = _plant()
+        if label == "free":
+            with pytest.raises(ValueError, match="a free one can only sit at the origin"):
+                add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
+            continue
+        (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
+        assert len(model.geometry) == 1
+        assert model.links[0].default_mass() == 1.0
 
 
 GEARED = """<robot name="geared" xmlns:drake="http://drake.mit.edu">

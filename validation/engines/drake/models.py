@@ -15,8 +15,9 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
 - Placement: a URDF's root link is welded to the world at the model's position and
   orientation (``fixed_base``: through a ``FixedOffsetFrame`` of the world at that pose, so the
   weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
-  the file's top-level bodies to the world itself, so an MJCF model is placed where its file
-  puts it (a ``position``/``orientation`` other than the origin is refused, one line).
+  the file's top-level bodies to the world itself (their joints, or a weld): at the origin the
+  file is parsed as it is; elsewhere its ``<worldbody>`` is moved into one jointless body at
+  the model's pose (``_placed_mjcf``; a free top-level body there is refused, one line).
 - Gravity: Drake's MJCF parser sets the plant's gravity from the file's ``<option gravity>``
   (MuJoCo's default when absent); the scene's gravity is set again after every model is
   parsed (``add_models``).
@@ -52,7 +53,12 @@ DRAKE_LOGGER = "drake"
 (its level is synced to spdlog)."""
 
 BASE_FRAME = "physval_base"
-"""The name of the world frame at a fixed base's pose (the weld's frame on the parent)."""
+"""The name of the world frame at a URDF's fixed base pose (the weld's frame on the parent),
+and of the body an MJCF's world is moved into to place it (``_placed_mjcf``)."""
+
+MESH_AND_TEXTURE_FOLDERS = ("meshdir", "texturedir")
+"""MJCF ``<compiler>`` attributes naming folders relative to the file; unset, ``assetdir``
+stands for both, and unset too, the file's own folder."""
 
 
 @dataclass(frozen=True)
@@ -118,11 +124,60 @@ def _parser(plant, layout: ModelLayout) -> Parser:
     return parser
 
 
+def _placed_mjcf(layout: ModelLayout) -> str:
+    """The MJCF at ``layout.path`` as text with everything in its ``<worldbody>`` moved into
+    one body (``BASE_FRAME``, no joint: welded to the world) at the model's position and
+    orientation, and its asset folders (``<compiler meshdir texturedir assetdir>``, each
+    ``<include file>``) made absolute (``MESH_AND_TEXTURE_FOLDERS``), as the text has no folder of its own. ValueError for
+    a free top-level body (a free joint belongs to a top-level body only)."""
+    root = ElementTree.parse(layout.path).getroot()
+    folder = layout.path.parent
+    world = root.find("worldbody")
+    if (
+        world is None
+        or world.find("body/freejoint") is not None
+        or any(joint.get("type") == "free" for joint in world.findall("body/joint"))
+    ):
+        raise ValueError(
+            f"model {layout.name!r}: Drake's MJCF parser attaches the file's top-level bodies "
+            "to the world itself; a file without them or with a free one can only sit at the "
+            "origin (position 0, orientation identity)"
+        )
+    compiler = root.find("compiler")
+    if compiler is None:
+        compiler = ElementTree.SubElement(root, "compiler")
+    assets = compiler.get("assetdir", "")
+    for key in MESH_AND_TEXTURE_FOLDERS:
+        compiler.set(key, str(folder / compiler.get(key, assets)))
+    compiler.set("assetdir", str(folder / assets))
+    for include in root.iter("include"):
+        include.set("file", str(folder / include.get("file", "")))
+    turn = pose(layout.spec.position, layout.spec.orientation).rotation().ToQuaternion()
+    base = ElementTree.Element(
+        "body",
+        {"name": BASE_FRAME, "pos": _written(layout.spec.position), "quat": _written(turn.wxyz())},
+    )
+    for child in list(world):
+        world.remove(child)
+        base.append(child)
+    world.append(base)
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+def _written(values) -> str:
+    """Numbers as an XML attribute, each to its last digit."""
+    return " ".join(repr(float(v)) for v in values)
+
+
 def _parse(plant, layout: ModelLayout) -> list:
-    """The model instances Drake's parser makes of the file (one, for URDF and MJCF)."""
+    """The model instances Drake's parser makes of the file (one, for URDF and MJCF): the
+    file itself, a URDF without its geometry (``collisions: false``), an MJCF away from the
+    origin inside a base body at the model's pose (``_placed_mjcf``)."""
     parser = _parser(plant, layout)
     if layout.format == "urdf" and not layout.spec.collisions:
         return parser.AddModelsFromString(_without_geometry(layout.path), FILE_TYPES["urdf"])
+    if layout.format == "mjcf" and not _is_origin(layout):
+        return parser.AddModelsFromString(_placed_mjcf(layout), FILE_TYPES["mjcf"])
     return parser.AddModels(str(layout.path))
 
 
@@ -153,11 +208,6 @@ def _is_origin(layout: ModelLayout) -> bool:
 def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
     """``layout``'s file on ``plant`` (not finalized) by Drake's parser, placed and at its
     stated joint positions (module docstring); ValueError for what Drake cannot take."""
-    if layout.format == "mjcf" and not _is_origin(layout):
-        raise ValueError(
-            f"model {layout.name!r}: Drake's MJCF parser attaches the file's top-level bodies "
-            "to the world itself: its position and orientation must be the origin's"
-        )
     inspector = scene_graph.model_inspector()
     before = set(inspector.GetAllGeometryIds(Role.kProximity))
     with parser_log() as warnings:
