@@ -39,6 +39,7 @@ from validation.scenario.urdf import Frame, ModelLayout, model_path
 KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
 CARTPOLE = "pkg:pybullet_data/cartpole.urdf"
 A1 = "pkg:pybullet_data/a1/a1.urdf"
+PENDULUM5 = "pkg:pybullet_data/pendulum5.urdf"
 PENDULUM = "pkg:pybullet_data/mjcf/inverted_double_pendulum.xml"
 
 NATIVE = "drake"
@@ -74,6 +75,14 @@ MODELS = {
         },
         "joint_velocities": {"a1/FL_hip_joint": 0.4, "a1/RR_upper_joint": -1.2},
     },
+    "pendulum5": {
+        "name": "p",
+        "file": PENDULUM5,
+        "position": [0.0, 0.5, 2.0],
+        "orientation": list(TILT),
+        "joint_positions": {"p/joint1": 0.6, "p/joint3": -0.4},
+        "joint_velocities": {"p/joint0": 0.5},
+    },
     "floating_chain": {
         "name": "c",
         "file": "chain.urdf",
@@ -87,7 +96,8 @@ MODELS = {
 """The scenes (one model each): the Kuka on a turned base at a pose with joint rates, the
 cartpole (a massless root link: its slider hangs from the world) swinging, the A1 quadruped
 (a trunk with mass welded to the world, massive links on fixed joints; its knees' limits do
-not hold 0, so they start bent), the chain floating from a tilted pose."""
+not hold 0, so they start bent), the five-link pendulum (its root link is named ``world``,
+which Drake's parser would take for its own world), the chain floating from a tilted pose."""
 
 SAME_MODEL = 1e-9
 """Relative (the parity gate's ``PARITY_TOLERANCE``): Drake's reading of a URDF against
@@ -497,6 +507,37 @@ def test_a_placed_mjcf_finds_its_meshes_and_a_free_one_is_one_line(tmp_path):
         (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
         assert len(model.geometry) == 1
         assert model.links[0].default_mass() == 1.0
+
+
+WORLD_ROOTED = """<robot name="rooted"><link name="world"/>
+  <link name="box"><inertial><mass value="1"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><mesh filename="cube.obj"/></geometry></collision></link>
+  <joint name="pin" type="revolute"><parent link="world"/><child link="box"/>
+    <origin xyz="0 0 0.5"/><axis xyz="0 1 0"/><limit lower="-1" upper="1"/></joint>
+</robot>
+"""
+"""A root link named ``world`` and a collision mesh by a path relative to the file."""
+
+
+def test_a_world_rooted_urdf_that_collides_is_placed_and_finds_its_mesh(tmp_path):
+    """Read as text (its root renamed), the file's relative mesh path is made absolute, and
+    the box hangs from the model's pose, not from Drake's world at the origin."""
+    import yaml
+
+    (tmp_path / "cube.obj").write_text(CUBE)
+    (tmp_path / "rooted.urdf").write_text(WORLD_ROOTED)
+    document = {"dt": 1e-3, "duration": 0.1, "engines": [NATIVE],
+                "models": [{"name": "r", "file": "rooted.urdf", "position": [1.0, 0.0, 2.0]}]}  # fmt: skip
+    (tmp_path / "rooted.yaml").write_text(yaml.safe_dump(document))
+    layout = compile_scene(load_scenario(tmp_path / "rooted.yaml")).models[0]
+    layout = dataclasses.replace(layout, spec=layout.spec.model_copy(update={"collisions": True}))
+    plant, scene_graph = _plant()
+    (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
+    plant.Finalize()
+    assert len(model.geometry) == 1
+    where = plant.EvalBodyPoseInWorld(plant.CreateDefaultContext(), model.links[0])
+    assert where.translation() == pytest.approx([1.0, 0.0, 2.5], abs=1e-15)
 
 
 GEARED = """<robot name="geared" xmlns:drake="http://drake.mit.edu">

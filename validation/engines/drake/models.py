@@ -56,6 +56,14 @@ BASE_FRAME = "physval_base"
 """The name of the world frame at a URDF's fixed base pose (the weld's frame on the parent),
 and of the body an MJCF's world is moved into to place it (``_placed_mjcf``)."""
 
+DRAKE_WORLD = "world"
+"""A URDF link of this name is Drake's world body to its parser: the file's joints from it
+would hang from Drake's world at the origin, not at the model's pose."""
+
+RENAMED_WORLD = "physval_world_link"
+"""What a root link named ``DRAKE_WORLD`` is renamed to before Drake parses the file, so that
+it is the model's own root, welded at the model's pose like any other."""
+
 MESH_AND_TEXTURE_FOLDERS = ("meshdir", "texturedir")
 """MJCF ``<compiler>`` attributes naming folders relative to the file; unset, ``assetdir``
 stands for both, and unset too, the file's own folder."""
@@ -98,18 +106,33 @@ def base_pose(layout: ModelLayout) -> RigidTransform:
     return pose(layout.spec.position, layout.spec.orientation)
 
 
-def _without_geometry(path) -> str:
-    """The URDF at ``path`` as text with every link's geometry elements removed, its
-    namespace prefixes kept (Drake reads ``drake:rotor_inertia`` by its prefix; ElementTree
-    would write ``ns0:``)."""
-    for _, (prefix, uri) in ElementTree.iterparse(path, events=("start-ns",)):
+def _urdf_text(layout: ModelLayout) -> str:
+    """The URDF at ``layout.path`` as text, its namespace prefixes kept (Drake reads
+    ``drake:rotor_inertia`` by its prefix; ElementTree would write ``ns0:``): without its
+    links' geometry elements when the model does not collide, else with each relative mesh
+    file a ``file://`` URL (Drake refuses a bare path in text); a root link named ``world`` renamed
+    ``RENAMED_WORLD`` (``root_name``)."""
+    for _, (prefix, uri) in ElementTree.iterparse(layout.path, events=("start-ns",)):
         ElementTree.register_namespace(prefix, uri)
-    tree = ElementTree.parse(path)
-    for link in tree.getroot().iter("link"):
-        for tag in GEOMETRY_ELEMENTS:
+    root = ElementTree.parse(layout.path).getroot()
+    for link in root.iter("link"):
+        for tag in GEOMETRY_ELEMENTS if not layout.spec.collisions else ():
             for element in link.findall(tag):
                 link.remove(element)
-    return ElementTree.tostring(tree.getroot(), encoding="unicode")
+    for mesh in root.iter("mesh"):
+        file = mesh.get("filename", "")
+        if "://" not in file:
+            mesh.set("filename", (layout.path.parent / file).resolve().as_uri())
+    for element in (*root.iter("link"), *root.iter("parent"), *root.iter("child")):
+        key = "name" if element.tag == "link" else "link"
+        if element.get(key) == DRAKE_WORLD:
+            element.set(key, RENAMED_WORLD)
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+def root_name(layout: ModelLayout) -> str:
+    """The model's root link as Drake's parser names it (``_urdf_text``)."""
+    return RENAMED_WORLD if layout.root_link == DRAKE_WORLD else layout.root_link
 
 
 def _parser(plant, layout: ModelLayout) -> Parser:
@@ -171,11 +194,14 @@ def _written(values) -> str:
 
 def _parse(plant, layout: ModelLayout) -> list:
     """The model instances Drake's parser makes of the file (one, for URDF and MJCF): the
-    file itself, a URDF without its geometry (``collisions: false``), an MJCF away from the
-    origin inside a base body at the model's pose (``_placed_mjcf``)."""
+    file itself; a URDF as ``_urdf_text`` when it must not collide or its root is named
+    ``world``; an MJCF away from the origin inside a base body at the model's pose
+    (``_placed_mjcf``)."""
     parser = _parser(plant, layout)
-    if layout.format == "urdf" and not layout.spec.collisions:
-        return parser.AddModelsFromString(_without_geometry(layout.path), FILE_TYPES["urdf"])
+    if layout.format == "urdf" and not (
+        layout.spec.collisions and root_name(layout) == layout.root_link
+    ):
+        return parser.AddModelsFromString(_urdf_text(layout), FILE_TYPES["urdf"])
     if layout.format == "mjcf" and not _is_origin(layout):
         return parser.AddModelsFromString(_placed_mjcf(layout), FILE_TYPES["mjcf"])
     return parser.AddModels(str(layout.path))
@@ -215,7 +241,7 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
     geometry = tuple(set(inspector.GetAllGeometryIds(Role.kProximity)) - before)
     joints = {}
     if layout.format == "urdf":
-        root = plant.GetBodyByName(layout.root_link, instance)
+        root = plant.GetBodyByName(root_name(layout), instance)
         if layout.spec.fixed_base:
             on_world = plant.AddFrame(
                 FixedOffsetFrame(BASE_FRAME, plant.world_frame(), base_pose(layout), instance)
