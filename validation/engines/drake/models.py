@@ -7,6 +7,9 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
   instances); ``package://NAME/...`` resolves through the parser's ``PackageMap``: the file's
   folder under its own name, and ``ModelLayout.package_paths``. URDF (``.urdf``) and MJCF
   (``.xml``, Drake's MuJoCo parser).
+- A URDF whose root link is named ``world`` is parsed with that link renamed: Drake's parser
+  takes a link of that name for its own world body (pybullet_data's ``pendulum5.urdf`` and 22
+  other files have one).
 - ``collisions: false``: none of the model's geometry may collide. A URDF is parsed with its
   ``<collision>`` and ``<visual>`` elements removed (the geometry is never registered: Drake
   1.51 refuses a ``.stl`` collision mesh outright, and Kuka's are ``.stl``); an MJCF keeps its
@@ -110,8 +113,8 @@ def _urdf_text(layout: ModelLayout) -> str:
     """The URDF at ``layout.path`` as text, its namespace prefixes kept (Drake reads
     ``drake:rotor_inertia`` by its prefix; ElementTree would write ``ns0:``): without its
     links' geometry elements when the model does not collide, else with each relative mesh
-    file a ``file://`` URL (Drake refuses a bare path in text); a root link named ``world`` renamed
-    ``RENAMED_WORLD`` (``root_name``)."""
+    file a ``file://`` URL (Drake refuses a bare path in text); a root link named ``world``
+    renamed ``RENAMED_WORLD`` (``root_name``)."""
     for _, (prefix, uri) in ElementTree.iterparse(layout.path, events=("start-ns",)):
         ElementTree.register_namespace(prefix, uri)
     root = ElementTree.parse(layout.path).getroot()
