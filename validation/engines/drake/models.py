@@ -154,8 +154,9 @@ def _placed_mjcf(layout: ModelLayout) -> str:
     """The MJCF at ``layout.path`` as text with everything in its ``<worldbody>`` moved into
     one body (``BASE_FRAME``, no joint: welded to the world) at the model's position and
     orientation, and its asset folders (``<compiler meshdir texturedir assetdir>``, each
-    ``<include file>``) made absolute (``MESH_AND_TEXTURE_FOLDERS``), as the text has no folder of its own. ValueError for
-    a free top-level body (a free joint belongs to a top-level body only)."""
+    ``<include file>``) made absolute (``MESH_AND_TEXTURE_FOLDERS``), as the text has no
+    folder of its own. ValueError for a free top-level body (a free joint belongs to a
+    top-level body only)."""
     root = ElementTree.parse(layout.path).getroot()
     folder = layout.path.parent
     world = root.find("worldbody")
@@ -241,7 +242,7 @@ def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
     before = set(inspector.GetAllGeometryIds(Role.kProximity))
     with parser_log() as warnings:
         (instance,) = _parse(plant, layout)
-    geometry = tuple(set(inspector.GetAllGeometryIds(Role.kProximity)) - before)
+    geometry = tuple(g for g in inspector.GetAllGeometryIds(Role.kProximity) if g not in before)
     joints = {}
     if layout.format == "urdf":
         root = plant.GetBodyByName(root_name(layout), instance)
