@@ -1,12 +1,14 @@
 """Drake's native loader for a scene's ``models`` (issue 36; docs/engines-drake.md 10): the
-Kuka iiwa and the cartpole of pybullet_data read by Drake's own ``Parser`` hold the masses,
-inertias, joints and start state physval's reading of the same files states, their mass
-matrix and bias forces equal the reference side's at random states, a model with a floating
-root and turned inertial frames too, both profiles; a 1 s passive swing runs through
-``physval run`` with both loaders; an MJCF file goes through the loader function itself
-(physval's own MJCF reader is another change: the scene path is tested after the merge). One
-adapter per scene and profile for the whole module: Drake builds a plant in ~0.1 s, but the
-import is the slow part. pydrake is a test dependency (``tests/test_engine_drake.py``)."""
+Kuka iiwa, the cartpole, the A1 quadruped and the five-link pendulum of pybullet_data read by
+Drake's own ``Parser`` hold the masses, inertias, joints and start state physval's reading of
+the same files states, and their mass matrix, bias forces and link poses equal the reference
+side's at random states; so do a model with a floating root and turned inertial frames, and
+the Kuka beside bodies and a joint of the scene's own; both profiles. A 1 s passive swing runs
+through ``physval run`` with both loaders. An MJCF file goes through the loader function
+itself (physval's own MJCF reader is another change: the scene path is tested after the
+merge), as do collisions, ``package://`` and reflected inertia. One adapter per scene and
+spec for the whole module (it runs in about 5 s). pydrake is a test dependency
+(``tests/test_engine_drake.py``)."""
 
 from __future__ import annotations
 
