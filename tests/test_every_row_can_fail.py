@@ -215,9 +215,7 @@ WORLD_HINGE = (
     "joints: [{name: pin, type: hinge, parent: world, child: ball, anchor: [0, 0, 0.5], "
     "axis: [0, 1, 0]}]\n"
 )
-BALL_JOINT = (
-    "joints: [{name: link, type: ball, parent: ball, child: other, anchor: [2.5, 0, 0]}]\n"
-)
+BALL_JOINT = "joints: [{name: link, type: ball, parent: ball, child: other, anchor: [2.5, 0, 0]}]\n"
 
 UNDEFINED = {
     "restitution where nothing can touch": (

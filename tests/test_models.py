@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from validation.cli import main
+from validation.engine_api import MODEL_LOADER_OPTION, declaration_of
 from validation.measure.runner import run_engine
 from validation.reference.rotation import quat_multiply
 from validation.scenario.compiled import compile_scene
@@ -143,10 +144,22 @@ def turn(axis: str, angle: float) -> np.ndarray:
     return quaternion
 
 
+A1 = "pkg:pybullet_data/a1/a1.urdf"
+CARTPOLE = "pkg:pybullet_data/cartpole.urdf"
+
 CASES = {
     "kuka": (KUKA, POSE, RATES),
     "chain": ("chain.urdf", {"arm/pin": 0.4, "arm/rail": 0.15}, {"arm/pin": -0.8, "arm/rail": 0.6}),
+    "a1": (
+        A1,
+        {"arm/FR_lower_joint": -1.2, "arm/FL_upper_joint": 0.6, "arm/RR_hip_joint": 0.3},
+        {"arm/RL_upper_joint": 0.5, "arm/FR_hip_joint": -0.4, "arm/FL_lower_joint": 0.9},
+    ),
+    "cartpole": (CARTPOLE, {"arm/cart_to_pole": 0.7}, {"arm/slider_to_cart": 0.5}),
 }
+"""Off-axis origins and inertial frames (the Kuka, the chain), the A1's fixed joints and the
+knees whose limits exclude 0 (they start at their nearest limit, ``ModelLayout.starts``), the
+cartpole's massless root."""
 
 
 @pytest.mark.skipif(bool(not_installed("pybullet")), reason="PyBullet is not installed")
@@ -158,6 +171,7 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
     (tmp_path / "chain.urdf").write_text(CHAIN)
     scenario = kuka(tmp_path, file=file, joint_positions=pose, joint_velocities=rates)
     bodies = {b.name: b for b in scenario.bodies}
+    (layout,) = compile_scene(scenario).models
     client = p.connect(p.DIRECT)
     try:
         robot = p.loadURDF(
@@ -171,7 +185,11 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
             info = p.getJointInfo(robot, index, physicsClientId=client)
             name = "arm/" + info[1].decode()
             p.resetJointState(
-                robot, index, pose.get(name, 0.0), rates.get(name, 0.0), physicsClientId=client
+                robot,
+                index,
+                layout.initial_position(info[1].decode()),
+                rates.get(name, 0.0),
+                physicsClientId=client,
             )
         for index in range(p.getNumJoints(robot, physicsClientId=client)):
             info = p.getJointInfo(robot, index, physicsClientId=client)
@@ -201,11 +219,23 @@ def test_forward_kinematics_and_velocities_equal_pybullets_own_loader(tmp_path, 
         p.disconnect(client)
 
 
+def copied_model(file: str, folder: Path, name: str) -> tuple[Path, str]:
+    """Where a copy of the model ``file`` goes in ``folder`` and its text, its relative mesh
+    references made absolute (the copy's folder has no meshes; they must exist at load)."""
+    original = model_path(file, folder / "x.yaml")
+    text = re.sub(
+        r'filename="(?!package://|/)([^"]+)"',
+        lambda found: f'filename="{(original.parent / found[1]).as_posix()}"',
+        original.read_text(),
+    )
+    return folder / name, text
+
+
 def undamped_kuka(folder: Path) -> Path:
     """The Kuka with its joints' damping removed (its energy then stays), written in ``folder``."""
-    text = model_path(KUKA, folder / "x.yaml").read_text()
-    (folder / "kuka.urdf").write_text(re.sub(r"<dynamics[^>]*/>", "", text))
-    return folder / "kuka.urdf"
+    path, text = copied_model(KUKA, folder, "kuka.urdf")
+    path.write_text(re.sub(r"<dynamics[^>]*/>", "", text))
+    return path
 
 
 RUNS = {
@@ -228,8 +258,21 @@ def test_the_model_runs_in_every_engine_with_joints_and_keeps_its_energy(tmp_pat
     undamped_kuka(tmp_path)
     (tmp_path / "chain.urdf").write_text(CHAIN)
     scenario = kuka(tmp_path, **RUNS[model])
+    assert_energy_kept(scenario, engine)
+
+
+def physval_reading(engine: str) -> str:
+    """``engine``'s spec that builds a model from physval's reading of the file (these tests
+    judge that reading; what each native loader makes of a file is tests/test_<engine>_models)."""
+    options = {option.name for option in declaration_of(engine).options}
+    return f"{engine}(model_loader=physval)" if MODEL_LOADER_OPTION.name in options else engine
+
+
+def assert_energy_kept(scenario, engine: str) -> None:
+    """The scenario runs ``ok`` in ``engine`` and its energy drifts less than ENERGY_RATE · dt
+    of its scale (the largest kinetic energy plus the range of the potential)."""
     scene = compile_scene(scenario)
-    run = run_engine(scene, parse_engine_spec(engine))
+    run = run_engine(scene, parse_engine_spec(physval_reading(engine)))
     assert run.status == "ok", (engine, run.status, run.message)
     t = run.recording.trajectory
     energy = scene.energy(t.pos, t.quat, t.vel, t.ang_vel)
@@ -243,7 +286,7 @@ def test_the_model_runs_in_every_engine_with_joints_and_keeps_its_energy(tmp_pat
 REFUSALS = {
     "missing file": ({"file": "nowhere.urdf"}, "models[0].file", "no such file"),
     "no package": ({"file": "pkg:no_such_package_x/a.urdf"}, "models[0].file", "no installed"),
-    "MJCF": ({"file": "pkg:pybullet_data/mjcf/humanoid.xml"}, "models[0].file", "MJCF"),
+    "other format": ({"file": "pkg:pybullet_data/kuka_iiwa/model.sdf"}, "models[0].file", "MJCF"),
     "unknown joint": (
         {"joint_positions": {"arm/elbow": 1.0}},
         "models[0].joint_positions",
@@ -290,6 +333,10 @@ BROKEN = {
     "not XML": ("<robot", "cannot read"),
     "empty limits": (CHAIN.replace('lower="-1" upper="1"', 'lower="0" upper="0"'), "lower <"),
     "negative mass": (CHAIN.replace('value="2"', 'value="-2"'), "negative mass"),
+    "impossible inertia": (
+        CHAIN.replace('iyy="0.1" izz="0.1"', 'iyy="0.1" izz="0.5"'),
+        "link 'base': inertia: principal moments",
+    ),
 }
 
 
@@ -297,8 +344,14 @@ BROKEN = {
 def test_a_urdf_physval_cannot_read_is_one_line_at_file(tmp_path, case):
     text, what = BROKEN[case]
     (tmp_path / "chain.urdf").write_text(text)
+    assert_refused_at_file(tmp_path, "chain.urdf", what)
+
+
+def assert_refused_at_file(folder: Path, file: str, what: str) -> None:
+    """The scene of the model ``file`` (in ``folder``) is refused by one line at
+    ``models[0].file`` that says ``what``."""
     with pytest.raises(ScenarioError) as raised:
-        load_scenario(write_scene(tmp_path, {"file": "chain.urdf"}))
+        load_scenario(write_scene(folder, {"file": file}))
     (problem,) = raised.value.problems
     assert problem.path == "models[0].file" and what in problem.message, str(problem)
     assert "\n" not in str(problem)
@@ -319,3 +372,28 @@ def test_two_models_of_one_name_are_refused_at_the_second(tmp_path):
         load_scenario(path)
     (problem,) = raised.value.problems
     assert problem.path == "models[1].name" and "unique" in problem.message, str(problem)
+
+
+def test_the_a1_hangs_from_its_fixed_base_with_its_knees_at_their_nearest_limit(tmp_path):
+    scenario = kuka(tmp_path, file=A1, joint_positions={})
+    joints = {j.name: j for j in scenario.joints}
+    assert len(scenario.bodies) == 22 and joints["arm/fixed_base"].child == "arm/trunk"
+    fixed = [n for n, j in joints.items() if j.type == "fixed"]
+    assert len(fixed) == 10  # the base, the IMU, each leg's shoulder and toe
+    assert sum(j.type == "hinge" for j in joints.values()) == 12
+    # a1.urdf's knees: lower -2.69653369433, upper -0.916297857297 (0 is outside)
+    (layout,) = compile_scene(scenario).models
+    assert layout.initial_position("FR_lower_joint") == -0.916297857297
+    assert joints["arm/FR_lower_joint"].limits == pytest.approx(
+        (-2.69653369433 + 0.916297857297, 0)
+    )
+    assert layout.initial_position("FR_upper_joint") == 0.0
+
+
+def test_the_cartpoles_massless_rail_is_folded_into_the_world(tmp_path):
+    scenario = kuka(tmp_path, file=CARTPOLE, joint_positions={})
+    assert [(j.name, j.type, j.parent) for j in scenario.joints] == [
+        ("arm/slider_to_cart", "slider", "world"),
+        ("arm/cart_to_pole", "hinge", "arm/cart"),
+    ]
+    assert [b.mass for b in scenario.bodies] == [1.0, 0.1]

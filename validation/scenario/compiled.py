@@ -185,7 +185,10 @@ class CompiledScene:
         return None
 
     def __getstate__(self) -> dict:
-        """Pickled for worker processes without the inertia cache (rebuilt on demand)."""
+        """Pickled for worker processes without the inertia cache (rebuilt on demand), with
+        the model layouts read here (they carry the command's ``--package-path`` flags, which
+        a worker of another process, Dask's, never saw)."""
+        _ = self.models
         return {**self.__dict__, "_last_inertia": {}}
 
     @property

@@ -282,23 +282,27 @@ class JointSpec(_Strict):
 
 
 class ModelSpec(_Strict):
-    """A robot model read from a URDF file and expanded, at load, into the scene's bodies and
-    joints (``validation/scenario/urdf.py``), each named ``<name>/<link or joint>``."""
+    """A robot model read from a URDF or MJCF file and expanded, at load, into the scene's
+    bodies and joints (``validation/scenario/urdf.py``), each named ``<name>/<link or joint>``."""
 
     name: Word = Field(description="the prefix of its bodies and joints: arm/link3, arm/joint2")
     file: Annotated[str, Strict(), Field(min_length=1)] = Field(
-        description="a URDF: a path relative to the scene, or pkg:PACKAGE/path inside an "
-        "installed Python package"
+        description="a URDF (.urdf) or MJCF (.xml): a path relative to the scene, or "
+        "pkg:PACKAGE/path inside an installed Python package"
     )
     position: Vec3 = Field(default=(0.0, 0.0, 0.0), description="m, the model's base in the world")
     orientation: tuple[Finite, Finite, Finite, Finite] = Field(
         default=(1.0, 0.0, 0.0, 0.0), description="unit quaternion w x y z, base to world"
     )
     fixed_base: Annotated[bool, Strict()] = Field(
-        default=True, description="true: the root link is fixed to the world; false: free"
+        default=True,
+        description="true: the root link is fixed to the world; false: free (MJCF: the one "
+        "top-level body with a <freejoint/>)",
     )
     joint_positions: dict[str, Finite] = Field(
-        default={}, description="rad or m at t = 0, by prefixed joint name; others 0"
+        default={},
+        description="rad or m at t = 0 (rad even where an MJCF states degrees), by prefixed "
+        "joint name; others 0, or the limit nearest 0 when the limits exclude 0",
     )
     joint_velocities: dict[str, Finite] = Field(
         default={}, description="rad/s or m/s at t = 0, by prefixed joint name; others 0"

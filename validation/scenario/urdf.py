@@ -1,13 +1,16 @@
-"""Robot models in a scene: ``models:`` entries read from URDF files and expanded, at load,
-into the scene's own bodies and joints (issue 36, the ``model_loader=physval`` path).
+"""Robot models in a scene: ``models:`` entries read from URDF or MJCF files and expanded, at
+load, into the scene's own bodies and joints (issue 36, the ``model_loader=physval`` path).
 
-The reader (plain ``xml.etree``) takes from a URDF:
+The URDF reader (plain ``xml.etree``) takes from a URDF:
 
-- links: ``<inertial>`` (origin xyz rpy, mass, inertia ixx..izz); visual and collision
-  geometry is not read;
+- links: ``<inertial>`` (origin xyz rpy, mass, inertia ixx..izz); of the visual and collision
+  geometry only the mesh files (which must exist: ``validation/scenario/packages.py``);
 - joints: revolute and continuous (a physval hinge), prismatic (a slider), fixed; origin
   xyz rpy, axis, limits (revolute and prismatic) and dynamics damping. Floating and planar
   joints are refused.
+
+An MJCF file (``.xml``) is read by ``validation/scenario/mjcf.py`` into the same links and
+joints (``validation/scenario/robot.py``); everything below serves both.
 
 Bodies are placed at each link's inertial frame: a physval body's position is its centre of
 mass, so its frame is the link's ``<inertial>`` origin with the inertial rotation (rpy)
@@ -19,8 +22,10 @@ fixed root) through the composed frames; on any other joint, or as a free root, 
 
 Forward kinematics poses every body from the model's ``position``, ``orientation`` and
 ``joint_positions``; ``joint_velocities`` give the bodies' velocities through the same
-chain, so the stated velocities satisfy the joints. Limits (URDF: absolute) become physval's
-(relative to t = 0) by subtracting the joint's initial position.
+chain, so the stated velocities satisfy the joints. A joint not in ``joint_positions`` starts
+at 0, or at the limit nearest 0 when its limits exclude 0 (the A1's knees). Limits (in the
+file: absolute) become physval's (relative to t = 0) by subtracting the joint's initial
+position.
 
 Shapes: the model's collision geometry is not read (``collisions: true`` is refused); each
 body gets a ``PLACEHOLDER_RADIUS`` sphere with the link's inertia stated explicitly. The
@@ -32,13 +37,25 @@ from __future__ import annotations
 
 import importlib.util
 import xml.etree.ElementTree as ElementTree
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from pydantic import ValidationError
 
-from validation.scenario.schema import ModelSpec
+from validation.scenario.mjcf import read_mjcf
+from validation.scenario.packages import missing_file
+from validation.scenario.robot import (
+    IDENTITY,
+    MASSLESS,
+    Frame,
+    Joint,
+    Link,
+    Robot,
+    rotation_class,
+    xml_root,
+)
+from validation.scenario.schema import BodySpec, ModelSpec
 
 PLACEHOLDER_RADIUS = 0.01
 """m: the sphere each model body is given (its inertia is the link's, stated explicitly); a
@@ -47,7 +64,8 @@ link's size, not its contact shape."""
 PACKAGE_PREFIX = "pkg:"
 """A ``file`` that starts with this names a path inside an installed Python package."""
 
-URDF_SUFFIX = ".urdf"
+FORMAT_NAMES = {"urdf": "URDF", "mjcf": "MJCF"}
+"""A ``ModelLayout.format`` -> the name messages give it."""
 
 FIXED_BASE_JOINT = "fixed_base"
 """The name (after the model's prefix) of the fixed joint that holds a fixed base's root link
@@ -59,6 +77,17 @@ JOINT_KINDS = {"revolute": "hinge", "continuous": "hinge", "prismatic": "slider"
 LIMITED_KINDS = ("revolute", "prismatic")
 """URDF joint types whose ``<limit lower upper>`` bound the motion."""
 
+FREE_ROOT_HINT = {
+    "urdf": "set fixed_base: true",
+    "mjcf": "set fixed_base: true, or make the one top-level <body> free with a <freejoint/>",
+}
+"""What to do about a ``fixed_base: false`` whose root has no mass, per format."""
+
+
+PACKAGE_PATHS: dict[str, str] = {}
+"""``package://NAME`` -> DIR, the run's ``--package-path`` flags (set by the command before any
+scene is loaded; carried to the workers in each ``ModelLayout``)."""
+
 
 class ModelError(ValueError):
     """A model that cannot be read; ``field`` is the ``models[i]`` field it belongs to."""
@@ -66,64 +95,6 @@ class ModelError(ValueError):
     def __init__(self, field: str, message: str):
         super().__init__(message)
         self.field = field
-
-
-@dataclass(frozen=True)
-class Frame:
-    """A rigid transform: rotation (3, 3) and translation (3,)."""
-
-    rotation: np.ndarray
-    translation: np.ndarray
-
-    def __mul__(self, other: Frame) -> Frame:
-        return Frame(
-            self.rotation @ other.rotation, self.rotation @ other.translation + self.translation
-        )
-
-
-IDENTITY = Frame(np.eye(3), np.zeros(3))
-
-
-@dataclass(frozen=True)
-class Link:
-    """A URDF link's inertial frame (in the link frame), mass and inertia (inertial axes)."""
-
-    name: str
-    inertial: Frame
-    mass: float
-    inertia: np.ndarray
-
-
-@dataclass(frozen=True)
-class Joint:
-    """A URDF joint: its origin (in the parent link's frame), axis (joint frame), limits."""
-
-    name: str
-    kind: str
-    parent: str
-    child: str
-    origin: Frame
-    axis: np.ndarray
-    limits: tuple[float, float] | None
-    damping: float
-
-
-@dataclass
-class Robot:
-    """A URDF's links and joints, and its root link."""
-
-    links: dict[str, Link]
-    joints: list[Joint]
-    root: str = ""
-    children: dict[str, list[Joint]] = field(default_factory=dict)
-
-
-def _rotation():
-    """SciPy's ``Rotation``, imported when a model is read (``physval check`` of a scene
-    without models loads no SciPy: ``tests/test_architecture.py``)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation
 
 
 @dataclass(frozen=True)
@@ -146,7 +117,10 @@ class ModelLayout:
         file_joints: each one's name in the file; None for the weld of a fixed base.
         root_link: the file's root link.
         package_paths: ``(NAME, DIR)`` pairs that resolve ``package://NAME/...`` in the file
-            (the run's ``--package-path``), beside the file's own folder.
+            (the run's ``--package-path``), beside the file's own folder
+            (``validation.scenario.packages.resolve`` finds a mesh with them).
+        starts: ``(file joint, coordinate at t = 0)`` of every movable joint: the scene's
+            ``joint_positions`` entry, else 0 clamped into the joint's limits.
     """
 
     name: str
@@ -160,12 +134,14 @@ class ModelLayout:
     file_joints: tuple[str | None, ...]
     root_link: str
     package_paths: tuple[tuple[str, str], ...] = ()
+    starts: tuple[tuple[str, float], ...] = ()
 
     def initial_position(self, file_joint: str) -> float:
         """The file joint's coordinate at t = 0 (rad or m, the file's convention): the scene's
-        ``joint_positions`` entry, else 0. A tree coordinate (``CompiledScene.joint_tree``,
-        relative to t = 0) is the file's coordinate minus this."""
-        return float(self.spec.joint_positions.get(f"{self.name}/{file_joint}", 0.0))
+        ``joint_positions`` entry, else 0, or the limit nearest 0 when the joint's limits
+        exclude 0. A tree coordinate (``CompiledScene.joint_tree``, relative to t = 0) is the
+        file's coordinate minus this."""
+        return float(dict(self.starts).get(file_joint, 0.0))
 
     def initial_velocity(self, file_joint: str) -> float:
         """The file joint's rate at t = 0 (rad/s or m/s): ``joint_velocities``, else 0."""
@@ -189,13 +165,15 @@ def _origin(element: ElementTree.Element | None) -> Frame:
     if origin is None:
         return IDENTITY
     rpy = _numbers(origin.get("rpy"), 3)
-    return Frame(_rotation().from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3))
+    return Frame(
+        rotation_class().from_euler("xyz", rpy).as_matrix(), _numbers(origin.get("xyz"), 3)
+    )
 
 
 def _link(element: ElementTree.Element) -> Link:
     inertial = element.find("inertial")
     if inertial is None:
-        return Link(element.get("name", ""), IDENTITY, 0.0, np.zeros((3, 3)))
+        return Link(element.get("name", ""), *MASSLESS)
     mass = float(inertial.find("mass").get("value", "0"))
     if mass < 0:
         raise ValueError(f"link {element.get('name')!r} has a negative mass {mass}")
@@ -226,7 +204,7 @@ def _joint(element: ElementTree.Element) -> Joint:
     dynamics = element.find("dynamics")
     return Joint(
         name,
-        kind,
+        JOINT_KINDS[kind],
         element.find("parent").get("link", ""),
         element.find("child").get("link", ""),
         _origin(element),
@@ -238,30 +216,24 @@ def _joint(element: ElementTree.Element) -> Joint:
 
 def read_urdf(path: Path) -> Robot:
     """The links and joints of the URDF at ``path``; ValueError saying what is wrong."""
-    try:
-        root = ElementTree.parse(path).getroot()
-    except (OSError, ElementTree.ParseError) as error:
-        raise ValueError(f"cannot read {path}: {error}") from None
+    root = xml_root(path)
     try:
         links = {e.get("name", ""): _link(e) for e in root.findall("link")}
         joints = [_joint(e) for e in root.findall("joint")]
+        robot = Robot(links, joints, "urdf").assemble()
     except (AttributeError, TypeError, ValueError) as error:
         raise ValueError(f"{path.name}: {error}") from None
-    robot = Robot(links, joints)
-    for joint in joints:
-        unknown = {joint.parent, joint.child} - set(links)
-        if unknown:
-            raise ValueError(f"{path.name}: joint {joint.name!r} names no link {unknown.pop()!r}")
-    children = [j.child for j in joints]
-    if len(children) != len(set(children)):
-        raise ValueError(f"{path.name}: a link is the child of two joints (not a tree)")
-    roots = [name for name in links if name not in children]
-    if len(roots) != 1:
-        raise ValueError(f"{path.name}: expected one root link; found {roots}")
-    robot.root = roots[0]
-    for joint in joints:
-        robot.children.setdefault(joint.parent, []).append(joint)
+    robot.meshes = [
+        mesh.get("filename", "")
+        for link in root.findall("link")
+        for part in (*link.findall("visual"), *link.findall("collision"))
+        for mesh in part.iter("mesh")
+    ]
     return robot
+
+
+READERS = {".urdf": ("urdf", read_urdf), ".xml": ("mjcf", read_mjcf)}
+"""A model file's suffix -> its ``ModelLayout.format`` and its reader."""
 
 
 def model_path(file: str, scene: Path) -> Path:
@@ -284,9 +256,9 @@ def model_path(file: str, scene: Path) -> Path:
 
 def _motion(joint: Joint, q: float) -> Frame:
     """The child link's frame in the joint frame at coordinate ``q``."""
-    if JOINT_KINDS[joint.kind] == "hinge":
-        return Frame(_rotation().from_rotvec(joint.axis * q).as_matrix(), np.zeros(3))
-    if JOINT_KINDS[joint.kind] == "slider":
+    if joint.kind == "hinge":
+        return Frame(rotation_class().from_rotvec(joint.axis * q).as_matrix(), np.zeros(3))
+    if joint.kind == "slider":
         return Frame(np.eye(3), joint.axis * q)
     return IDENTITY
 
@@ -302,8 +274,30 @@ class _Placed:
 
 
 def _quaternion(rotation: np.ndarray) -> list[float]:
-    x, y, z, w = _rotation().from_matrix(rotation).as_quat()
+    x, y, z, w = rotation_class().from_matrix(rotation).as_quat()
     return [float(w), float(x), float(y), float(z)]
+
+
+def _valid_body(link: Link, body: dict) -> dict:
+    """``body`` (a link's scene entry) when the schema takes it; else ``ModelError`` at
+    ``file`` naming the link (a URDF's inertia no rigid body has, say), not the expanded
+    ``bodies[k]`` the scene file does not show."""
+    try:
+        BodySpec.model_validate(body)
+    except ValidationError as error:
+        first = error.errors(include_url=False)[0]
+        reason = first["ctx"]["error"] if "ctx" in first else first["msg"]
+        field = ".".join(str(part) for part in first["loc"])
+        raise ModelError("file", f"link {link.name!r}: {field}: {reason}") from None
+    return body
+
+
+def _start(joint: Joint, stated: float | None) -> float:
+    """A movable joint's coordinate at t = 0: ``stated`` (the scene's ``joint_positions``),
+    else 0 moved into the joint's limits (the limit nearest 0 when they exclude it)."""
+    if stated is not None:
+        return stated
+    return 0.0 if joint.limits is None else float(np.clip(0.0, *joint.limits))
 
 
 class _Expansion:
@@ -317,13 +311,14 @@ class _Expansion:
         self.links: list[str] = []
         self.body_in_link: list[Frame] = []
         self.file_joints: list[str | None] = []
+        self.starts: dict[str, float] = {}
 
     def name(self, text: str) -> str:
         return f"{self.model.name}/{text}"
 
     def run(self) -> None:
         base = Frame(
-            _rotation()
+            rotation_class()
             .from_quat([*self.model.orientation[1:], self.model.orientation[0]])
             .as_matrix(),
             np.array(self.model.position, dtype=float),
@@ -346,8 +341,8 @@ class _Expansion:
         elif not self.model.fixed_base:
             raise ModelError(
                 "fixed_base",
-                f"the root link {root.name!r} has no mass: "
-                "a free root needs one (set fixed_base: true)",
+                f"the root link {root.name!r} has no mass: a free root needs one "
+                f"({FREE_ROOT_HINT[self.robot.format]})",
             )
         self.descend(root.name, placed)
 
@@ -357,16 +352,19 @@ class _Expansion:
             placed.angular_velocity, frame.translation - placed.frame.translation
         )
         self.bodies.append(
-            {
-                "name": self.name(link.name),
-                "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
-                "mass": link.mass,
-                "inertia": link.inertia.tolist(),
-                "position": frame.translation.tolist(),
-                "orientation": _quaternion(frame.rotation),
-                "velocity": centre_velocity.tolist(),
-                "angular_velocity": placed.angular_velocity.tolist(),
-            }
+            _valid_body(
+                link,
+                {
+                    "name": self.name(link.name),
+                    "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
+                    "mass": link.mass,
+                    "inertia": link.inertia.tolist(),
+                    "position": frame.translation.tolist(),
+                    "orientation": _quaternion(frame.rotation),
+                    "velocity": centre_velocity.tolist(),
+                    "angular_velocity": placed.angular_velocity.tolist(),
+                },
+            )
         )
         placed.body = self.name(link.name)
         self.links.append(link.name)
@@ -377,25 +375,33 @@ class _Expansion:
             self.place(joint, above)
 
     def place(self, joint: Joint, above: _Placed) -> None:
+        """The joint's child link posed and moving (the joint frame turned or slid by its
+        coordinate, the child's frame carried along from the pivot), and added as a body
+        with its joint, or folded into its parent when it has no mass."""
         name = self.name(joint.name)
-        q = self.model.joint_positions.get(name, 0.0)
+        q = 0.0
+        if joint.kind != "fixed":
+            q = self.starts[joint.name] = _start(joint, self.model.joint_positions.get(name))
         rate = self.model.joint_velocities.get(name, 0.0)
-        kind = JOINT_KINDS[joint.kind]
         at_joint = above.frame * joint.origin
-        frame = at_joint * _motion(joint, q)
+        pivot = at_joint * _motion(joint, q)
+        frame = pivot * joint.child_in_joint
         axis = at_joint.rotation @ joint.axis
-        anchor_velocity = above.velocity + np.cross(
-            above.angular_velocity, frame.translation - above.frame.translation
+        pivot_velocity = above.velocity + np.cross(
+            above.angular_velocity, pivot.translation - above.frame.translation
         )
+        if joint.kind == "slider":
+            pivot_velocity = pivot_velocity + axis * rate
+        angular_velocity = above.angular_velocity + (axis * rate if joint.kind == "hinge" else 0.0)
         placed = _Placed(
             frame,
-            anchor_velocity + (axis * rate if kind == "slider" else 0.0),
-            above.angular_velocity + (axis * rate if kind == "hinge" else 0.0),
+            pivot_velocity + np.cross(angular_velocity, frame.translation - pivot.translation),
+            angular_velocity,
             above.body,
         )
         link = self.robot.links[joint.child]
         if link.mass <= 0:
-            if kind != "fixed":
+            if joint.kind != "fixed":
                 raise ModelError(
                     "file", f"link {link.name!r} has no mass but moves on joint {joint.name!r}"
                 )
@@ -407,23 +413,24 @@ class _Expansion:
             if not limits[0] <= 0.0 <= limits[1]:
                 raise ModelError(
                     "joint_positions",
-                    f"{name}: {q} is outside the URDF's limits {list(joint.limits)}",
+                    f"{name}: {q} is outside the {FORMAT_NAMES[self.robot.format]}'s "
+                    f"limits {list(joint.limits)}",
                 )
         self.add_body(link, placed)
         record = {
             "name": name,
-            "type": kind,
+            "type": joint.kind,
             "parent": above.body or "world",
             "child": placed.body,
-            "anchor": frame.translation.tolist(),
+            "anchor": pivot.translation.tolist(),
             "damping": joint.damping,
         }
-        if kind != "fixed":
+        if joint.kind != "fixed":
             record["axis"] = axis.tolist()
         if limits is not None:
             record["limits"] = list(limits)
         self.joints.append(record)
-        self.file_joints.append(joint.name)
+        self.file_joints.append(joint.name if joint.in_file else None)
         self.descend(link.name, placed)
 
 
@@ -431,14 +438,18 @@ def _movable_joints(model: ModelSpec, robot: Robot) -> list[str]:
     return [model.name + "/" + j.name for j in robot.joints if j.kind != "fixed"]
 
 
-def expand_model(model: ModelSpec, scene: Path) -> tuple[list[dict], list[dict]]:
+def expand_model(
+    model: ModelSpec, scene: Path, meshes: bool = True
+) -> tuple[list[dict], list[dict]]:
     """The bodies and joints of ``model`` (a scene's ``models`` entry, read relative to the
-    scene file ``scene``), as scene entries; ``ModelError`` at the field that is wrong."""
-    expansion = _expanded(model, scene)
+    scene file ``scene``), as scene entries; ``ModelError`` at the field that is wrong.
+    ``meshes``: check that the mesh files the model names exist (False: a scene that loaded,
+    read again where the run's ``--package-path`` may not be set, as in a worker)."""
+    expansion = _expanded(model, scene, meshes)
     return expansion.bodies, expansion.joints
 
 
-def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
+def _expanded(model: ModelSpec, scene: Path, meshes: bool) -> _Expansion:
     if model.collisions:
         raise ModelError(
             "collisions",
@@ -449,16 +460,17 @@ def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
         path = model_path(model.file, scene)
     except ValueError as error:
         raise ModelError("file", str(error)) from None
-    if path.suffix.lower() != URDF_SUFFIX:
-        raise ModelError(
-            "file", f"expected a URDF file (.urdf); got {path.name!r} (MJCF .xml is a later step)"
-        )
+    if path.suffix.lower() not in READERS:
+        raise ModelError("file", f"expected a URDF (.urdf) or MJCF (.xml) file; got {path.name!r}")
     if not path.is_file():
         raise ModelError("file", f"no such file: {path}")
     try:
-        robot = read_urdf(path)
+        robot = READERS[path.suffix.lower()][1](path)
     except ValueError as error:
         raise ModelError("file", str(error)) from None
+    missing = missing_file(robot.meshes, path, PACKAGE_PATHS) if meshes else None
+    if missing:
+        raise ModelError("file", f"{path.name}: {missing}")
     movable = _movable_joints(model, robot)
     for key, stated in (
         ("joint_positions", model.joint_positions),
@@ -477,10 +489,12 @@ def _expanded(model: ModelSpec, scene: Path) -> _Expansion:
     return expansion
 
 
-def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]]]:
+def expand_models(
+    data: dict, scene: Path, meshes: bool = True
+) -> tuple[dict, list[tuple[tuple, str]]]:
     """``data`` (a scene document) with its ``models`` expanded into ``bodies`` and
     ``joints``, and the problems found (location, message). Entries the schema refuses are
-    left for the schema to report."""
+    left for the schema to report; ``meshes`` as in ``expand_model``."""
     entries = data.get("models")
     if not isinstance(entries, list) or not entries:
         return data, []
@@ -498,7 +512,7 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
             )
             continue
         try:
-            more_bodies, more_joints = expand_model(model, scene)
+            more_bodies, more_joints = expand_model(model, scene, meshes)
         except ModelError as error:
             problems.append((("models", i, error.field), f"{error}"))
             continue
@@ -509,23 +523,18 @@ def expand_models(data: dict, scene: Path) -> tuple[dict, list[tuple[tuple, str]
     return {**data, "bodies": bodies, "joints": joints}, problems
 
 
-PACKAGE_PATHS: dict[str, str] = {}
-"""``package://NAME`` -> DIR, the run's ``--package-path`` flags (set by the command before any
-scene is loaded; carried to the workers in each ``ModelLayout``)."""
-
-
 def model_layouts(scenario) -> tuple[ModelLayout, ...]:
     """Each of the scenario's ``models`` as a ``ModelLayout`` (the file read again, as the
     scene's load read it: a scene that loaded reads the same)."""
     scene = Path(scenario.source or ".")
     layouts = []
     for model in scenario.models:
-        expansion = _expanded(model, scene)
+        expansion = _expanded(model, scene, meshes=False)
         layouts.append(
             ModelLayout(
                 name=model.name,
                 path=expansion.path,
-                format=expansion.path.suffix.lower().lstrip(".").replace("xml", "mjcf"),
+                format=expansion.robot.format,
                 spec=model,
                 bodies=tuple(b["name"] for b in expansion.bodies),
                 links=tuple(expansion.links),
@@ -534,6 +543,7 @@ def model_layouts(scenario) -> tuple[ModelLayout, ...]:
                 file_joints=tuple(expansion.file_joints),
                 root_link=expansion.robot.root,
                 package_paths=tuple(sorted(PACKAGE_PATHS.items())),
+                starts=tuple(expansion.starts.items()),
             )
         )
     return tuple(layouts)
@@ -557,7 +567,7 @@ def with_joint_state(scenario, positions: dict[str, float], velocities: dict[str
         for key, stated in (("joint_positions", positions), ("joint_velocities", velocities)):
             mine = {k: v for k, v in stated.items() if k.startswith(prefix)}
             entry[key] = {**entry[key], **mine}
-    expanded, problems = expand_models(data, Path(scenario.source or "."))
+    expanded, problems = expand_models(data, Path(scenario.source or "."), meshes=False)
     if problems:
         location, message = problems[0]
         raise ModelError(str(location[-1]), message)

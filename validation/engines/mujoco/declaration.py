@@ -6,6 +6,7 @@ from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
     JOINT_FEATURES,
+    MODEL_LOADER_OPTION,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -51,6 +52,7 @@ DECLARATION = EngineDeclaration(
             "damper",
         ),
         EngineOption("iterations", Count, "maximum solver iterations per step", (), 100, 50),
+        MODEL_LOADER_OPTION,
     ),
     capabilities=Capabilities(
         features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}), integrators=INTEGRATOR_WORDS

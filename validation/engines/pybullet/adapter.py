@@ -31,6 +31,13 @@ Joints (engines.md 2.5): a scene's joint tree becomes one btMultiBody per tree (
 whatever the ``bodies`` option; its bodies' states are read from PyBullet's own kinematics
 (``getLinkState``) and its joint velocities set from the stated body velocities through them.
 A scene without joints takes the path above untouched.
+
+Models (engines.md 2.6): with ``model_loader=native`` (the default) a scene's ``models`` are read
+by PyBullet's own ``loadURDF``/``loadMJCF`` (``models``), the scene's other bodies and joints
+built as above; each model body is read back as its link's frame times the layout's
+``body_in_link``, and ``model_probe`` takes M and the bias from ``calculateMassMatrix`` and
+``calculateInverseDynamics``. ``model_loader=physval`` builds them from the expanded bodies and
+joints like any others.
 """
 
 from __future__ import annotations
@@ -39,17 +46,27 @@ import importlib
 import importlib.metadata
 import os
 import sys
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from types import ModuleType
 
 import numpy as np
 
-from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
+from validation.engine_api import model_loader
+from validation.engines.base import (
+    JointReport,
+    ModelProbe,
+    ModelReport,
+    Provenance,
+    Snapshot,
+    Trajectory,
+)
 from validation.engines.frames import matrix_to_quat, principal_axes
+from validation.engines.pybullet import models
 from validation.engines.pybullet.pair_fit import PAIR_TIERS, pair_system, per_object_values
 from validation.engines.pybullet.trees import BASE, Tree, plan_trees
 from validation.engines.reference import dynamic_bodies
-from validation.reference.articulated import WORLD
+from validation.reference.articulated import WORLD, JointTree
 from validation.reference.loads import applied_loads
 from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import BodySpec, Scenario
@@ -62,6 +79,7 @@ from validation.scenario.compiled import (
 )
 from validation.scenario.engine_spec import EngineSpec
 from validation.scenario.physics import PAIR_RULES, body_inertia, ground_pose
+from validation.scenario.urdf import ModelLayout
 
 
 def _import_quietly(name: str) -> ModuleType:
@@ -318,6 +336,14 @@ JOINTS_NOTE = (
 )
 """The provenance note of a scene with joints."""
 
+MODELS_NOTE = (
+    "models loaded natively (model_loader=native, engines.md 2.6): PyBullet's own loadURDF or "
+    "loadMJCF reads the file; its joints' velocity motors are switched off and the profile's "
+    "link damping replaces Bullet's 0.04; URDF damping is jointDamping (explicit -c·q̇); a "
+    "fixed base is static and holds mass 0 in PyBullet (the scene's values are reported for it)"
+)
+"""The provenance note of a scene with natively loaded models."""
+
 # --- frames ---------------------------------------------------------------------------------
 
 
@@ -329,6 +355,28 @@ def to_xyzw(quat: np.ndarray) -> list[float]:
 def from_xyzw(quat) -> np.ndarray:
     """PyBullet's x y z w -> w x y z (one quaternion (4,) or many (..., 4))."""
     return np.asarray(quat, dtype=float)[..., [3, 0, 1, 2]]
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """One tree coordinate PyBullet holds as a joint coordinate (``_coordinates``): the
+    multibody, joint index, the file's coordinate at t = 0, and its index in q and in ν."""
+
+    body: int
+    index: int
+    initial: float
+    q: int
+    v: int
+
+
+IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
+"""w x y z."""
+
+
+def _without(tree: JointTree, names: set[str]) -> JointTree:
+    """``tree`` without the joints named in ``names`` (a native model's, loaded by PyBullet
+    itself): the scene's other joints, planned into multibodies as before."""
+    return replace(tree, joints=tuple(j for j in tree.joints if j.name not in names))
 
 
 def conjugate(quat: np.ndarray) -> np.ndarray:
@@ -361,6 +409,8 @@ class PybulletAdapter:
         self.profile = PROFILES[self.profile_name]
         self.bodies_mode = str(options.get("bodies", self.profile.bodies))
         self.solver_iterations = options.get("solver_iterations")
+        self.model_loader = model_loader(spec.name, options)
+        self.urdf_inertia = str(options.get("urdf_inertia", "file"))
         self.client: int | None = None
 
     # -- loading ---------------------------------------------------------------------------
@@ -375,22 +425,49 @@ class PybulletAdapter:
         self.scenario = scenario = scene.scenario
         self.steps_taken = 0
         self.notes: list[str] = []
-        self.trees = [] if scene.joint_tree is None else plan_trees(scene.joint_tree)
+        layouts = scene.models if self.model_loader == "native" else ()
+        owned = {name for layout in layouts for name in (*layout.bodies, *layout.joints)}
+        self.trees = (
+            [] if scene.joint_tree is None else plan_trees(_without(scene.joint_tree, owned))
+        )
         self._set_up_world(scenario)
         jointed = {body for tree in self.trees for body in tree.bodies}
         self.ids = [
-            -1 if k in jointed else self._create_body(spec)
+            -1 if k in jointed or spec.name in owned else self._create_body(spec)
             for k, spec in enumerate(scenario.bodies)
         ]
         self.links = [BASE] * len(self.ids)
+        self.parts: list[models.Part | None] = [None] * len(self.ids)
         for tree in self.trees:
             self._create_tree(tree)
+        self.native = [self._load_model(layout) for layout in layouts]
         self.ground = self._create_ground() if scenario.ground else None
         self._set_contact_values(scenario)
         self._filter_pairs(scenario)
         self._set_up_loads(scenario)
+        self.tree_velocities = np.zeros(0)
         if self.trees:
             self._set_joint_velocities(scenario)
+
+    def _load_model(self, layout: ModelLayout) -> models.NativeModel:
+        """One of the scene's models through PyBullet's own loader (``models.load_model``:
+        placed, at its initial joint state), with the velocity motors PyBullet puts on its
+        joints switched off, the profile's damping and velocity clamp (``_multibody_settings``)
+        on each of its multibodies, and no collisions for ``collisions: false``. A floating
+        base floats as the file's base link (``useFixedBase`` false)."""
+        model = models.load_model(layout, self.urdf_inertia, self.client)
+        models.release_motors(model, self.client)
+        for body in model.ids:
+            pybullet.changeDynamics(
+                body, BASE, **self._multibody_settings(), physicsClientId=self.client
+            )
+        if not layout.spec.collisions:
+            models.switch_off_collisions(model, self.client)
+        names = [body.name for body in self.scenario.bodies]
+        for name, part in model.parts.items():
+            k = names.index(name)
+            self.ids[k], self.links[k], self.parts[k] = part.body, part.link, part
+        return model
 
     def _world_parameters(self, scenario: Scenario) -> dict[str, float | int]:
         parameters: dict[str, float | int] = {
@@ -553,7 +630,7 @@ class PybulletAdapter:
             self._set_tree_velocities(np.eye(count)[k])
             columns.append(np.array(self._raw_state())[moving, 7:13].reshape(-1))
         self._set_tree_velocities(np.zeros(count))
-        return moving, np.array(columns).reshape(count, -1).T
+        return moving, np.array(columns).reshape(count, 6 * len(moving)).T
 
     def _velocity_sizes(self) -> list[int]:
         """The trees' velocity blocks in order: a floating base's 6, then each joint's."""
@@ -759,6 +836,8 @@ class PybulletAdapter:
         self.principal = np.array(
             [principal_axes(body_inertia(b))[1] for b in scenario.bodies]
         ).reshape(-1, 4)
+        native = [k for k, part in enumerate(self.parts) if part is not None]
+        self.principal[native] = IDENTITY_QUAT  # a model body's row is in its own axes
         if self.loaded.any():
             self.notes.append(
                 "springs and applied loads: forces applied with applyExternalForce (at the centre "
@@ -818,7 +897,8 @@ class PybulletAdapter:
         moments, rotated to world with the base (inertial-frame) orientation, and the base
         pose and velocities; energy and momenta from those readbacks and PyBullet's gravity,
         by the invariants of ``validation.scenario.compiled`` (springs and applied forces: the
-        scene's laws)."""
+        scene's laws). A natively loaded model's bodies: their links' values and inertial
+        frames as PyBullet's loader made them (``_held_by_models``)."""
         moving = dynamic_bodies(self.scene)
         pos, quat, vel, ang_vel = self._read_state()
         info = [
@@ -829,6 +909,7 @@ class PybulletAdapter:
         moments = np.array([item[2] for item in info]).reshape(-1, 3)
         inertial_rot = quat_to_matrix(quat[moving])
         inertia = inertial_rot @ (moments[:, :, None] * inertial_rot.transpose(0, 2, 1))
+        self._held_by_models(moving, mass, inertia, pos, quat, vel)
         gravity = np.array(
             [self._engine_parameters()[f"gravityAcceleration{axis}"] for axis in ("X", "Y", "Z")]
         )
@@ -846,6 +927,23 @@ class PybulletAdapter:
             linear_momentum=linear_momentum(mass, states[1])[0],
             angular_momentum=angular_momentum(mass, inertia[None], *states)[0],
         )
+
+    def _held_by_models(self, moving, mass, inertia, pos, quat, vel) -> None:
+        """Each natively loaded body's mass, world inertia, centre and its velocity as
+        PyBullet holds them (``models.held_inertia``: its link's, in Bullet's inertial frame),
+        written into the rows of ``moving`` (``pos``, ``quat``, ``vel``: every body's; a model
+        body's ``quat`` is its scene axes). A fixed base is static in PyBullet and holds mass 0
+        (measured): its scene mass and inertia stand, at its pose (it never moves)."""
+        for row, k in enumerate(moving):
+            part = self.parts[k]
+            if part is None:
+                continue
+            if part.welded:
+                rot = quat_to_matrix(quat[k])
+                mass[row], inertia[row] = self.scene.mass[k], rot @ self.scene.inertia[k] @ rot.T
+                continue
+            mass[row], pos[k], inertia[row] = models.held_inertia(part, self.client)
+            vel[k] = models.inertial_state(part, self.client)[2]
 
     def advance(self, steps: int) -> None:
         """``steps`` fixed steps: spring forces (if any), then ``stepSimulation``, per step.
@@ -885,7 +983,10 @@ class PybulletAdapter:
         """(n, 13) per body: COM position, inertial-frame quaternion x y z w, velocity, ω
         (world frame); a link's from PyBullet's own kinematics (``_link_state``)."""
         rows = []
-        for body, link in zip(self.ids, self.links, strict=True):
+        for body, link, part in zip(self.ids, self.links, self.parts, strict=True):
+            if part is not None:
+                rows.append(models.scene_body_state(part, self.client))
+                continue
             if link != BASE:
                 rows.append(self._link_state(body, link))
                 continue
@@ -961,8 +1062,12 @@ class PybulletAdapter:
             "contact_misses": self.contact_misses,
             "filtered_pairs": self.filtered_pairs,
         }
+        settings["model_loader"] = self.model_loader
+        settings["urdf_inertia"] = self.urdf_inertia
         if self.trees:
             settings["joint_trees"] = self._tree_settings()
+        if self.native:
+            settings["models"] = [self._model_settings(model) for model in self.native]
         notes = list(self.notes)
         if self.bodies_mode == "maximal":
             notes.append(
@@ -971,6 +1076,8 @@ class PybulletAdapter:
             )
         if self.trees:
             notes.append(JOINTS_NOTE)
+        if self.native:
+            notes.append(MODELS_NOTE)
         return Provenance(
             engine="pybullet",
             version=importlib.metadata.version("pybullet"),
@@ -984,12 +1091,26 @@ class PybulletAdapter:
         parent's inertial frame (``parentFramePos``) and its axis in the child's, turned to the
         world by the two frames' poses (``getLinkState``, the base's, or the world's for a tree
         rooted at the world); and M(q0) of the trees (``_mass_matrix``). (A fixed link's
-        ``worldLinkFramePosition`` is float32-rounded, 7e-8 of the scene, engines.md 2.5.)"""
-        types, anchors, axes = [], [], []
+        ``worldLinkFramePosition`` is float32-rounded, 7e-8 of the scene, engines.md 2.5.)
+        A natively loaded model's joints: ``models.held_joint``, limits (from t = 0; NaN where
+        PyBullet holds none) and damping as ``getJointInfo`` reads what the loader set. This
+        adapter's own multibodies: the limits and damping it passed to ``changeDynamics``
+        (``_set_limits``, ``_create_tree``), which ``getJointInfo`` does not read back (it
+        keeps the values at creation: no limits, damping 0). Armature 0 (Bullet has none)."""
+        types, anchors, axes, limits, damping = [], [], [], [], []
         names = [body.name for body in self.scenario.bodies]
         pos, quat, _, _ = self._read_state()
         inertial = quat_to_matrix(quat)
+        native = self._native_joints()
         for joint in self.scenario.joints:
+            if joint.name in native:
+                held = models.held_joint(native[joint.name], self.client)
+                types.append(JOINT_WORDS[held.type])
+                anchors.append(held.anchor)
+                axes.append(held.axis)
+                limits.append(held.limits)
+                damping.append(held.damping)
+                continue
             child, parent = names.index(joint.child), self._parent_body(joint.parent)
             info = pybullet.getJointInfo(
                 self.ids[child], self.links[child], physicsClientId=self.client
@@ -1001,7 +1122,112 @@ class PybulletAdapter:
             anchors.append(origin + frame @ np.asarray(info[14]))
             has_axis = joint.type in ("hinge", "slider")
             axes.append(inertial[child] @ np.asarray(info[13]) if has_axis else np.zeros(3))
-        return JointReport(tuple(types), np.array(anchors), np.array(axes), self._mass_matrix())
+            limits.append(np.array(joint.limits if joint.limits else (np.nan, np.nan)))
+            damping.append(joint.damping)
+        return JointReport(
+            tuple(types),
+            np.array(anchors),
+            np.array(axes),
+            self._mass_matrix(),
+            limits=np.array(limits).reshape(-1, 2),
+            damping=np.array(damping),
+            armature=np.zeros(len(types)),
+        )
+
+    def _native_joints(self) -> dict[str, models.FileJoint]:
+        """Every natively loaded model's scene joints."""
+        return {name: joint for model in self.native for name, joint in model.joints.items()}
+
+    def _coordinates(self) -> list[Coordinate]:
+        """The tree's coordinates as PyBullet's joint coordinates: every natively loaded
+        model joint with coordinates, and every hinge and slider of this adapter's own
+        multibodies (their coordinate 0 is the scene's t = 0). ValueError for a coordinate of
+        any other kind (a ball, a floating body or base)."""
+        tree = self.scene.joint_tree
+        held = dict(self._native_joints())
+        for plan in self.trees:
+            for link in plan.links:
+                held[link.joint] = models.FileJoint(self.ids[link.body], self.links[link.body], 0.0)
+        coordinates = []
+        for joint in tree.joints:
+            if joint.type == "fixed":
+                continue
+            if joint.type not in ("hinge", "slider") or joint.name not in held:
+                raise ValueError(
+                    f"joint {joint.name!r} ({joint.type}): the PyBullet adapter probes only "
+                    "hinges and sliders of fixed-base multibodies"
+                )
+            at = held[joint.name]
+            coordinates.append(
+                Coordinate(at.body, at.index, at.initial, joint.q_slice.start, joint.v_slice.start)
+            )
+        return coordinates
+
+    def _dynamics(
+        self, coordinates: list[Coordinate], q: np.ndarray, nu: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """M and the bias C(q, ν)ν + g(q) over ``coordinates`` at the tree state (q, ν), as
+        (nv, nv) and (nv,) in the tree's coordinates (rows of other coordinates 0): per
+        multibody ``calculateMassMatrix`` and ``calculateInverseDynamics`` with zero
+        accelerations, at the file's coordinates (q plus each joint's initial value), rows in
+        PyBullet's order of its movable joints."""
+        nv = self.scene.joint_tree.nv
+        matrix, bias = np.zeros((nv, nv)), np.zeros(nv)
+        for body in dict.fromkeys(c.body for c in coordinates):
+            mine = {c.index: c for c in coordinates if c.body == body}
+            order = models.movable_joints(body, self.client)
+            if set(order) != set(mine):
+                raise ValueError(f"multibody {body}: a movable joint holds no scene coordinate")
+            rows = [mine[j] for j in order]
+            positions = [c.initial + float(q[c.q]) for c in rows]
+            velocities = [float(nu[c.v]) for c in rows]
+            at = [c.v for c in rows]
+            matrix[np.ix_(at, at)] = pybullet.calculateMassMatrix(
+                body, positions, physicsClientId=self.client
+            )
+            with self._gravity_in_base_frame(body):
+                bias[at] = pybullet.calculateInverseDynamics(
+                    body, positions, velocities, [0.0] * len(rows), physicsClientId=self.client
+                )
+        return matrix, bias
+
+    @contextmanager
+    def _gravity_in_base_frame(self, body: int):
+        """The world's gravity turned into the fixed base's frame meanwhile (``R_baseᵀ g``):
+        ``calculateInverseDynamics`` puts a fixed base at the world's axes, whatever its
+        orientation (docs/engines.md 2.6: a Kuka turned 0.6 rad about x got its upright
+        gravity torques), so gravity is handed to it in the frame it assumes."""
+        rotation = quat_to_matrix(
+            from_xyzw(pybullet.getBasePositionAndOrientation(body, physicsClientId=self.client)[1])
+        )
+        gravity = np.asarray(self.scenario.gravity, dtype=float)
+        pybullet.setGravity(*(rotation.T @ gravity), physicsClientId=self.client)
+        try:
+            yield
+        finally:
+            pybullet.setGravity(*gravity, physicsClientId=self.client)
+
+    def model_probe(self, q: np.ndarray, nu: np.ndarray) -> ModelProbe:
+        """The scene's multibodies at the tree state (q, ν) (``CompiledScene.joint_tree``'s
+        coordinates, relative to t = 0) without stepping: every joint coordinate set with
+        ``resetJointState`` (``_coordinates``), the bodies read back as ``observe`` reads them
+        (``getLinkState`` with forward kinematics), M and the bias from PyBullet's own
+        ``calculateMassMatrix`` and ``calculateInverseDynamics`` (``_dynamics``: Bullet's
+        inverse dynamics leaves joint damping out, as the tree's bias does; springs and
+        applied loads are not in it). ValueError for a scene with a ball joint or a floating
+        body or base."""
+        coordinates = self._coordinates()
+        for c in coordinates:
+            pybullet.resetJointState(
+                c.body,
+                c.index,
+                targetValue=c.initial + float(q[c.q]),
+                targetVelocity=float(nu[c.v]),
+                physicsClientId=self.client,
+            )
+        state = self.observe()
+        matrix, bias = self._dynamics(coordinates, q, nu)
+        return ModelProbe(state.pos, state.quat, matrix, bias)
 
     def _parent_body(self, name: str) -> int | None:
         """The scene index of a joint's parent body; None for the world."""
@@ -1024,6 +1250,7 @@ class PybulletAdapter:
         inertial = quat_to_matrix(quat)
         slices = {joint.child: joint.v_slice for joint in tree.joints}
         in_trees = {body for plan in self.trees for body in plan.bodies}
+        in_trees |= {k for k, part in enumerate(self.parts) if part is not None}  # a model's
         for root in [j.child for j in tree.joints if j.type == "free" and j.child not in in_trees]:
             mass, world = self._world_inertia(root, inertial)
             block = np.block([[mass * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), world]])
@@ -1036,7 +1263,62 @@ class PybulletAdapter:
             linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
             own += mass * linear.T @ linear + angular.T @ world @ angular
         change = self._tree_coordinates(inertial, quat_to_matrix(self._body_quat(quat)))
-        return matrix + change.T @ own @ change
+        return matrix + change.T @ own @ change + self._loaded_mass_matrix()
+
+    def _loaded_mass_matrix(self) -> np.ndarray:
+        """M(q0) of the natively loaded models in the tree's coordinates, as PyBullet moves
+        and holds them: Σ Jᵀ diag(m, I) J over their bodies (``models.held_inertia``), each
+        column of J the bodies' centre velocities and ω (``models.inertial_state``) with one
+        coordinate at 1 (``_set_loaded_velocities``). The velocities are restored after."""
+        tree = self.scene.joint_tree
+        matrix = np.zeros((tree.nv, tree.nv))
+        parts = [part for part in self.parts if part is not None and not part.welded]
+        if not parts:
+            return matrix
+        now = self._set_loaded_velocities(None)
+        columns = []
+        for column in np.eye(tree.nv):
+            self._set_loaded_velocities(column)
+            motion = [models.inertial_state(part, self.client)[2:] for part in parts]
+            columns.append(np.concatenate([np.concatenate(m) for m in motion]))
+        self._set_loaded_velocities(now)
+        jacobian = np.array(columns).T
+        for k, part in enumerate(parts):
+            mass, _, world = models.held_inertia(part, self.client)
+            linear, angular = jacobian[6 * k : 6 * k + 3], jacobian[6 * k + 3 : 6 * k + 6]
+            matrix += mass * linear.T @ linear + angular.T @ world @ angular
+        return matrix
+
+    def _set_loaded_velocities(self, nu: np.ndarray | None) -> np.ndarray:
+        """The natively loaded models' velocities set from a tree ν (each joint's rate at its
+        current position by ``resetJointState``; a floating base's v and ω, world frame, the
+        tree's free coordinates, by ``resetBaseVelocity``); None sets nothing. Returns the
+        tree ν they held before (other coordinates 0)."""
+        tree = self.scene.joint_tree
+        native = self._native_joints()
+        before = np.zeros(tree.nv)
+        for joint in tree.joints:
+            at, part = joint.v_slice.start, self.parts[joint.child]
+            if joint.name in native and joint.type in ("hinge", "slider"):
+                held = native[joint.name]
+                position, before[at] = pybullet.getJointState(
+                    held.body, held.index, physicsClientId=self.client
+                )[:2]
+                if nu is not None:
+                    pybullet.resetJointState(
+                        held.body, held.index, position, float(nu[at]), physicsClientId=self.client
+                    )
+            elif joint.type == "free" and part is not None:
+                linear, angular = pybullet.getBaseVelocity(part.body, physicsClientId=self.client)
+                before[at : at + 6] = [*linear, *angular]
+                if nu is not None:
+                    pybullet.resetBaseVelocity(
+                        part.body,
+                        nu[at : at + 3].tolist(),
+                        nu[at + 3 : at + 6].tolist(),
+                        physicsClientId=self.client,
+                    )
+        return before
 
     def _world_inertia(self, body: int, inertial: np.ndarray) -> tuple[float, np.ndarray]:
         """A body's mass and world inertia as PyBullet holds them (``getDynamicsInfo``)."""
@@ -1067,6 +1349,21 @@ class PybulletAdapter:
                 change[at : at + size, slices[link.body]] = block
                 at += size
         return change
+
+    def _model_settings(self, model: models.NativeModel) -> dict[str, object]:
+        """A natively loaded model (provenance): its file, PyBullet's loader and flags, and
+        the loader's bodies removed (``models._world_geoms``)."""
+        layout = model.layout
+        from_file = layout.format == "urdf" and self.urdf_inertia == "file"
+        return {
+            "model": layout.name,
+            "file": str(layout.path),
+            "loader": models.LOADERS[layout.format],
+            "flags": "URDF_USE_INERTIA_FROM_FILE" if from_file else "none",
+            "useFixedBase": bool(layout.spec.fixed_base),
+            "collisions": bool(layout.spec.collisions),
+            "removed_bodies": list(model.removed),
+        }
 
     def _tree_settings(self) -> list[dict[str, object]]:
         """Each multibody (provenance): its base and each link's body, joint, parent, damping

@@ -6,11 +6,17 @@ from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
     JOINT_FEATURES,
+    MODEL_LOADER_OPTION,
     Capabilities,
     Count,
     EngineDeclaration,
     EngineOption,
 )
+
+INERTIA_MODES = ("file", "shapes")
+"""The ``urdf_inertia`` option: ``file`` (``URDF_USE_INERTIA_FROM_FILE``: the URDF's
+``<inertial>``) or ``shapes`` (PyBullet's own default: the file's mass, and an inertia computed
+from the link's collision shapes)."""
 
 DECLARATION = EngineDeclaration(
     name="pybullet",
@@ -40,6 +46,16 @@ DECLARATION = EngineDeclaration(
             (),
             None,
             20,
+        ),
+        MODEL_LOADER_OPTION,
+        EngineOption(
+            "urdf_inertia",
+            str,
+            "a natively loaded URDF's link inertia: file (URDF_USE_INERTIA_FROM_FILE, the "
+            "<inertial> as written) or shapes (PyBullet's own default: computed from the "
+            "collision shapes)",
+            INERTIA_MODES,
+            "file",
         ),
     ),
     capabilities=Capabilities(
