@@ -35,8 +35,7 @@ from validation.reference.articulated import (
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import parse_engine_spec
 from validation.scenario.load import load_scenario
-from validation.scenario.schema import ModelSpec
-from validation.scenario.urdf import Frame, ModelLayout, model_path
+from validation.scenario.urdf import Frame
 
 KUKA = "pkg:pybullet_data/kuka_iiwa/model.urdf"
 CARTPOLE = "pkg:pybullet_data/cartpole.urdf"
@@ -49,6 +48,20 @@ PHYSVAL = "drake(model_loader=physval)"
 CONTINUOUS = "drake(profile=continuous)"
 
 TURN = (math.cos(0.2), 0.0, 0.0, math.sin(0.2))  # 0.4 rad about z
+PENDULUM_START = {"pend/slider": 0.2, "pend/hinge": 0.3, "pend/hinge2": -0.4}
+PENDULUM_RATES = {"pend/slider": -0.1, "pend/hinge": 0.6}
+
+FREE_MJCF = """<mujoco model="free"><worldbody>
+  <body name="torso" pos="0 0 1" euler="10 20 30"><freejoint name="root"/>
+    <geom type="box" size="0.1 0.2 0.3"/>
+    <body name="arm" pos="0.2 0 0"><joint name="shoulder" axis="0 1 0" damping="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body name="hand" pos="0.3 0 0" quat="0.9 0.1 0.2 0">
+        <geom type="box" size="0.05 0.02 0.03"/></body></body></body></worldbody></mujoco>
+"""
+"""An MJCF rooted at one free top-level body (its own pose in the file is not the model's),
+a hinge, and a jointless body (welded: the scene joint ``f/hand.weld`` the file does not
+name)."""
 TILT = (math.cos(0.1), 0.0, math.sin(0.1), 0.0)  # 0.2 rad about y
 
 MODELS = {
@@ -85,6 +98,37 @@ MODELS = {
         "joint_positions": {"p/joint1": 0.6, "p/joint3": -0.4},
         "joint_velocities": {"p/joint0": 0.5},
     },
+    "pendulum": {
+        "name": "pend",
+        "file": PENDULUM,
+        "joint_positions": PENDULUM_START,
+        "joint_velocities": PENDULUM_RATES,
+    },
+    "pendulum_placed": {
+        "name": "pend",
+        "file": PENDULUM,
+        "position": [1.0, 2.0, 3.0],
+        "orientation": list(TURN),
+        "joint_positions": PENDULUM_START,
+        "joint_velocities": PENDULUM_RATES,
+    },
+    "free_mjcf": {
+        "name": "f",
+        "file": "free.xml",
+        "position": [0.5, 0.0, 2.0],
+        "orientation": list(TILT),
+        "fixed_base": False,
+        "joint_positions": {"f/shoulder": 0.4},
+        "joint_velocities": {"f/shoulder": -0.7},
+    },
+    "welded_mjcf": {
+        "name": "f",
+        "file": "free.xml",
+        "position": [0.5, 0.0, 2.0],
+        "orientation": list(TILT),
+        "joint_positions": {"f/shoulder": 0.4},
+        "joint_velocities": {"f/shoulder": -0.7},
+    },
     "floating_chain": {
         "name": "c",
         "file": "chain.urdf",
@@ -99,7 +143,9 @@ MODELS = {
 cartpole (a massless root link: its slider hangs from the world) swinging, the A1 quadruped
 (a trunk with mass welded to the world, massive links on fixed joints; its knees' limits do
 not hold 0, so they start bent), the five-link pendulum (its root link is named ``world``,
-which Drake's parser would take for its own world), the chain floating from a tilted pose."""
+which Drake's parser would take for its own world), the MJCF inverted double pendulum at the
+origin and away from it (Drake's MJCF parser hangs its bodies from Drake's world), an MJCF with
+a free root floating and welded, the chain floating from a tilted pose."""
 
 SAME_MODEL = 1e-9
 """Relative (the parity gate's ``PARITY_TOLERANCE``): Drake's reading of a URDF against
@@ -125,6 +171,7 @@ def write_scene(folder: Path, key: str, engines=(NATIVE,), duration: float = 1.0
     import yaml
 
     (folder / "chain.urdf").write_text(CHAIN)
+    (folder / "free.xml").write_text(FREE_MJCF)
     path = folder / f"{key}.yaml"
     document = {"dt": 1e-3, "duration": duration, "engines": list(engines)}
     path.write_text(yaml.safe_dump({**document, "models": [MODELS[key]]}, sort_keys=False))
@@ -363,42 +410,15 @@ def test_drake_refuses_the_kukas_stl_collision_meshes(scenes):
         add_models(plant, scene_graph, [dataclasses.replace(layout, spec=spec)], (0, 0, -9.81))
 
 
-PENDULUM_START = {"pend/slider": 0.2, "pend/hinge": 0.3, "pend/hinge2": -0.4}
-PENDULUM_RATES = {"pend/slider": -0.1, "pend/hinge": 0.6}
-
-
-def pendulum_layout(**fields) -> ModelLayout:
-    """The inverted double pendulum as a ``ModelLayout`` written by hand (what physval's MJCF
-    reader will give: a body per ``<body>`` at its centre of mass, the capsules' own axes)."""
-    stated = {"joint_positions": PENDULUM_START, "joint_velocities": PENDULUM_RATES}
-    spec = ModelSpec(name="pend", file=PENDULUM, **{**stated, **fields})
-    at = [np.zeros(3), np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.0, 0.3])]
-    return ModelLayout(
-        name="pend",
-        path=model_path(PENDULUM, Path(".")),
-        format="mjcf",
-        spec=spec,
-        bodies=("pend/cart", "pend/pole", "pend/pole2"),
-        links=("cart", "pole", "pole2"),
-        body_in_link=tuple(Frame(np.eye(3), a) for a in at),
-        joints=("pend/slider", "pend/hinge", "pend/hinge2"),
-        file_joints=("slider", "hinge", "hinge2"),
-        root_link="cart",
-    )
-
-
 @pytest.fixture(scope="module")
-def pendulum():
-    """(plant, scene_graph, model, context) of the MJCF pendulum loaded by ``add_models``
-    under a gravity the file does not state."""
-    from validation.engines.drake.models import (
-        add_models,
-        filter_model_geometry,
-        model_velocities,
-    )
+def pendulum(scenes):
+    """(plant, scene_graph, model, context, filtered) of the MJCF pendulum's layout (physval's
+    reading) loaded by ``add_models`` alone, under a gravity the file does not state."""
+    from validation.engines.drake.models import filter_model_geometry, model_velocities
 
     plant, scene_graph = _plant()
-    (model,) = add_models(plant, scene_graph, [pendulum_layout()], (0.0, 0.0, -9.0))
+    layout = scenes["pendulum"].models[0]
+    (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.0))
     plant.Finalize()
     filtered = filter_model_geometry(scene_graph, [model])
     context = plant.CreateDefaultContext()
@@ -463,52 +483,31 @@ def test_an_mjcf_model_that_must_not_collide_is_filtered_from_everything(pendulu
     assert all(inspector.CollisionFiltered(a, b) for a in model.geometry for b in every if a != b)
 
 
-def test_an_mjcf_model_away_from_the_origin_is_placed_there():
-    """Its world moved into a body at the model's pose: the pole's centre (as in the test
-    above) turned 0.4 rad about z and lifted to (1, 2, 3)."""
-    from validation.engines.drake.joints import Placement, body_states, pose
-
-    plant, scene_graph = _plant()
-    (model,) = add_models(plant, scene_graph, [pendulum_layout(
-        position=(1.0, 2.0, 3.0), orientation=TURN)], (0.0, 0.0, -9.81))  # fmt: skip
-    plant.Finalize()
-    placement = Placement(list(model.links), list(model.in_link), model.joints)
-    fixed = (np.zeros((3, 3)), np.tile([1.0, 0, 0, 0], (3, 1)))
-    pos = body_states(plant, plant.CreateDefaultContext(), placement, [0, 1, 2], fixed)[0]
-    in_file = [0.2 + 0.3 * math.sin(0.3), 0.0, 0.3 * math.cos(0.3)]
-    assert pos[1] == pytest.approx(pose((1.0, 2.0, 3.0), TURN).multiply(in_file), abs=1e-12)
-
-
 MESHED_MJCF = """<mujoco model="meshed"><compiler meshdir="parts"/>
   <asset><mesh name="cube" file="cube.obj"/></asset>
-  <worldbody>{free}<body name="box" pos="0 0 1">{joint}
+  <worldbody><body name="box" pos="0 0 1"><joint name="j" axis="0 1 0"/>
     <geom type="mesh" mesh="cube" mass="1"/></body></worldbody></mujoco>
 """
 
 
-def test_a_placed_mjcf_finds_its_meshes_and_a_free_one_is_one_line(tmp_path):
-    """Parsed from text, the placed file's mesh folder is made absolute; a free top-level
-    body (a free joint is a top-level body's only) cannot be moved into a base."""
+def test_a_placed_mjcf_finds_its_meshes(scenes, tmp_path):
+    """Parsed from text (moved into a base body), the file's mesh folder is made absolute.
+    A layout of the pendulum's with this file's names (physval's reader computes no mass of
+    a mesh geom)."""
     (tmp_path / "parts").mkdir()
     (tmp_path / "parts" / "cube.obj").write_text(CUBE)
-    for label, joint, free in (("hinged", '<joint name="j" axis="0 1 0"/>', ""),
-                               ("free", "<freejoint/>", "")):  # fmt: skip
-        path = tmp_path / f"{label}.xml"
-        path.write_text(MESHED_MJCF.format(joint=joint, free=free))
-        layout = dataclasses.replace(
-            pendulum_layout(joint_positions={}, joint_velocities={}, position=(0.0, 0.0, 1.0),
-                            collisions=True),
-            path=path, bodies=("pend/box",), links=("box",),
-            body_in_link=(Frame(np.eye(3), np.zeros(3)),), joints=(), file_joints=(),
-        )  # fmt: skip
-        plant, scene_graph = _plant()
-        if label == "free":
-            with pytest.raises(ValueError, match="a free one can only sit at the origin"):
-                add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
-            continue
-        (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
-        assert len(model.geometry) == 1
-        assert model.links[0].default_mass() == 1.0
+    path = tmp_path / "meshed.xml"
+    path.write_text(MESHED_MJCF)
+    layout = scenes["pendulum_placed"].models[0]
+    layout = dataclasses.replace(
+        layout, spec=layout.spec.model_copy(update={"collisions": True}), path=path,
+        bodies=("pend/box",), links=("box",), body_in_link=(Frame(np.eye(3), np.zeros(3)),),
+        joints=("pend/j",), file_joints=("j",), starts=(),
+    )  # fmt: skip
+    plant, scene_graph = _plant()
+    (model,) = add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
+    assert len(model.geometry) == 1
+    assert model.links[0].default_mass() == 1.0
 
 
 WORLD_ROOTED = """<robot name="rooted"><link name="world"/>
@@ -587,7 +586,7 @@ def test_a_motors_reflected_inertia_is_the_joints_armature_and_is_in_m(tmp_path)
         adapter.close()
 
 
-def test_drakes_mjcf_parser_drops_an_armature_without_an_actuator(tmp_path):
+def test_drakes_mjcf_parser_drops_an_armature_without_an_actuator(scenes, tmp_path):
     """MuJoCo adds a joint's ``armature`` to M's diagonal; Drake's MJCF parser keeps it only
     as the reflected inertia of an actuator on the joint, and silently drops it otherwise
     (docs/engines-drake.md 10): 1.064 kg·m² against MuJoCo's 1.164 here."""
@@ -606,10 +605,10 @@ def test_drakes_mjcf_parser_drops_an_armature_without_an_actuator(tmp_path):
         path = tmp_path / f"{label}.xml"
         path.write_text(f'<mujoco model="{label}">{bodies}{extra}</mujoco>')
         plant, scene_graph = _plant()
-        layout = dataclasses.replace(
-            pendulum_layout(joint_positions={}, joint_velocities={}), path=path,
-            bodies=("pend/a",), links=("a",), body_in_link=(Frame(np.eye(3), np.zeros(3)),),
-            joints=("pend/j",), file_joints=("j",), root_link="a",
+        layout = dataclasses.replace(  # physval's reader refuses an armature
+            scenes["pendulum"].models[0], path=path, bodies=("pend/a",), links=("a",),
+            body_in_link=(Frame(np.eye(3), np.zeros(3)),), joints=("pend/j",),
+            file_joints=("j",), starts=(),
         )  # fmt: skip
         add_models(plant, scene_graph, [layout], (0.0, 0.0, -9.81))
         plant.Finalize()
@@ -643,8 +642,13 @@ MESHED = """<robot name="meshed"><link name="box"><inertial><mass value="1"/>
 in a package only ``--package-path parts=DIR`` names."""
 
 
-def test_package_urls_resolve_in_the_files_folder_and_the_package_paths(tmp_path):
+def test_package_urls_resolve_in_the_files_folder_and_the_package_paths(tmp_path, monkeypatch):
+    """By the load's own rule (``validation.scenario.packages``): ``package://robots/...``
+    in the file's own folder tree, ``package://parts/...`` only through ``--package-path``
+    (``PACKAGE_PATHS`` at load, carried in the layout)."""
     import yaml
+
+    from validation.scenario.urdf import PACKAGE_PATHS
 
     robots, parts = tmp_path / "robots", tmp_path / "elsewhere"
     for folder in (robots, parts):
@@ -654,12 +658,15 @@ def test_package_urls_resolve_in_the_files_folder_and_the_package_paths(tmp_path
     document = {"dt": 1e-3, "duration": 0.1, "engines": [NATIVE],
                 "models": [{"name": "m", "file": "robots/meshed.urdf"}]}  # fmt: skip
     (tmp_path / "meshed.yaml").write_text(yaml.safe_dump(document))
+    monkeypatch.setitem(PACKAGE_PATHS, "parts", str(parts))
     layout = compile_scene(load_scenario(tmp_path / "meshed.yaml")).models[0]
     spec = layout.spec.model_copy(update={"collisions": True})
     plant, scene_graph = _plant()
-    with pytest.raises(RuntimeError, match="parts"):
-        add_models(plant, scene_graph, [dataclasses.replace(layout, spec=spec)], (0, 0, -9.81))
-    found = dataclasses.replace(layout, spec=spec, package_paths=(("parts", str(parts)),))
-    plant, scene_graph = _plant()
-    (model,) = add_models(plant, scene_graph, [found], (0.0, 0.0, -9.81))
+    (model,) = add_models(
+        plant, scene_graph, [dataclasses.replace(layout, spec=spec)], (0, 0, -9.81)
+    )
     assert len(model.geometry) == 2
+    plant, scene_graph = _plant()
+    without = dataclasses.replace(layout, spec=spec, package_paths=())
+    with pytest.raises(RuntimeError, match="unknown package 'parts'"):
+        add_models(plant, scene_graph, [without], (0.0, 0.0, -9.81))

@@ -255,7 +255,8 @@ class DrakeAdapter:
             None if b.name in owned else self._create_body(k, b)
             for k, b in enumerate(scenario.bodies)
         ]
-        self.models = add_models(plant, scene_graph, layouts, scenario.gravity)
+        children = {joint.name: joint.child for joint in scenario.joints}
+        self.models = add_models(plant, scene_graph, layouts, scenario.gravity, children)
         self.notes += model_notes(self.models)
         placed = self._place_models(scenario)
         self.tree = scene.joint_tree

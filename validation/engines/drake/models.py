@@ -4,9 +4,10 @@ state, and mapped onto the scene's bodies and joints (``validation.scenario.urdf
 so that the adapter reads Drake's links as the scene's bodies (docs/engines-drake.md 10).
 
 - Parsing: ``Parser(plant, model_name_prefix=<model name>)`` (two models of one file stay two
-  instances); ``package://NAME/...`` resolves through the parser's ``PackageMap``: the file's
-  folder under its own name, and ``ModelLayout.package_paths``. URDF (``.urdf``) and MJCF
-  (``.xml``, Drake's MuJoCo parser).
+  instances); ``package://NAME/...`` resolves through the parser's ``PackageMap``, each name
+  to the folder the load's own rule finds (``validation.scenario.packages``: the file's folder
+  tree, then ``ModelLayout.package_paths``). URDF (``.urdf``) and MJCF (``.xml``, Drake's
+  MuJoCo parser).
 - A URDF whose root link is named ``world`` is parsed with that link renamed: Drake's parser
   takes a link of that name for its own world body (pybullet_data's ``pendulum5.urdf`` and 22
   other files have one).
@@ -18,9 +19,11 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
 - Placement: a URDF's root link is welded to the world at the model's position and
   orientation (``fixed_base``: through a ``FixedOffsetFrame`` of the world at that pose, so the
   weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
-  the file's top-level bodies to the world itself (their joints, or a weld): at the origin the
-  file is parsed as it is; elsewhere its ``<worldbody>`` is moved into one jointless body at
-  the model's pose (``_placed_mjcf``; a free top-level body there is refused, one line).
+  the file's top-level bodies to the world itself (their joints, or a weld): an MJCF rooted at
+  its ``<worldbody>`` is parsed as it is at the origin, and elsewhere with its ``<worldbody>``
+  moved into one jointless body at the model's pose (``_placed_mjcf``); an MJCF whose root is
+  one free top-level body is placed like a URDF's root (welded or floating at the model's
+  pose, not the file's).
 - Gravity: Drake's MJCF parser sets the plant's gravity from the file's ``<option gravity>``
   (MuJoCo's default when absent); the scene's gravity is set again after every model is
   parsed (``add_models``).
@@ -35,6 +38,7 @@ import contextlib
 import logging
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, Role
@@ -43,6 +47,8 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.tree import FixedOffsetFrame
 
 from validation.engines.drake.joints import pose
+from validation.scenario.packages import PACKAGE_URI, resolve
+from validation.scenario.robot import xml_root
 from validation.scenario.urdf import ModelLayout
 
 GEOMETRY_ELEMENTS = ("collision", "visual")
@@ -61,7 +67,8 @@ and of the body an MJCF's world is moved into to place it (``_placed_mjcf``)."""
 
 DRAKE_WORLD = "world"
 """A URDF link of this name is Drake's world body to its parser: the file's joints from it
-would hang from Drake's world at the origin, not at the model's pose."""
+would hang from Drake's world at the origin, not at the model's pose. Physval's MJCF reading
+names an MJCF's ``<worldbody>`` so too (``validation.scenario.mjcf.WORLD``)."""
 
 RENAMED_WORLD = "physval_world_link"
 """What a root link named ``DRAKE_WORLD`` is renamed to before Drake parses the file, so that
@@ -139,15 +146,28 @@ def root_name(layout: ModelLayout) -> str:
 
 
 def _parser(plant, layout: ModelLayout) -> Parser:
-    """A parser scoped by the model's name, ``package://`` resolving to the file's folder
-    (by its own name) and the layout's package paths."""
+    """A parser scoped by the model's name, each ``package://`` name of the file in its
+    ``PackageMap`` (``_package_folders``)."""
     parser = Parser(plant, layout.name)
-    packages = parser.package_map()
-    folder = layout.path.parent
-    for name, where in ((folder.name, folder), *layout.package_paths):
-        if not packages.Contains(name):
-            packages.Add(name, str(where))
+    for name, folder in _package_folders(layout).items():
+        parser.package_map().Add(name, folder)
     return parser
+
+
+def _package_folders(layout: ModelLayout) -> dict[str, str]:
+    """Package name -> its folder, for every ``package://NAME/...`` the file refers to, found
+    by the load's own rule (``validation.scenario.packages.resolve``: the file's folder tree,
+    then the layout's package paths); a reference found nowhere is left to Drake's message."""
+    found: dict[str, str] = {}
+    for element in xml_root(layout.path).iter():
+        for value in element.attrib.values():
+            if not value.startswith(PACKAGE_URI):
+                continue
+            name, _, inside = value[len(PACKAGE_URI) :].partition("/")
+            where = resolve(value, layout.path, layout.package_paths)
+            if where is not None:
+                found.setdefault(name, str(where.parents[len(Path(inside).parts) - 1]))
+    return found
 
 
 def _placed_mjcf(layout: ModelLayout) -> str:
@@ -155,21 +175,10 @@ def _placed_mjcf(layout: ModelLayout) -> str:
     one body (``BASE_FRAME``, no joint: welded to the world) at the model's position and
     orientation, and its asset folders (``<compiler meshdir texturedir assetdir>``, each
     ``<include file>``) made absolute (``MESH_AND_TEXTURE_FOLDERS``), as the text has no
-    folder of its own. ValueError for a free top-level body (a free joint belongs to a
-    top-level body only)."""
+    folder of its own."""
     root = ElementTree.parse(layout.path).getroot()
     folder = layout.path.parent
     world = root.find("worldbody")
-    if (
-        world is None
-        or world.find("body/freejoint") is not None
-        or any(joint.get("type") == "free" for joint in world.findall("body/joint"))
-    ):
-        raise ValueError(
-            f"model {layout.name!r}: Drake's MJCF parser attaches the file's top-level bodies "
-            "to the world itself; a file without them or with a free one can only sit at the "
-            "origin (position 0, orientation identity)"
-        )
     compiler = root.find("compiler")
     if compiler is None:
         compiler = ElementTree.SubElement(root, "compiler")
@@ -206,7 +215,7 @@ def _parse(plant, layout: ModelLayout) -> list:
         layout.spec.collisions and root_name(layout) == layout.root_link
     ):
         return parser.AddModelsFromString(_urdf_text(layout), FILE_TYPES["urdf"])
-    if layout.format == "mjcf" and not _is_origin(layout):
+    if _hangs_from_drakes_world(layout) and not _is_origin(layout):
         return parser.AddModelsFromString(_placed_mjcf(layout), FILE_TYPES["mjcf"])
     return parser.AddModels(str(layout.path))
 
@@ -235,39 +244,64 @@ def _is_origin(layout: ModelLayout) -> bool:
     return not np.any(layout.spec.position) and tuple(layout.spec.orientation) == (1, 0, 0, 0)
 
 
-def add_model(plant, scene_graph, layout: ModelLayout) -> NativeModel:
+def add_model(plant, scene_graph, layout: ModelLayout, children=None) -> NativeModel:
     """``layout``'s file on ``plant`` (not finalized) by Drake's parser, placed and at its
-    stated joint positions (module docstring); ValueError for what Drake cannot take."""
+    stated joint positions (module docstring); ``children`` (scene joint name -> its child
+    body's scene name) finds the Drake weld of each scene joint the file does not name (a
+    fixed base's, an MJCF jointless body's): its child's inboard joint."""
     inspector = scene_graph.model_inspector()
     before = set(inspector.GetAllGeometryIds(Role.kProximity))
     with parser_log() as warnings:
         (instance,) = _parse(plant, layout)
     geometry = tuple(g for g in inspector.GetAllGeometryIds(Role.kProximity) if g not in before)
+    if not _hangs_from_drakes_world(layout):
+        _place_root(plant, layout, plant.GetBodyByName(root_name(layout), instance), instance)
+    links = tuple(plant.GetBodyByName(link, instance) for link in layout.links)
     joints = {}
-    if layout.format == "urdf":
-        root = plant.GetBodyByName(root_name(layout), instance)
-        if layout.spec.fixed_base:
-            on_world = plant.AddFrame(
-                FixedOffsetFrame(BASE_FRAME, plant.world_frame(), base_pose(layout), instance)
-            )
-            weld = plant.WeldFrames(on_world, root.body_frame())
-            joints.update({name: weld for name, file in _named(layout) if file is None})
-        else:
-            plant.SetDefaultFloatingBaseBodyPose(root, base_pose(layout))
     for name, file in _named(layout):
         if file is not None:
             joints[name] = plant.GetJointByName(file, instance)
             if joints[name].num_positions() == 1:
                 joints[name].set_default_positions([layout.initial_position(file)])
-    links = tuple(plant.GetBodyByName(link, instance) for link in layout.links)
+        elif name in (children or {}):
+            joints[name] = _inboard(plant, links[layout.bodies.index(children[name])])
     in_link = tuple(transform(frame) for frame in layout.body_in_link)
     return NativeModel(layout, instance, links, in_link, joints, geometry, tuple(warnings))
 
 
-def add_models(plant, scene_graph, layouts, gravity) -> list[NativeModel]:
+def _hangs_from_drakes_world(layout: ModelLayout) -> bool:
+    """An MJCF whose root is its ``<worldbody>`` (physval's reading names it ``world``): Drake's
+    parser hangs its top-level bodies from Drake's world itself (placed by ``_placed_mjcf``)."""
+    return layout.format == "mjcf" and layout.root_link == DRAKE_WORLD
+
+
+def _place_root(plant, layout: ModelLayout, root, instance) -> None:
+    """The root link at the model's pose: welded to the world there (``fixed_base``, through a
+    ``FixedOffsetFrame``, so the weld's anchor is the base's point) or floating from there (an
+    MJCF free body's own pose in the file is not the model's: physval's reading puts the root
+    at the model's pose)."""
+    if layout.spec.fixed_base:
+        on_world = plant.AddFrame(
+            FixedOffsetFrame(BASE_FRAME, plant.world_frame(), base_pose(layout), instance)
+        )
+        plant.WeldFrames(on_world, root.body_frame())
+    else:
+        plant.SetDefaultFloatingBaseBodyPose(root, base_pose(layout))
+
+
+def _inboard(plant, body):
+    """The joint whose child is ``body``."""
+    return next(
+        plant.get_joint(index)
+        for index in plant.GetJointIndices()
+        if plant.get_joint(index).child_body().index() == body.index()
+    )
+
+
+def add_models(plant, scene_graph, layouts, gravity, children=None) -> list[NativeModel]:
     """Every layout's model (``add_model``), then the scene's ``gravity`` (3,) m/s² on the
     plant again (the MJCF parser sets the file's)."""
-    models = [add_model(plant, scene_graph, layout) for layout in layouts]
+    models = [add_model(plant, scene_graph, layout, children) for layout in layouts]
     plant.mutable_gravity_field().set_gravity_vector(np.asarray(gravity, dtype=float))
     return models
 
