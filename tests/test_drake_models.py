@@ -1,12 +1,12 @@
 """Drake's native loader for a scene's ``models`` (issue 36; docs/engines-drake.md 10): the
-Kuka iiwa, the cartpole, the A1 quadruped and the five-link pendulum of pybullet_data read by
-Drake's own ``Parser`` hold the masses, inertias, joints and start state physval's reading of
-the same files states, and their mass matrix, bias forces and link poses equal the reference
-side's at random states; so do a model with a floating root and turned inertial frames, and
-the Kuka beside bodies and a joint of the scene's own; both profiles. A 1 s passive swing runs
-through ``physval run`` with both loaders. An MJCF file goes through the loader function
-itself (physval's own MJCF reader is another change: the scene path is tested after the
-merge), as do collisions, ``package://`` and reflected inertia. One adapter per scene and
+Kuka iiwa, the cartpole, the A1 quadruped and the five-link pendulum of pybullet_data (URDF)
+and its inverted double pendulum (MJCF, at the origin and placed) read by Drake's own
+``Parser`` hold the masses, inertias, joints and start state physval's reading of the same
+files states, and their mass matrix, bias forces and link poses equal the reference side's at
+random states; so do a URDF chain and an MJCF with a floating root, and the Kuka beside bodies
+and a joint of the scene's own; both profiles. A 1 s passive swing runs through ``physval
+run`` with both loaders. The loader function itself: collisions, MJCF details (gravity,
+masses from geoms, armature), ``package://`` and reflected inertia. One adapter per scene and
 spec for the whole module (it runs in about 5 s). pydrake is a test dependency
 (``tests/test_engine_drake.py``)."""
 
@@ -159,6 +159,9 @@ most 1.1e-15 (M, bias) and 7.8e-16 m (poses) on the three models here."""
 
 STATES = 4
 """Random joint states probed per model (seeded)."""
+
+SWUNG = ("kuka", "cartpole", "pendulum_placed")
+"""The scenes of the passive swing through ``physval run``."""
 
 SWING_AGREEMENT = 1e-9
 """m: the native and the physval-built Kuka over a 1 s swing at dt = 1 ms (the run's
@@ -347,13 +350,12 @@ def test_the_parsers_warnings_are_in_the_provenance(loaded):
 
 
 def test_a_passive_swing_runs_with_both_loaders(tmp_path):
-    """``physval run`` of the Kuka and the cartpole for 1 s in Drake with its own parser and
-    with physval's bodies: every row ``ok``, and the two swings agree (``divergence``)."""
+    """``physval run`` of the Kuka, the cartpole and the MJCF pendulum (placed) for 1 s in
+    Drake with its own parser and with physval's bodies: every row ``ok``, and the two swings
+    agree (``divergence``)."""
     import pandas as pd
 
-    paths = [
-        str(write_scene(tmp_path, key, engines=(NATIVE, PHYSVAL))) for key in ("kuka", "cartpole")
-    ]
+    paths = [str(write_scene(tmp_path, key, engines=(NATIVE, PHYSVAL))) for key in SWUNG]
     out = tmp_path / "run"
     history = f"sqlite:///{tmp_path / 'history.sqlite'}"
     assert main(["run", *paths, "--out", str(out), "--history", history, "--jobs", "1"]) == 0
@@ -361,12 +363,12 @@ def test_a_passive_swing_runs_with_both_loaders(tmp_path):
     assert set(rows["status"]) == {"ok"}
     assert set(rows["engine"]) == {NATIVE, PHYSVAL}
     divergence = rows[rows["metric"] == "divergence"]
-    assert len(divergence) == 2
+    assert len(divergence) == len(SWUNG)
     assert divergence["value"].max() <= SWING_AGREEMENT
     assert rows[rows["metric"] == "joint_violation"]["value"].max() <= ROUND_OFF
 
 
-# --- the loader itself: collisions, and MJCF (physval's MJCF reader is another change) ------
+# --- the loader itself: collisions, MJCF details, package://, armature -------------------
 
 
 def _plant():
