@@ -148,14 +148,15 @@ origin and away from it (Drake's MJCF parser hangs its bodies from Drake's world
 a free root floating and welded, the chain floating from a tilted pose."""
 
 SAME_MODEL = 1e-9
-"""Relative (the parity gate's ``PARITY_TOLERANCE``): Drake's reading of a URDF against
-physval's. Measured 2.2e-16 m (COM), 1.4e-17 kg·m² (inertia) and 0 kg (mass) on the Kuka:
-both read the same decimal numbers and compose the same transforms."""
+"""Relative (the parity gate's ``PARITY_TOLERANCE``): Drake's reading of a model file against
+physval's. Measured 2.2e-16 m (COM), 4.4e-16 kg·m² (inertia) and 0 kg (mass) over the scenes
+here: both read the same decimal numbers and compose the same transforms."""
 
 ROUND_OFF = 1e-12
 """Relative or m: Drake's M, bias and link poses at one state against the reference side's
 (composite rigid body, Newton-Euler, forward kinematics in double precision): measured at
-most 1.1e-15 (M, bias) and 7.8e-16 m (poses) on the three models here."""
+most 1.2e-15 (M), 1.0e-15 (bias) and 1.3e-15 m (poses) over the scenes here; physval-built,
+8.5e-12 (``SAME_MODEL`` bounds those)."""
 
 STATES = 4
 """Random joint states probed per model (seeded)."""
@@ -164,9 +165,10 @@ SWUNG = ("kuka", "cartpole", "pendulum_placed")
 """The scenes of the passive swing through ``physval run``."""
 
 SWING_AGREEMENT = 1e-9
-"""m: the native and the physval-built Kuka over a 1 s swing at dt = 1 ms (the run's
-``divergence``): measured 4.7e-12 m, the round-off of two equal models' floats (physval's
-bodies carry the URDF's frames through a quaternion and back) grown over 1000 steps."""
+"""m: the native and the physval-built models over a 1 s swing at dt = 1 ms (the run's
+``divergence``): measured 4.7e-12 m on the Kuka (4.0e-16 the cartpole, 5.6e-15 the placed
+pendulum), the round-off of two equal models' floats (physval's bodies carry the file's
+frames through a quaternion and back) grown over 1000 steps."""
 
 
 def write_scene(folder: Path, key: str, engines=(NATIVE,), duration: float = 1.0) -> Path:
