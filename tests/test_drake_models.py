@@ -64,6 +64,16 @@ a hinge, and a jointless body (welded: the scene joint ``f/hand.weld`` the file 
 name)."""
 TILT = (math.cos(0.1), 0.0, math.sin(0.1), 0.0)  # 0.2 rad about y
 
+FREE_ENTRY = {
+    "name": "f",
+    "file": "free.xml",
+    "position": [0.5, 0.0, 2.0],
+    "orientation": list(TILT),
+    "joint_positions": {"f/shoulder": 0.4},
+    "joint_velocities": {"f/shoulder": -0.7},
+}
+"""The free-rooted MJCF's entry (``FREE_MJCF``), welded at its pose unless it floats."""
+
 MODELS = {
     "kuka": {
         "name": "arm",
@@ -112,23 +122,8 @@ MODELS = {
         "joint_positions": PENDULUM_START,
         "joint_velocities": PENDULUM_RATES,
     },
-    "free_mjcf": {
-        "name": "f",
-        "file": "free.xml",
-        "position": [0.5, 0.0, 2.0],
-        "orientation": list(TILT),
-        "fixed_base": False,
-        "joint_positions": {"f/shoulder": 0.4},
-        "joint_velocities": {"f/shoulder": -0.7},
-    },
-    "welded_mjcf": {
-        "name": "f",
-        "file": "free.xml",
-        "position": [0.5, 0.0, 2.0],
-        "orientation": list(TILT),
-        "joint_positions": {"f/shoulder": 0.4},
-        "joint_velocities": {"f/shoulder": -0.7},
-    },
+    "free_mjcf": {**FREE_ENTRY, "fixed_base": False},
+    "welded_mjcf": FREE_ENTRY,
     "floating_chain": {
         "name": "c",
         "file": "chain.urdf",
