@@ -45,7 +45,15 @@ def compare_joints(
     report = getattr(adapter, "joint_report", None)
     if report is None:
         return [_unreported("the adapter declares joints but has no joint_report()")]
-    got, want = report(), expected_report(scene)
+    return compare_joint_report(report(), scene, tolerance)
+
+
+def compare_joint_report(
+    got: JointReport, scene: CompiledScene, tolerance: float = JOINT_TOLERANCE
+) -> list[Mismatch]:
+    """Every joint field of ``got`` (an engine's ``joint_report()``) that differs from the
+    scene's (``compare_joints``); each mismatch's ``item`` is the joint's name."""
+    want = expected_report(scene)
     names = [j.name for j in scene.scenario.joints]
     if len(got.types) != len(names):
         return [_unreported(f"reported {len(got.types)} joints; the scene has {len(names)}")]
@@ -101,7 +109,7 @@ def _joint(name: str, field: str, engine, expected, error: float, tolerance: flo
         return np.round(value, 12).tolist() if isinstance(value, np.ndarray) else value
 
     return Mismatch(
-        f"joint {name!r} {field}", None, shown(engine), shown(expected), error, tolerance
+        f"joint {name!r} {field}", None, shown(engine), shown(expected), error, tolerance, item=name
     )
 
 

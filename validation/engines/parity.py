@@ -44,6 +44,9 @@ class Mismatch:
     problem: str = ""
     """Set when the engine's value cannot be compared at all (a wrong shape, a NaN): what is
     wrong with it, said instead of a relative error."""
+    item: str | None = None
+    """The scene joint a joint field's mismatch is of (``joint_parity``); None otherwise (a
+    body's row is ``body``)."""
 
     def __str__(self) -> str:
         where = f" of body {self.body}" if self.body is not None else ""

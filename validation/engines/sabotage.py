@@ -48,6 +48,16 @@ FRICTION_FACTOR = 2.0
 WARM_START_FACTOR = 2.0
 """``warm_start_doubled``: the last step's impulses carried over twice."""
 
+ROTATED_BODY = 2
+"""``inertial_frame_rotated``: the index, among a scene's first model's bodies, of the body
+whose link's inertial frame is turned (the third: the Kuka's ``lbr_iiwa_link_3``; the last
+of a model with fewer)."""
+
+INERTIAL_TURN = 0.5
+"""rad: ``inertial_frame_rotated`` adds this to the roll of the link's ``<inertial><origin
+rpy>``: its inertia about turned axes, the slip a converter makes that drops or doubles an
+inertial rotation."""
+
 WRONG_RESTITUTION_THRESHOLD = 0.1
 """m/s. ``restitution_threshold``: contacts approaching slower than this stop dead, where the
 documented law (``Settings.restitution_threshold`` = 0) bounces every approach."""
@@ -110,12 +120,19 @@ def _import_patched_packages() -> None:
 
 @dataclass(frozen=True)
 class Sabotage:
-    """A realistic bug in one place of mini_engine: a name, what it breaks, where, and how."""
+    """A realistic bug in one place of mini_engine: a name, what it breaks, where, and how.
+
+    ``loader``: None for a bug of the solver; ``"native"`` for a model-reading bug (the
+    adapter builds a scene's models from its own, wrong, reading of the file, as an engine
+    with a native loader does): the sabotaged adapter then states ``model_loader`` native,
+    so the runner measures the difference as tier 1 (``model_fields``) instead of refusing.
+    """
 
     name: str
     what: str
     where: str
     patches: tuple[Patch, ...]
+    loader: str | None = None
 
     @functools.cached_property
     def _sites(self) -> list[tuple[object, str | None, object, object, object]]:
@@ -354,6 +371,63 @@ def _damper_without_spin(original):
     return spring_forces
 
 
+def _inertial_frame_rotated(original):
+    """mini's model built with one model body's inertia as a copy of the first model's file
+    gives it, whose ``ROTATED_BODY``'s link has its inertial frame turned by
+    ``INERTIAL_TURN`` about x: that body's inertia about the scene's own body axes (so its
+    observed pose is the scene's, as a native loader's observation is), every other body and
+    joint as they are."""
+
+    def build_mini_model(scenario):
+        if not scenario.models:
+            return original(scenario)
+        import tempfile
+        from pathlib import Path
+
+        import numpy as np
+
+        from validation.reference.rotation import quat_to_matrix
+        from validation.scenario.schema import Scenario
+        from validation.scenario.urdf import model_layouts, with_joint_state
+
+        layout = model_layouts(scenario)[0]
+        which = min(ROTATED_BODY, len(layout.links) - 1)
+        with tempfile.TemporaryDirectory() as folder:
+            copy = Path(folder) / layout.path.name
+            _write_turned_inertial(layout.path, copy, layout.links[which])
+            data = scenario.model_dump()
+            data["models"][0]["file"] = str(copy)
+            turned = Scenario.model_validate({**data, "source": scenario.source})
+            read = with_joint_state(turned, {}, {}).body(layout.bodies[which])
+        stated = scenario.body(layout.bodies[which])
+        axes = quat_to_matrix(np.asarray(stated.orientation)).T @ quat_to_matrix(
+            np.asarray(read.orientation)
+        )
+        data = scenario.model_dump()
+        names = [body["name"] for body in data["bodies"]]
+        data["bodies"][names.index(stated.name)]["inertia"] = (
+            axes @ read.inertia_matrix @ axes.T
+        ).tolist()
+        return original(Scenario.model_validate({**data, "source": scenario.source}))
+
+    return build_mini_model
+
+
+def _write_turned_inertial(source, target, link: str) -> None:
+    """``source`` (a URDF) written to ``target`` with ``link``'s ``<inertial><origin rpy>``
+    turned by ``INERTIAL_TURN`` about its x axis (roll)."""
+    import xml.etree.ElementTree as ElementTree
+
+    tree = ElementTree.parse(source)
+    inertial = tree.getroot().find(f"./link[@name='{link}']/inertial")
+    origin = inertial.find("origin")
+    if origin is None:
+        origin = ElementTree.SubElement(inertial, "origin")
+    roll, pitch, yaw = (float(v) for v in (origin.get("rpy") or "0 0 0").split())
+    origin.set("rpy", f"{roll + INERTIAL_TURN!r} {pitch!r} {yaw!r}")
+    tree.write(target)
+
+
 def _sphere_box():
     from mini_engine.shapes import ShapeType
 
@@ -527,6 +601,14 @@ SABOTAGES: dict[str, Sabotage] = {
             "forces.constant_loads",
             (Patch("mini_engine.forces", "constant_loads", _no_torque),),
         ),
+        Sabotage(
+            "inertial_frame_rotated",
+            f"a model's third link's inertial frame turned {INERTIAL_TURN} rad about x (read "
+            "natively: the model tier's planted difference)",
+            "engines.mini.model.build_mini_model",
+            (Patch("validation.engines.mini.model", "build_mini_model", _inertial_frame_rotated),),
+            loader="native",
+        ),
     )
 }
 """Sabotage name -> the bug; each one realistic and in one place of mini_engine."""
@@ -556,6 +638,8 @@ class SabotagedAdapter:
         self.adapter = adapter
         self.spec = adapter.spec
         self.sabotage = sabotage
+        self.model_loader = sabotage.loader
+        """``native`` for a model-reading sabotage (the runner's ``loader_of``), else None."""
 
     def load(self, scene) -> None:
         with self.sabotage.active():  # the adapter builds its model here, sabotaged
@@ -564,6 +648,10 @@ class SabotagedAdapter:
     def model_report(self):
         with self.sabotage.active():
             return self.adapter.model_report()
+
+    def joint_report(self):
+        with self.sabotage.active():
+            return self.adapter.joint_report()
 
     def advance(self, steps: int) -> None:
         with self.sabotage.active():

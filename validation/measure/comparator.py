@@ -29,11 +29,19 @@ from validation.contract import (
     VECTOR_ERROR_COLUMNS,
 )
 from validation.engine_api import Capabilities, declaration_of
-from validation.measure.metrics import Context, Measurement, divergence, measure
+from validation.measure.metrics import (
+    Context,
+    Measurement,
+    agreement_time,
+    divergence,
+    joint_divergence,
+    measure,
+)
 from validation.measure.noise import DIVERGENCE
 from validation.measure.resolution import precision_band, resolution_note
 from validation.measure.runner import EngineRun
 from validation.scenario.compiled import CompiledScene
+from validation.scenario.definability import why_undefined
 from validation.scenario.engine_spec import parse_engine_spec
 
 COLUMNS = RESULTS_COLUMNS
@@ -203,8 +211,25 @@ def judge_divergence(rows: list[dict], reference: str) -> list[dict]:
 
 
 def measure_run(scene: CompiledScene, run: EngineRun) -> list[Measurement]:
-    """Every metric of one engine run that needs only that run (empty without a recording)."""
-    return [] if run.recording is None else measure(Context(scene, run.recording))
+    """Every metric of one engine run that needs only that run, the model tiers it carries
+    included (``EngineRun.tiers``); empty without a recording."""
+    if run.recording is None:
+        return []
+    return measure(Context(scene, run.recording)) + list(run.tiers)
+
+
+def pair_metrics(engine: str, ctx: Context, reference: Context, label: str) -> list[Measurement]:
+    """The rows of the engine spec ``engine`` against the scene's reference engine ``label``:
+    ``divergence``, and where the scene defines them (a scene with models, ``definability``)
+    ``joint_divergence`` and ``agreement_time`` (its band the scene's ``joint_divergence``
+    tolerance for this engine)."""
+    band = ctx.scenario.tolerance("joint_divergence", engine)
+    found = [divergence(ctx, reference, label)]
+    if why_undefined("joint_divergence", ctx.traits) is None:
+        found.append(joint_divergence(ctx, reference, label))
+    if why_undefined("agreement_time", ctx.traits) is None:
+        found.append(agreement_time(ctx, reference, label, band))
+    return [result for result in found if result is not None]
 
 
 def compare_scene(
@@ -227,8 +252,9 @@ def compare_scene(
             continue
         results = list(results)
         if reference is not None and run.engine != reference:
-            found = divergence(contexts[run.engine], contexts[reference], reference)
-            results += [found] if found is not None else []
+            results += pair_metrics(
+                run.engine, contexts[run.engine], contexts[reference], reference
+            )
         rows += [_row(scene, run, result, run.status) for result in results]
         if run.status != "ok":
             rows.append(_status_row(scene, run))

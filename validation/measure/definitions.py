@@ -14,6 +14,15 @@ from validation.measure.resolution import (
     FLOAT32_UNIT_ROUNDOFF,
     RESOLUTION_MARK,
 )
+from validation.measure.tier_scales import (
+    FINITE_DIFFERENCE,
+    LIMIT_FLOOR,
+    PROBE_SPEED,
+    RANDOM_STATES,
+    REACH_FLOOR,
+    TYPE_DIFFERENCE,
+)
+from validation.measure.tier_scales import TIERS as TIERS  # the report's tier order, from here
 
 METRIC_DEFINITIONS: dict[str, str] = {
     "energy_drift": "max over every step t of |E(t) - E(0)| / E_scale, E = kinetic "
@@ -57,6 +66,41 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "own closed forms (a failing row of its own in the scene) or when neither engine is (the "
     "message names the pair), and is not judged (passed empty) when only the reference engine "
     "is off its closed forms (the reference is suspect: its own rows fail)",
+    "model_fields": "model tier 1, scenes with models: the largest relative difference between "
+    "what the engine holds after loading and physval's own reading of the model file, over "
+    "every model link's mass (relative to the link's mass), centre of mass (to the model's "
+    f"reach, the largest link-centre distance from its base, at least {REACH_FLOOR} m) and world "
+    "inertia at q0 (to the link's largest principal moment), and every model joint's type "
+    f"({TYPE_DIFFERENCE:g} when it differs), anchor (to the reach), axis (|Δ unit vector|), limits "
+    f"(to max(|limit|, {LIMIT_FLOOR:g})), damping (to the stated damping, or, where none is stated, to M_kk(q0)/duration) and "
+    "armature (to M_kk(q0)), where the engine reports them; the message names the worst link or "
+    "joint and field. Under native model loading a difference is this row, never a "
+    "model_mismatch",
+    "fk_error": "model tier 2, scenes with models: max over the probed joint states (q0 and "
+    f"{RANDOM_STATES} seeded random ones within the limits, rates within ±{PROBE_SPEED:g}) and "
+    "model links of max(|Δ centre|, rotation angle × the model's reach) (m) between the engine's "
+    "link poses (its model_probe, or the scene loaded afresh at each state) and the reference's "
+    "forward kinematics",
+    "mass_matrix_error": "model tier 3, scenes with models: max over the probed states of max "
+    "|M_engine - M_ref| / max |M_ref| in the joint tree's coordinates, M_ref the composite-rigid-"
+    "body matrix; from the engine's model_probe, else its joint_report's M(q0) (one state); no row "
+    "for an engine that exposes neither (mini: maximal coordinates)",
+    "bias_force_error": "model tier 3, scenes with models: max over the probed states of max "
+    "|b_engine - b_ref| / max |b_ref|, b = C(q, ν)ν + g(q) (M ν̇ + b = τ) in the tree's "
+    "coordinates, b_ref by recursive Newton-Euler; from the engine's model_probe, else by a "
+    f"{FINITE_DIFFERENCE} (stated in the message): the scene loaded at the state, two steps "
+    "with no applied torque, q̈ the second difference of the joint coordinates read from the "
+    "poses, the error the residual M_ref q̈ + b_ref - τ_damping at the middle state (ν the "
+    "central difference), with a band: the residual's change when ν is read backward "
+    "instead, O(dt)",
+    "joint_divergence": "trajectory tier, scenes with models and two or more engines: max over "
+    "the kept samples and the tree's hinge and slider coordinates of |q - q_reference| (rad or "
+    "m; a hinge's difference wrapped to ±π) against the scene's reference engine (the first "
+    "that ran), q read from the observed poses",
+    "agreement_time": "trajectory tier, scenes with models, two or more engines and a "
+    "joint_divergence tolerance: the time (s) this engine's joint coordinates stay within that "
+    "tolerance of the reference engine's (the whole run when they never leave it); error = "
+    "duration - agreement time, the time lost",
 }
 """Metric name -> the one-line definition shown in the report legend."""
 

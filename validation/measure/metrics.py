@@ -21,6 +21,7 @@ from validation.measure.impact_log import RANKINGS, restitution_error_of
 from validation.measure.measurement import Measurement
 from validation.measure.recording import Recording
 from validation.measure.states import (
+    coordinate_joints,
     farthest,
     impulse_residual,
     internal_energy,
@@ -241,6 +242,75 @@ def divergence(ctx: Context, reference: Context, reference_label: str) -> Measur
         return None
     difference = farthest(mine.pos[:common] - theirs.pos[:common])
     return _largest_offset("divergence", difference, f"engine:{reference_label}")
+
+
+def _joint_differences(ctx: Context, reference: Context) -> tuple[np.ndarray, np.ndarray] | None:
+    """(times (s,), differences (s, c)): this engine's tree coordinates minus the reference
+    engine's at their common kept samples (``Series.joint_coordinates``), a hinge's wrapped to
+    ±π; None when they share no samples or the scene keeps no coordinates."""
+    mine, theirs = ctx.recording.series, reference.recording.series
+    common = min(mine.t.size, theirs.t.size)
+    columns = mine.joint_coordinates.shape[1]
+    if common == 0 or columns == 0 or not np.allclose(mine.t[:common], theirs.t[:common]):
+        return None
+    difference = mine.joint_coordinates[:common] - theirs.joint_coordinates[:common]
+    hinge = np.array([j.type == "hinge" for j in coordinate_joints(ctx.scene)])
+    wrapped = np.where(hinge, (difference + math.pi) % (2.0 * math.pi) - math.pi, difference)
+    return mine.t[:common], wrapped
+
+
+JOINT_UNITS = {"hinge": "rad", "slider": "m"}
+"""The unit of a joint's coordinate, by its type."""
+
+
+def joint_divergence(ctx: Context, reference: Context, reference_label: str) -> Measurement | None:
+    """max over the common kept samples and the tree's coordinates of |q - q_reference| (rad
+    or m), the message naming the joint and the time; signed: that difference."""
+    found = _joint_differences(ctx, reference)
+    if found is None:
+        return None
+    times, difference = found
+    sample, column = np.unravel_index(int(np.nanargmax(np.abs(difference))), difference.shape)
+    joint = coordinate_joints(ctx.scene)[column]
+    value = float(abs(difference[sample, column]))
+    message = (
+        f"joint {joint.name} at t = {times[sample]:.6g} s: {value:.3g} {JOINT_UNITS[joint.type]} "
+        f"from {reference_label}"
+    )
+    return Measurement(
+        "joint_divergence", value, 0.0, f"engine:{reference_label}", value, message,
+        signed=(float(difference[sample, column]),),
+    )  # fmt: skip
+
+
+def agreement_time(
+    ctx: Context, reference: Context, reference_label: str, band: float | None
+) -> Measurement | None:
+    """The time (s) this engine's tree coordinates stay within ``band`` (the scene's
+    ``joint_divergence`` tolerance) of the reference engine's: the first common kept sample
+    beyond it, or the last common sample's time when none is; expected that last time, error
+    the time lost. None without a band or common samples."""
+    found = None if band is None else _joint_differences(ctx, reference)
+    if found is None:
+        return None
+    times, difference = found
+    beyond = np.flatnonzero(~(np.abs(difference).max(axis=1) <= band))
+    end = float(times[-1])
+    if beyond.size == 0:
+        return Measurement(
+            "agreement_time", end, end, f"engine:{reference_label}", 0.0,
+            f"within {band:g} of {reference_label} throughout",
+        )  # fmt: skip
+    left = float(times[beyond[0]])
+    column = int(np.nanargmax(np.abs(difference[beyond[0]])))
+    joint = coordinate_joints(ctx.scene)[column]
+    message = (
+        f"joint {joint.name} leaves the band {band:g} of {reference_label} at t = {left:.6g} s"
+    )
+    return Measurement(
+        "agreement_time", left, end, f"engine:{reference_label}", end - left, message,
+        signed=(left - end,),
+    )  # fmt: skip
 
 
 def _guarded(name: str, compute: Callable[[], Measurement | None]) -> Measurement | None:

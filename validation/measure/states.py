@@ -19,7 +19,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from validation.engines.base import Trajectory
-from validation.reference.articulated import joint_violations
+from validation.reference.articulated import (
+    AXIS_TYPES,
+    Joint,
+    joint_coordinates,
+    joint_violations,
+)
 from validation.reference.rotation import cross
 from validation.scenario.compiled import CompiledScene, kinetic_energy, rotations
 
@@ -48,6 +53,9 @@ class Series:
             (``definability``: bodies can touch, or a spring acts).
         joint_violation: (s,) m, the largest of the scene's joint violations at each sample
             (``joint_violation``); zeros without joints.
+        joint_coordinates: (s, c) rad or m, a scene with models: the tree's hinge and slider
+            coordinates read from the poses (``tree_coordinates``, what ``joint_divergence``
+            compares across engines); (s, 0) otherwise.
     """
 
     t: np.ndarray
@@ -61,6 +69,7 @@ class Series:
     position_offset: np.ndarray
     velocity_offset: np.ndarray
     joint_violation: np.ndarray
+    joint_coordinates: np.ndarray
 
     @staticmethod
     def concat(*parts: Series) -> Series:
@@ -128,6 +137,7 @@ def invariants(scene: CompiledScene, trajectory: Trajectory, free: bool = False)
             position_offset=offsets[0],
             velocity_offset=offsets[1],
             joint_violation=joint_violation(scene, trajectory),
+            joint_coordinates=tree_coordinates(scene, trajectory),
         )
 
 
@@ -143,6 +153,26 @@ def joint_violation(scene: CompiledScene, trajectory: Trajectory) -> np.ndarray:
         tree, trajectory.pos, rotations(trajectory.quat)
     )
     return np.maximum(separation, misalignment * reach).max(axis=1, initial=0.0)
+
+
+def coordinate_joints(scene: CompiledScene) -> list[Joint]:
+    """The joints whose coordinates a scene with models keeps (``tree_coordinates``): the
+    tree's hinges and sliders, in its order; none in a scene without models."""
+    tree = scene.joint_tree
+    if tree is None or not scene.scenario.models:
+        return []
+    return [joint for joint in tree.joints if joint.type in AXIS_TYPES]
+
+
+def tree_coordinates(scene: CompiledScene, trajectory: Trajectory) -> np.ndarray:
+    """(s, c) rad or m: each of ``coordinate_joints``' coordinate at every sample, read from
+    the observed poses (``articulated.joint_coordinates``; a hinge's angle unwrapped within
+    the block of samples only, so comparisons wrap its differences)."""
+    joints = coordinate_joints(scene)
+    if not joints:
+        return np.zeros((trajectory.t.size, 0))
+    found = joint_coordinates(scene.joint_tree, trajectory.pos, rotations(trajectory.quat))
+    return np.stack([found[joint.name] for joint in joints], axis=1)
 
 
 def _centre_velocity(scene: CompiledScene, momentum: np.ndarray) -> np.ndarray:

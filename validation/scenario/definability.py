@@ -35,6 +35,9 @@ class Traits:
         applies_torque: a constant applied torque acts.
         engines: how many engine specs the scene lists.
         joints: the scene has joints. damped_joint: a joint has damping > 0.
+        models: the scene has ``models`` (robot model files): the model tiers are defined.
+        banded: the scene's ``checks`` give ``joint_divergence`` a tolerance (the band
+            ``agreement_time`` measures the time within).
     """
 
     can_touch: bool
@@ -46,6 +49,8 @@ class Traits:
     engines: int
     joints: bool = False
     damped_joint: bool = False
+    models: bool = False
+    banded: bool = False
 
 
 def scene_traits(scene: CompiledScene) -> Traits:
@@ -61,6 +66,8 @@ def scene_traits(scene: CompiledScene) -> Traits:
         engines=len(scene.scenario.engines),
         joints=bool(scene.scenario.joints),
         damped_joint=any(joint.damping > 0.0 for joint in scene.scenario.joints),
+        models=bool(scene.scenario.models),
+        banded="joint_divergence" in scene.scenario.checks,
     )
 
 
@@ -78,6 +85,14 @@ _NOT_FREE = (
     (lambda t: t.joints, "joints hold the bodies, so there is no ballistic closed form"),
 )
 _NOTHING_TOUCHES = (lambda t: not t.can_touch, "nothing in the scene can touch")
+_NO_MODELS = (
+    lambda t: not t.models,
+    "the scene has no models, and the model tiers judge a model file's reading",
+)
+_ONE_ENGINE = (
+    lambda t: t.engines < 2,
+    "the scene lists one engine, so there is no reference engine to diverge from",
+)
 
 UNDEFINED_WHEN: dict[str, tuple[Condition, ...]] = {
     "energy_drift": (
@@ -102,10 +117,18 @@ UNDEFINED_WHEN: dict[str, tuple[Condition, ...]] = {
     "restitution_error": (_NOTHING_TOUCHES,),
     "penetration_max": (_NOTHING_TOUCHES,),
     "joint_violation": ((lambda t: not t.joints, "the scene has no joints"),),
-    "divergence": (
+    "divergence": (_ONE_ENGINE,),
+    "model_fields": (_NO_MODELS,),
+    "fk_error": (_NO_MODELS,),
+    "mass_matrix_error": (_NO_MODELS,),
+    "bias_force_error": (_NO_MODELS,),
+    "joint_divergence": (_NO_MODELS, _ONE_ENGINE),
+    "agreement_time": (
+        _NO_MODELS,
+        _ONE_ENGINE,
         (
-            lambda t: t.engines < 2,
-            "the scene lists one engine, so there is no reference engine to diverge from",
+            lambda t: not t.banded,
+            "its band is the scene's joint_divergence tolerance, and checks gives none",
         ),
     ),
 }

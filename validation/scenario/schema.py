@@ -58,6 +58,12 @@ METRIC_NAMES = (
     "penetration_max",
     "joint_violation",
     "divergence",
+    "model_fields",
+    "fk_error",
+    "mass_matrix_error",
+    "bias_force_error",
+    "joint_divergence",
+    "agreement_time",
 )
 """The metrics a ``checks`` entry may name besides the scene's own expectations (CI jobs and scene files use these names)."""
 

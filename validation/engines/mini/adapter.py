@@ -51,8 +51,9 @@ class MiniAdapter:
 
     def joint_report(self) -> JointReport:
         """The model's joints at the initial poses: each one's type, its anchor as a point of
-        its parent (a world point for the world) and its axis as the parent carries it; no
-        mass matrix (mini holds bodies, not joint coordinates)."""
+        its parent (a world point for the world) and its axis as the parent carries it, its
+        limits (NaN where it has none), damping and armature (mini has none: 0); no mass
+        matrix (mini holds bodies, not joint coordinates)."""
         joints, state = self.model.joints, self.state
         rot = quat_to_matrix(state.quat)
         world = joints.body_a == WORLD
@@ -65,7 +66,15 @@ class MiniAdapter:
         axes = np.where(
             world[:, None], joints.axis_a, np.einsum("jik,jk->ji", rot[parent], joints.axis_a)
         )
-        return JointReport(tuple(JOINT_TYPES[k] for k in joints.kind), anchors, axes)
+        bounds = np.stack([joints.lower, joints.upper], axis=1)
+        return JointReport(
+            tuple(JOINT_TYPES[k] for k in joints.kind),
+            anchors,
+            axes,
+            limits=np.where(np.isfinite(bounds), bounds, np.nan),
+            damping=np.asarray(joints.damping, dtype=float).copy(),
+            armature=np.zeros(joints.damping.shape),
+        )
 
     def advance(self, steps: int) -> None:
         state = self.state

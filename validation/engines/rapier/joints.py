@@ -187,13 +187,14 @@ class JointBuilder:
     def report(self, tree: JointTree, stated: list, handles: list) -> JointReport:
         """The joints as Rapier holds them, in the scene's order (``stated``): each one's type
         (its locked axes), its anchor (frame1's origin on the parent's pose) and its axis
-        (frame1's x, hinge and slider); for multibodies M(q0) in the tree's coordinates
-        (``mass_matrix``), none for impulse joints (no joint coordinates)."""
+        (frame1's x, hinge and slider), its limits on its free axis (NaN where it has none),
+        its damping and armature (``joint_dynamics``); for multibodies M(q0) in the tree's
+        coordinates (``mass_matrix``), none for impulse joints (no joint coordinates)."""
         bodies = self.world.rigid_bodies
         joints = (
             self.world.impulse_joints if self.kind == "impulse" else self.world.multibody_joints
         )
-        types, anchors, axes = [], [], []
+        types, anchors, axes, limits = [], [], [], []
         for joint in stated:
             handle, parent = self.built[joint.name]
             data = joints[handle].data
@@ -207,8 +208,45 @@ class JointBuilder:
             )
             axis = turn @ rotation_matrix(frame.rotation) @ X
             axes.append(axis if kind in AXIS_TYPES else np.zeros(3))
+            limits.append(_limits(data, kind))
+        damping, armature = self.joint_dynamics(tree, stated, handles)
         matrix = None if self.kind == "impulse" else self.mass_matrix(tree, handles)
-        return JointReport(tuple(types), np.array(anchors), np.array(axes), matrix)
+        return JointReport(
+            tuple(types),
+            np.array(anchors),
+            np.array(axes),
+            matrix,
+            limits=np.array(limits, dtype=float).reshape(-1, 2),
+            damping=damping,
+            armature=armature,
+        )
+
+    def joint_dynamics(
+        self, tree: JointTree, stated: list, handles: list
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """((j,) damping, (j,) armature) of the ``stated`` joints as Rapier holds them: a
+        multibody's per coordinate (``Multibody.damping``, ``armature``, at its child link's
+        coordinate), an impulse joint's damping its velocity motor's (``generic_joint``) and
+        no armature."""
+        damping, armature = np.zeros(len(stated)), np.zeros(len(stated))
+        if self.kind == "impulse":
+            for k, joint in enumerate(stated):
+                handle, _ = self.built[joint.name]
+                data = self.world.impulse_joints[handle].data
+                free = JOINT_TYPES[joint.type].free
+                motor = data.motor(free[0]) if free else None
+                damping[k] = 0.0 if motor is None else float(motor.damping)
+            return damping, armature
+        child = {handles[j.child]: j.name for j in tree.joints if j.type != "free"}
+        row = {joint.name: k for k, joint in enumerate(stated)}
+        for multibody in self._multibodies(handles).values():
+            values, inertias = multibody.damping(), multibody.armature()
+            for link in _links(multibody):
+                name = child.get(link.rigid_body)
+                if link.ndofs and name in row:
+                    damping[row[name]] = float(values[link.assembly_id])
+                    armature[row[name]] = float(inertias[link.assembly_id])
+        return damping, armature
 
     def mass_matrix(self, tree: JointTree, handles: list) -> np.ndarray:
         """(nv, nv) M(q0) in the joint tree's coordinates from Rapier's own model: per
@@ -255,6 +293,15 @@ class JointBuilder:
                 multibody = joints.get_multibody(link.multibody)
                 found[multibody.root_handle] = multibody
         return found
+
+
+def _limits(data, kind: str) -> tuple[float, float]:
+    """A hinge's or slider's limits on its free axis as the joint holds them; NaN where it has
+    none (or its type has no axis)."""
+    if kind not in AXIS_TYPES:
+        return (np.nan, np.nan)
+    found = data.limits(JOINT_TYPES[kind].free[0])
+    return (np.nan, np.nan) if found is None else (float(found.min), float(found.max))
 
 
 def _links(multibody):
