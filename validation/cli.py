@@ -27,10 +27,26 @@ from validation.bundled import (  # BUNDLED_SCENARIOS: tests and scripts import 
 from validation.contract import BASELINE_ACTION_NAMES, CONFORMANCE_CHECKS, EXIT_BAD_INPUT, EXIT_OK
 
 
+def _package_paths_problem(args: argparse.Namespace) -> str | None:
+    """``--package-path NAME=DIR`` flags set where ``package://NAME`` resolves, before any scene
+    loads; the one line that refuses a bad flag, or None."""
+    from validation.jobs.plan import BadInputError, use_package_paths
+
+    try:
+        use_package_paths(args.package_path)
+    except BadInputError as error:
+        return str(error)
+    return None
+
+
 def command_check(args: argparse.Namespace) -> int:
     """Validate scenario files and folders; print every problem; 0 if all are valid, else 2."""
     from validation.jobs.check import check_main
 
+    problem = _package_paths_problem(args)
+    if problem:
+        print(problem, file=sys.stderr)
+        return EXIT_BAD_INPUT
     return check_main(args.paths or default_scenario_paths())
 
 
@@ -44,13 +60,17 @@ def command_run(args: argparse.Namespace) -> int:
         from validation.jobs.run import DEFAULT_OUT, RESUME_ALONE, run_main
 
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
-    selection += (args.new_folder,)
+    selection += (args.new_folder, args.package_path)
     if args.resume is not None and any(selection):
         print(
             f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs, --scheduler and the "
             "killed run's --junit and --history",
             file=sys.stderr,
         )
+        return EXIT_BAD_INPUT
+    problem = _package_paths_problem(args)
+    if problem:
+        print(problem, file=sys.stderr)
         return EXIT_BAD_INPUT
     return run_main(
         args.paths or default_scenario_paths(),
@@ -67,6 +87,24 @@ def command_run(args: argparse.Namespace) -> int:
         args.scheduler,
         clock,
         args.job_timeout,
+    )
+
+
+def command_sim2sim(args: argparse.Namespace) -> int:
+    """One model file in every engine, tier by tier; the first disagreeing tier per pair."""
+    from validation.jobs.sim2sim import sim2sim_main
+
+    return sim2sim_main(
+        args.model,
+        args.engines,
+        args.out,
+        args.package_path,
+        args.duration,
+        args.dt,
+        args.argv,
+        args.jobs,
+        args.job_timeout,
+        args.scheduler,
     )
 
 
@@ -153,6 +191,11 @@ def command_schema(args: argparse.Namespace) -> int:
 
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "run": (command_run, "run scenes in engines and write results.csv and report.html"),
+    "sim2sim": (
+        command_sim2sim,
+        "one URDF or MJCF model in every engine, judged tier by tier: the first tier where "
+        "each engine pair disagrees",
+    ),
     "report": (command_report, "re-render report.html of a run folder"),
     "stability": (command_stability, "find the largest stable dt per scene and engine"),
     "sweep": (command_sweep, "error against run time over a timestep sweep"),
@@ -239,8 +282,49 @@ def _scene_selection(command: argparse.ArgumentParser) -> None:
     command.add_argument("--only", metavar="GLOB", help="only scenes whose name or path matches")
 
 
+def _package_path_argument(command: argparse.ArgumentParser) -> None:
+    """--package-path NAME=DIR (repeatable): where a model's package://NAME resolves."""
+    command.add_argument(
+        "--package-path",
+        action="append",
+        metavar="NAME=DIR",
+        help="resolve a model's package://NAME/... inside DIR (repeatable; DIR must exist)",
+    )
+
+
+def _sim2sim_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "model",
+        metavar="MODEL_FILE",
+        help="a URDF (.urdf) or MJCF (.xml) file: a path, or pkg:PACKAGE/path inside an "
+        "installed Python package (pkg:pybullet_data/kuka_iiwa/model.urdf)",
+    )
+    command.add_argument(
+        "--engines",
+        nargs="+",
+        metavar="SPEC",
+        help="engine specs (default: every installed engine with joints, native loaders first)",
+    )
+    command.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="run folder (default reports/sim2sim), as physval run's --out; it also holds the "
+        "scene written for the model (scene.yaml)",
+    )
+    _package_path_argument(command)
+    command.add_argument(
+        "--duration", type=_positive_seconds, metavar="SECONDS", help="the swing (default 1 s)"
+    )
+    command.add_argument(
+        "--dt", type=_positive_seconds, metavar="SECONDS", help="the step (default 1 ms)"
+    )
+    _jobs_argument(command)
+
+
 def _run_arguments(command: argparse.ArgumentParser) -> None:
     _scene_selection(command)
+    _package_path_argument(command)
     command.add_argument(
         "--out",
         type=Path,
@@ -323,7 +407,8 @@ def _job_timeout_argument(command: argparse.ArgumentParser) -> None:
 
 
 def _jobs_argument(command: argparse.ArgumentParser) -> None:
-    """--jobs, --scheduler and --job-timeout: where the jobs run (run, sweep, stability)."""
+    """--jobs, --scheduler and --job-timeout: where the jobs run (run, sweep, stability,
+    sim2sim)."""
     _job_timeout_argument(command)
     command.add_argument(
         "--jobs",
@@ -421,7 +506,11 @@ ARGUMENTS = {
     "sweep": _sweep_arguments,
     "stability": _stability_arguments,
     "report": lambda c: c.add_argument("folder", type=Path, metavar="DIR"),
-    "check": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+    "check": lambda c: (
+        c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
+        _package_path_argument(c),
+    ),
+    "sim2sim": _sim2sim_arguments,
     "list": lambda c: c.add_argument("paths", nargs="*", type=Path, metavar="PATHS"),
     "conformance": _conformance_arguments,
     "history": _history_arguments,

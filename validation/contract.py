@@ -19,6 +19,9 @@ BASELINE_ACTION_NAMES = ("save",)
 lacks (``missing``) included, with the baseline's value and error next to the run's."""
 SWEEP_FILE = "sweep.csv"
 """In a run folder whose scenes declare ``sweep:``: the sweep rows (as ``physval sweep``)."""
+SCENE_FILE = "scene.yaml"
+"""In a run folder of ``physval sim2sim``: the scene it wrote for the model and ran (``physval
+run`` runs it again)."""
 TRACE_FILE = "trace.csv"
 """In a run folder whose scenes have expectations with a chart: the thin trace of each body's
 quantity under test (``validation.report.closed_form``)."""

@@ -50,6 +50,7 @@ from validation.contract import (
     PROVENANCE_FILE,
     REPORT_FILE,
     RESULTS_FILE,
+    SCENE_FILE,
     SERIES_FILE,
     SWEEP_FILE,
     TRACE_FILE,
@@ -86,10 +87,12 @@ RUN_FOLDER_FILES = frozenset(
         BASELINE_FILE,
         SWEEP_FILE,
         TRACE_FILE,
+        SCENE_FILE,
     }
 )
 """Every file a run folder holds (``run.write_run``, ``render_report``, the baseline and
-sweep rows): a folder holding anything else is not replaced by a run."""
+sweep rows, the scene of ``physval sim2sim``): a folder holding anything else is not replaced
+by a run."""
 
 RUN_MARK_FIELDS = ("command", "git_commit", "created")
 """The provenance.json fields every physval run writes (``run._provenance``): with the file

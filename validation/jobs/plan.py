@@ -10,7 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.scenario import MAX_STEPS, Scenario, ScenarioError, load_scenario, scenario_files
+from validation.scenario import (
+    MAX_STEPS,
+    Scenario,
+    ScenarioError,
+    load_scenario,
+    scenario_files,
+    urdf,
+)
 from validation.scenario.compiled import CompiledScene, compile_scene
 from validation.scenario.engine_spec import (
     EngineSpec,
@@ -168,3 +175,26 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
     if problems:
         raise BadInputError("\n".join(problems))
     return Plan(scenes, engines_replaced=overrides is not None)
+
+
+def package_paths(flags: list[str] | None) -> dict[str, str]:
+    """``--package-path NAME=DIR`` flags as NAME -> DIR (absolute), checked: ``BadInputError``
+    naming the first flag without ``=``, with an empty NAME, or whose DIR is not a folder."""
+    found: dict[str, str] = {}
+    for flag in flags or []:
+        name, equals, folder = flag.partition("=")
+        if not equals or not name.strip() or not folder:
+            raise BadInputError(
+                f"--package-path {flag}: expected NAME=DIR (a package name, '=', its folder)"
+            )
+        if not os.path.isdir(folder):
+            raise BadInputError(f"--package-path {flag}: {folder} is not a folder")
+        found[name.strip()] = os.path.abspath(folder)
+    return found
+
+
+def use_package_paths(flags: list[str] | None) -> None:
+    """Set ``urdf.PACKAGE_PATHS`` (where ``package://NAME`` resolves) from the flags, before any
+    scene is loaded; ``BadInputError`` as ``package_paths``."""
+    urdf.PACKAGE_PATHS.clear()
+    urdf.PACKAGE_PATHS.update(package_paths(flags))

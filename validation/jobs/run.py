@@ -655,11 +655,13 @@ def _finish(
     keep_copy: bool | None = None,
     clock: PhaseClock | None = None,
     job_timeout: float | None = None,
+    extra_files: dict[str, str] | None = None,
 ) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code.
     ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``).
     ``clock``: the clock that times the phases (printed on stderr at the end when it is
-    ``shown``: ``--timings``). ``job_timeout``: ``--job-timeout``."""
+    ``shown``: ``--timings``). ``job_timeout``: ``--job-timeout``. ``extra_files``: name ->
+    text, written into the run folder with the record."""
     clock = PhaseClock() if clock is None else clock
     with clock.phase("planning"):
         options = request.nightly()
@@ -669,6 +671,8 @@ def _finish(
         executed = execute(plan, jobs, journal, done, scheduler, clock, job_timeout)  # Ctrl-C
     with clock.phase("write"):
         rows, comparison = _written(output, plan, request, executed, options, resumed)
+        for name, text in (extra_files or {}).items():
+            write_atomically(output.run_folder / name, text)
     with clock.phase("report"):
         note = render_html(output.run_folder, shown_as=output.destination)
     with clock.phase("publish"):
@@ -822,12 +826,15 @@ def run_main(
     scheduler: str | None = None,
     clock: PhaseClock | None = None,
     job_timeout: float | None = None,
+    extra_files: dict[str, str] | None = None,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
     or a new failure; 2 bad input, a refused output folder, or an output that failed while
     writing). ``clock``: times the phases (``phases.PhaseClock``; printed on stderr at the
-    end when it is ``shown``, ``--timings``)."""
+    end when it is ``shown``, ``--timings``). ``extra_files``: file name -> text, written into
+    the run folder with the record (``RUN_FOLDER_FILES`` must name each: ``physval sim2sim``'s
+    scene)."""
     clock = PhaseClock() if clock is None else clock
     try:
         if resume is not None:
@@ -849,6 +856,7 @@ def run_main(
                 scheduler,
                 clock=clock,
                 job_timeout=job_timeout,
+                extra_files=extra_files,
             )
     except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
