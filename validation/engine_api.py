@@ -137,7 +137,14 @@ JOINT_FEATURES: dict[str, str] = {
 """Features added with joints: an engine has them only where its declaration names them, so
 an adapter written before them (a plugin) is never asked to build a joint it cannot."""
 
-FEATURES: dict[str, str] = {**BASE_FEATURES, **JOINT_FEATURES}
+MODEL_FEATURES: dict[str, str] = {
+    "non_colliding": "bodies that take part in no contact (collides: false: a model's links "
+    "with collisions: false)",
+}
+"""Features of scenes with robot models (issue 36), claimed only where a declaration names
+them (an engine that ignored ``collides: false`` would collide what the scene keeps apart)."""
+
+FEATURES: dict[str, str] = {**BASE_FEATURES, **JOINT_FEATURES, **MODEL_FEATURES}
 """Every scene feature an engine may lack, with its meaning (``validation.scenario.needs``
 says which a scene uses). Shapes are capabilities too, named as in ``SHAPES``."""
 

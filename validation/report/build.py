@@ -2,9 +2,9 @@
 
 ``build_context(run)`` judges the rows (``outcomes``) and builds, in the page's order:
 the verdict and summary chips, the scene x engine matrix (``build_cell``), the worst
-offenders (``build_rows``), one section per scene (``build_scene``: runs, the plot from
-``plots``, impacts, checks), the legend (``build_legend``) and the provenance
-(``build_provenance``).
+offenders (``build_rows``), one section per scene (``build_scene``: runs, the sim2sim card
+from ``sim2sim``, the plot from ``plots``, impacts, checks), the legend (``build_legend``) and
+the provenance (``build_provenance``).
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ from validation.report.plots import (
     plot_scene_series,
 )
 from validation.report.read import RunData
+from validation.report.sim2sim import build_sim2sim_card
 from validation.report.svgchart import engine_legend, figure_html
 
 # --- page size limits --------------------------------------------------------------------------
@@ -484,7 +485,8 @@ def build_scene(
 ) -> dict[str, Any]:
     """One scene's section: description and file, runs, the charts (the quantities under test
     against their closed forms, the conserved quantities judged, e against impact speed),
-    the sweep charts, the impacts and the rows."""
+    the sweep charts, the impacts, the sim2sim card of a scene with model tiers
+    (``sim2sim``) and the rows."""
     notes = []
     charts = []
     scene_engines = [e for e in engines if e in set(rows["engine"])]
@@ -522,6 +524,7 @@ def build_scene(
         "description": description,
         "source": source,
         "runs": build_runs(rows, engines, run.provenance),
+        "sim2sim": build_sim2sim_card(build_rows(rows), list(dict.fromkeys(rows["engine"]))),
         "engine_legend": Markup(engine_legend(scene_engines)),
         "charts": [Markup(figure_html(chart, set(scene_engines))) for chart in charts],
         "plot_note": "; ".join(notes),

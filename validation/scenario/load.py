@@ -197,6 +197,9 @@ def json_schema() -> dict:
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "physval scenario, version 1"
     _describe_engines(schema["properties"]["engines"])
+    # bodies or models: a scene of models alone gets its bodies from their files at load
+    schema["required"] = [name for name in schema["required"] if name != "bodies"]
+    schema["anyOf"] = [{"required": ["bodies"]}, {"required": ["models"]}]
     schema["description"] = (
         f"A physval scene. The file may have at most {MAX_BYTES} bytes and expand to at most "
         f"{MAX_VALUES} values, the size cap over {BYTES_PER_VALUE} bytes a value (plain values "

@@ -18,11 +18,17 @@ UP = (0.0, 0.0, 1.0)
 
 
 def _contacts(scenario: Scenario) -> str | None:
-    if scenario.ground is not None:
+    colliding = sum(body.collides for body in scenario.bodies)
+    if scenario.ground is not None and colliding:
         return "the scene has a ground"
-    if len(scenario.bodies) > 1:
-        return f"{len(scenario.bodies)} bodies may touch"
+    if colliding > 1:
+        return f"{colliding} bodies may touch"
     return None
+
+
+def _non_colliding(scenario: Scenario) -> str | None:
+    body = next((b for b in scenario.bodies if not b.collides), None)
+    return None if body is None else f"body {body.name!r} takes part in no contact"
 
 
 def _coefficient(scenario: Scenario, quantity: str) -> str | None:
@@ -87,6 +93,7 @@ FEATURE_NEEDS: dict[str, Callable[[Scenario], str | None]] = {
     "friction": lambda s: _coefficient(s, "friction"),
     "joints": _joints,
     "joint_limits": _joint_limits,
+    "non_colliding": _non_colliding,
 }
 """Feature -> why a scene needs it (None when it does not); one entry per ``FEATURES``."""
 

@@ -155,7 +155,8 @@ reference finder's ``contacts.SHAPES``."""
 def scene_shapes(scenario: Scenario) -> contacts.Shapes:
     """The scene's collision shapes for ``validation.reference.contacts``: its bodies in
     scenario order, then the ground plane if any (fixed); a joint's parent and child never
-    touch each other (``Shapes.excluded``)."""
+    touch each other, nor does a body with ``collides: false`` touch anything
+    (``Shapes.excluded``)."""
     bodies = scenario.bodies
     kinds = [contacts.SHAPES.index(b.shape.type) for b in bodies]
     sizes = [SHAPE_SIZES[b.shape.type](b.shape) for b in bodies]
@@ -163,16 +164,23 @@ def scene_shapes(scenario: Scenario) -> contacts.Shapes:
     if scenario.ground is not None:
         kinds, sizes, fixed = [*kinds, contacts.PLANE], [*sizes, (0.0, 0.0, 0.0)], [*fixed, True]
     index = {body.name: k for k, body in enumerate(bodies)}
-    jointed = sorted(
+    jointed = {
         (min(index[j.parent], index[j.child]), max(index[j.parent], index[j.child]))
         for j in scenario.joints
         if j.parent in index and j.child in index
-    )
+    }
+    apart = {
+        (min(k, other), max(k, other))
+        for k, body in enumerate(bodies)
+        if not body.collides
+        for other in range(len(kinds))
+        if other != k
+    }
     return contacts.Shapes(
         kind=np.array(kinds, dtype=np.int64),
         size=np.array(sizes, dtype=float).reshape(-1, 3),
         fixed=np.array(fixed, dtype=bool),
-        excluded=np.array(jointed, dtype=np.int64).reshape(-1, 2),
+        excluded=np.array(sorted(jointed | apart), dtype=np.int64).reshape(-1, 2),
     )
 
 

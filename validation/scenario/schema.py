@@ -169,6 +169,11 @@ class BodySpec(_Strict):
     restitution: UnitInterval = 0.0
     friction: NonNegative = Field(default=0.0, description="Coulomb μ; 0 is frictionless")
     fixed: Annotated[bool, Strict()] = Field(default=False, description="a static body")
+    collides: Annotated[bool, Strict()] = Field(
+        default=True,
+        description="false: the body takes part in no contact (its shape still gives its "
+        "size); a model's links when the model has collisions: false",
+    )
 
     @field_validator("inertia")
     @classmethod

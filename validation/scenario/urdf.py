@@ -28,9 +28,9 @@ file: absolute) become physval's (relative to t = 0) by subtracting the joint's 
 position.
 
 Shapes: the model's collision geometry is not read (``collisions: true`` is refused); each
-body gets a ``PLACEHOLDER_RADIUS`` sphere with the link's inertia stated explicitly. The
-placeholder is a real sphere to every engine: keep the ground and other bodies clear of the
-model.
+body gets a ``PLACEHOLDER_RADIUS`` sphere with the link's inertia stated explicitly and
+``collides: false``: with ``collisions: false`` no model link touches anything, in any engine
+(the capability ``non_colliding``).
 """
 
 from __future__ import annotations
@@ -357,6 +357,7 @@ class _Expansion:
                 {
                     "name": self.name(link.name),
                     "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
+                    "collides": self.model.collisions,
                     "mass": link.mass,
                     "inertia": link.inertia.tolist(),
                     "position": frame.translation.tolist(),

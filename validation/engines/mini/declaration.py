@@ -11,6 +11,7 @@ from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
     JOINT_FEATURES,
+    MODEL_FEATURES,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -66,7 +67,7 @@ DECLARATION = EngineDeclaration(
         if item.name != "dt"
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}), integrators=INTEGRATORS
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}), integrators=INTEGRATORS
     ),  # joints and their limits by the documented impulse (mini_engine.joints)
     check_settings=_check,
 )

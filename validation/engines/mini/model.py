@@ -37,6 +37,7 @@ def _body(spec: BodySpec) -> Body:
         restitution=spec.restitution,
         friction=spec.friction,
         fixed=spec.fixed,
+        collides=spec.collides,
         name=spec.name,
     )
 

@@ -6,6 +6,7 @@ from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
     JOINT_FEATURES,
+    MODEL_FEATURES,
     MODEL_LOADER_OPTION,
     Capabilities,
     Count,
@@ -55,6 +56,6 @@ DECLARATION = EngineDeclaration(
         MODEL_LOADER_OPTION,
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}), integrators=INTEGRATOR_WORDS
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}), integrators=INTEGRATOR_WORDS
     ),
 )

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
@@ -210,7 +210,7 @@ class _End:
     """One side of a contact: a body or the ground, with its own values."""
 
     index: int
-    """Scene body index; the ground is ``len(scenario.bodies)`` (after every body)."""
+    """Its place among the ends: colliding scene bodies in order, then the ground."""
     name: str
     geom: str
     restitution: float
@@ -224,9 +224,11 @@ class _End:
 
 
 def _ends(scenario: Scenario) -> list[_End]:
+    """The bodies that take part in contacts (``collides``), then the ground."""
+    colliding = [b for b in scenario.bodies if b.collides]
     ends = [
         _End(i, b.name, _geom_name(b.name), b.restitution, b.friction, b.fixed)
-        for i, b in enumerate(scenario.bodies)
+        for i, b in enumerate(colliding)
     ]
     if scenario.ground is not None:
         ground = scenario.ground
@@ -237,7 +239,10 @@ def _ends(scenario: Scenario) -> list[_End]:
 
 
 def _overrides(scenario: Scenario) -> dict[frozenset, object]:
-    return {frozenset((p.a, p.b)): p for p in scenario.pairs}
+    """``scenario.pairs`` by their two names, those with a body that collides with nothing
+    left out."""
+    apart = {b.name for b in scenario.bodies if not b.collides}
+    return {frozenset((p.a, p.b)): p for p in scenario.pairs if not {p.a, p.b} & apart}
 
 
 def _pair(a: _End, b: _End, override) -> ContactPair:
@@ -548,7 +553,7 @@ def _matched_contacts(scenario: Scenario, restitution: str) -> ContactPlan:
         geoms,
         excludes,
         disable_contact=touching_pairs == 0,
-        touching_bodies=sum(not b.fixed for b in scenario.bodies) if len(ends) > 1 else 0,
+        touching_bodies=sum(not e.fixed for e in ends) if len(ends) > 1 else 0,
         touching_pairs=touching_pairs,
         frictional=frictional,
         classes=len(keys),
@@ -557,8 +562,20 @@ def _matched_contacts(scenario: Scenario, restitution: str) -> ContactPlan:
 
 def _default_contacts(scenario: Scenario, restitution: str) -> ContactPlan:
     """MuJoCo's default geoms: every geom collides with every other (condim 3, μ = 1)."""
-    moving = sum(not b.fixed for b in scenario.bodies)
+    moving = sum(not b.fixed and b.collides for b in scenario.bodies)
     return ContactPlan([], {}, [], disable_contact=False, touching_bodies=moving)
+
+
+NO_CONTACT = {"contype": "0", "conaffinity": "0"}
+"""A geom MuJoCo collides with nothing (neither bit set, neither side of any pair)."""
+
+
+def _kept_apart(plan: ContactPlan, scenario: Scenario) -> ContactPlan:
+    """``plan`` with the geom of every body with ``collides: false`` colliding with nothing."""
+    apart = {_geom_name(b.name): NO_CONTACT for b in scenario.bodies if not b.collides}
+    if not apart:
+        return plan
+    return replace(plan, geoms={**plan.geoms, **apart})
 
 
 PROFILES: dict[str, Callable[[Scenario, str], ContactPlan]] = {
@@ -726,7 +743,7 @@ def build_mjcf(
     """(MJCF text, contact plan, solver name) of ``scenario`` under the full ``settings``,
     its bodies nested by the joint ``tree`` (``CompiledScene.joint_tree``; None: no joints)."""
     profile = str(settings["profile"])
-    plan = PROFILES[profile](scenario, str(settings["restitution"]))
+    plan = _kept_apart(PROFILES[profile](scenario, str(settings["restitution"])), scenario)
     solver = choose_solver(str(settings["solver"]), profile, plan.touching_bodies)
     root = ET.Element("mujoco", model=scenario.name or "scenario")
     ET.SubElement(root, "compiler", angle="radian", alignfree="false", inertiafromgeom="false")

@@ -444,6 +444,7 @@ class PybulletAdapter:
         self.ground = self._create_ground() if scenario.ground else None
         self._set_contact_values(scenario)
         self._filter_pairs(scenario)
+        self._keep_apart(scenario, owned)
         self._set_up_loads(scenario)
         self.tree_velocities = np.zeros(0)
         if self.trees:
@@ -802,6 +803,15 @@ class PybulletAdapter:
                 "(settings['contact_misses'])"
             )
         return notes
+
+    def _keep_apart(self, scenario: Scenario, owned: set[str]) -> None:
+        """Every body with ``collides: false`` in no collision group and accepting none (a
+        native model's links are its loader's: ``models.load_model``)."""
+        for k, body in enumerate(scenario.bodies):
+            if not body.collides and body.name not in owned:
+                pybullet.setCollisionFilterGroupMask(
+                    self.ids[k], self.links[k], *models.NO_COLLISIONS, physicsClientId=self.client
+                )
 
     def _filter_pairs(self, scenario: Scenario) -> None:
         """No contact pair for two objects that can never meet: two static ones (fixed

@@ -6,6 +6,7 @@ from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
     JOINT_FEATURES,
+    MODEL_FEATURES,
     MODEL_LOADER_OPTION,
     Capabilities,
     Count,
@@ -60,6 +61,6 @@ DECLARATION = EngineDeclaration(
     ),
     capabilities=Capabilities(
         integrators=("semi_implicit_euler",),
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES}),
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
     ),
 )

@@ -249,8 +249,12 @@ class RapierAdapter:
         return values
 
     def _collider(self, builder, index: int, restitution: float, friction: float):
-        """The shape's builder with the contact values, combine rules, index and hook flag."""
+        """The shape's builder with the contact values, combine rules, index and hook flag; a
+        body with ``collides: false`` in no interaction group (it meets nothing)."""
         builder = builder.restitution(float(restitution)).friction(float(friction))
+        bodies = self.scenario.bodies
+        if index < len(bodies) and not bodies[index].collides:
+            builder = builder.collision_groups(rapier3d.InteractionGroups.none())
         if self.settings.combine == "scene":
             builder = builder.restitution_combine_rule(SCENE_COMBINE_RULES["restitution"])
             builder = builder.friction_combine_rule(SCENE_COMBINE_RULES["friction"])

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 from validation.engine_api import (
     API_VERSION,
     JOINT_FEATURES,
+    MODEL_FEATURES,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -52,6 +53,7 @@ FEATURES = (
     "restitution",
     "friction",
     *JOINT_FEATURES,
+    *MODEL_FEATURES,
 )
 """Every scene feature: the ground is a fixed ``halfspace`` collider (any normal), fixed bodies
 are ``RigidBody.fixed()``, constant loads are Rapier's persistent user force and torque,
