@@ -150,6 +150,11 @@ SHAPE_BUILDERS = {
 """Scene shape type -> Drake ``Shape`` (full widths and lengths, where the scene has halves)."""
 
 
+def body_name(index: int, spec: BodySpec) -> str:
+    """A scene body's name in Drake (its body and its collision shape): unique by its index."""
+    return f"body{index}_{spec.name}"
+
+
 def rotational_inertia(matrix: np.ndarray) -> RotationalInertia:
     """A (3, 3) kg·m² inertia matrix as Drake's ``RotationalInertia`` (moments, products)."""
     m = np.asarray(matrix, dtype=float)
@@ -295,25 +300,31 @@ class DrakeAdapter:
     def _create_body(self, index: int, spec: BodySpec):
         """One scene body: a free ``RigidBody`` with the scene's mass and inertia about its
         centre of mass (body axes), its collision shape at the body origin; a fixed body's
-        shape on the world body at its pose (and no plant body)."""
+        shape on the world body at its pose (and no plant body). A body with ``collides:
+        false`` registers no collision shape (it touches nothing: ``non_colliding``)."""
         plant = self.plant
-        shape = SHAPE_BUILDERS[spec.shape.type](spec.shape)
-        friction = CoulombFriction(float(spec.friction), float(spec.friction))
-        name = f"body{index}_{spec.name}"
         if spec.fixed:
-            where = pose(spec.position, spec.orientation)
-            found = plant.RegisterCollisionGeometry(
-                plant.world_body(), where, shape, name, friction
-            )
-            self.geometry[index] = (plant.world_body(), where, shape, found)
+            if spec.collides:
+                self._register(
+                    index, spec, plant.world_body(), pose(spec.position, spec.orientation)
+                )
             return None
         inertia = SpatialInertia.MakeFromCentralInertia(
             float(spec.mass), np.zeros(3), rotational_inertia(self._inertia(index))
         )
-        body = plant.AddRigidBody(name, inertia)
-        found = plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
-        self.geometry[index] = (body, RigidTransform(), shape, found)
+        body = plant.AddRigidBody(body_name(index, spec), inertia)
+        if spec.collides:
+            self._register(index, spec, body, RigidTransform())
         return body
+
+    def _register(self, index: int, spec: BodySpec, body, where: RigidTransform) -> None:
+        """The body's collision shape on the Drake ``body`` at ``where`` (its friction)."""
+        shape = SHAPE_BUILDERS[spec.shape.type](spec.shape)
+        friction = CoulombFriction(float(spec.friction), float(spec.friction))
+        found = self.plant.RegisterCollisionGeometry(
+            body, where, shape, body_name(index, spec), friction
+        )
+        self.geometry[index] = (body, where, shape, found)
 
     def _place_models(self, scenario: Scenario) -> list[RigidTransform]:
         """Each native model's links as its scene bodies' Drake bodies (``self.bodies``); each
