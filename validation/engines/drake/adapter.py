@@ -25,6 +25,12 @@ that coincide at t = 0 (every coordinate 0 at the stated poses), its bodies' vel
 through Drake's Jacobians and its body states read through Drake's kinematics; a scene without
 joints takes the free-body path above, unchanged.
 
+Models (``models``, engines-drake.md 10): with ``model_loader=native`` (the default) each model
+file is read by Drake's own ``Parser`` (``models``) and its links stand for the scene's bodies
+of that model (a link's pose times ``ModelLayout.body_in_link`` is the scene body's); the
+scene's other bodies and joints are built as above. ``model_loader=physval`` builds the model
+from the bodies and joints physval expanded it into, like any other scene.
+
 Loads: springs are ``LinearSpringDamper`` force elements (a rest length of 0, which that
 element refuses, an isotropic ``LinearBushingRollPitchYaw`` when undamped); constant forces
 and torques are ``ExternallyAppliedSpatialForce`` values at each centre of mass, fixed on the
@@ -65,20 +71,42 @@ from pydrake.multibody.tree import (
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from validation.engines.base import JointReport, ModelReport, Provenance, Snapshot, Trajectory
+from validation.engine_api import model_loader
+from validation.engines.base import (
+    JointReport,
+    ModelProbe,
+    ModelReport,
+    Provenance,
+    Snapshot,
+    Trajectory,
+)
 from validation.engines.drake.declaration import (
     CONTINUOUS,
     DEFAULT_INTEGRATOR,
     DISCRETE,
+    NAME,
+    NATIVE,
     accuracy_of,
     profile_of,
 )
 from validation.engines.drake.joints import (
+    Placement,
     add_joints,
+    body_states,
     filter_jointed_pairs,
     joint_report,
     joint_velocities,
     kinematic_states,
+    pose,
+    set_tree_positions,
+    tree_velocities,
+)
+from validation.engines.drake.models import (
+    DRAKE_LOGGER,
+    add_models,
+    filter_model_geometry,
+    model_notes,
+    model_velocities,
 )
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import WORLD
@@ -108,9 +136,6 @@ that differ by more than this are named in the provenance notes."""
 GROUND = "ground"
 """The name scene pairs use for the ground plane."""
 
-DRAKE_LOGGER = "drake"
-"""pydrake forwards Drake's C++ log to this Python logger (its level is synced to spdlog)."""
-
 QUIET_LOG_LEVEL = logging.ERROR
 """Drake's log level while the plant is finalized and the diagram built: a ground
 ``HalfSpace`` logs a warning there that deformable contact does not support it (a scene has
@@ -125,12 +150,9 @@ SHAPE_BUILDERS = {
 """Scene shape type -> Drake ``Shape`` (full widths and lengths, where the scene has halves)."""
 
 
-def pose(position, quat) -> RigidTransform:
-    """A world pose from a position (3,) m and a unit quaternion w x y z."""
-    from pydrake.common.eigen_geometry import Quaternion
-
-    q = np.asarray(quat, dtype=float)
-    return RigidTransform(Quaternion(q / np.linalg.norm(q)), np.asarray(position, dtype=float))
+def body_name(index: int, spec: BodySpec) -> str:
+    """A scene body's name in Drake (its body and its collision shape): unique by its index."""
+    return f"body{index}_{spec.name}"
 
 
 def rotational_inertia(matrix: np.ndarray) -> RotationalInertia:
@@ -164,21 +186,24 @@ class Settings:
     contact_approximation: str | None
     accuracy: float | None
     integrator: str | None
+    model_loader: str = NATIVE
 
     @staticmethod
     def of(spec: EngineSpec) -> Settings:
         options = spec.as_dict()
         profile = profile_of(options)
+        loader = model_loader(NAME, options)
         if profile == DISCRETE:
             approximation = options.get("contact_approximation")
             return Settings(
-                DISCRETE, None if approximation is None else str(approximation), None, None
+                DISCRETE, None if approximation is None else str(approximation), None, None, loader
             )
         return Settings(
             CONTINUOUS,
             None,
             accuracy_of(options),
             str(options.get("integrator", DEFAULT_INTEGRATOR)),
+            loader,
         )
 
 
@@ -190,8 +215,12 @@ class DrakeAdapter:
 
     Attributes (after ``load``):
         plant: the ``MultibodyPlant``. simulator: its ``Simulator``.
-        bodies: (n,) the ``RigidBody`` of each scene body, None for a fixed one, scenario order.
-        tree: the scene's ``JointTree`` (None without joints). joints: the Drake joints.
+        bodies: (n,) the ``RigidBody`` of each scene body, None for a fixed one, scenario order
+            (a native model's body: its link's). models: the native models (``NativeModel``).
+        placement: bodies, each body's frame in its Drake body's, the Drake joint of each scene
+            joint (``joints.Placement``).
+        tree: the scene's ``JointTree`` (None without joints). joints: the Drake joints
+            physval built (a native model's are its file's).
         free: the free moving bodies (every moving one without joints).
         position_index: (f, 7) int, each free body's q (qw qx qy qz x y z) in the plant state.
         velocity_index: (f, 6) int, its v (wx wy wz vx vy vz), offset by the plant's positions.
@@ -225,9 +254,23 @@ class DrakeAdapter:
                 APPROXIMATIONS[self.settings.contact_approximation]
             )
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scenario.gravity, dtype=float))
-        self.bodies = [self._create_body(k, b) for k, b in enumerate(scenario.bodies)]
+        layouts = scene.models if self.settings.model_loader == NATIVE else ()
+        owned = {name for layout in layouts for name in (*layout.bodies, *layout.joints)}
+        self.bodies = [
+            None if b.name in owned else self._create_body(k, b)
+            for k, b in enumerate(scenario.bodies)
+        ]
+        children = {joint.name: joint.child for joint in scenario.joints}
+        self.models = add_models(plant, scene_graph, layouts, scenario.gravity, children)
+        self.notes += model_notes(self.models)
+        placed = self._place_models(scenario)
         self.tree = scene.joint_tree
-        self.joints = [] if self.tree is None else self._create_joints(scenario)
+        self.joints = [] if self.tree is None else self._create_joints(scenario, placed, owned)
+        model_joints = {name: j for model in self.models for name, j in model.joints.items()}
+        self.placement = Placement(
+            self.bodies, placed, {**{j.name(): j for j in self.joints}, **model_joints}
+        )
+        self.kinematic = self.tree is not None or bool(self.models)
         if scenario.ground is not None:
             self._create_ground()
         self._create_springs()
@@ -235,6 +278,7 @@ class DrakeAdapter:
         with quiet_drake():
             plant.Finalize()
             self._filter_pairs(scene_graph, pair_geometry)
+            self.filtered_geometry = filter_model_geometry(scene_graph, self.models)
             self.filtered_pairs = (
                 0
                 if self.tree is None
@@ -256,30 +300,52 @@ class DrakeAdapter:
     def _create_body(self, index: int, spec: BodySpec):
         """One scene body: a free ``RigidBody`` with the scene's mass and inertia about its
         centre of mass (body axes), its collision shape at the body origin; a fixed body's
-        shape on the world body at its pose (and no plant body)."""
+        shape on the world body at its pose (and no plant body). A body with ``collides:
+        false`` registers no collision shape (it touches nothing: ``non_colliding``)."""
         plant = self.plant
-        shape = SHAPE_BUILDERS[spec.shape.type](spec.shape)
-        friction = CoulombFriction(float(spec.friction), float(spec.friction))
-        name = f"body{index}_{spec.name}"
         if spec.fixed:
-            where = pose(spec.position, spec.orientation)
-            found = plant.RegisterCollisionGeometry(
-                plant.world_body(), where, shape, name, friction
-            )
-            self.geometry[index] = (plant.world_body(), where, shape, found)
+            if spec.collides:
+                self._register(
+                    index, spec, plant.world_body(), pose(spec.position, spec.orientation)
+                )
             return None
         inertia = SpatialInertia.MakeFromCentralInertia(
             float(spec.mass), np.zeros(3), rotational_inertia(self._inertia(index))
         )
-        body = plant.AddRigidBody(name, inertia)
-        found = plant.RegisterCollisionGeometry(body, RigidTransform(), shape, name, friction)
-        self.geometry[index] = (body, RigidTransform(), shape, found)
+        body = plant.AddRigidBody(body_name(index, spec), inertia)
+        if spec.collides:
+            self._register(index, spec, body, RigidTransform())
         return body
 
-    def _create_joints(self, scenario: Scenario) -> list:
-        """The joint tree's joints (``joints.add_joints``) with the stated limits."""
+    def _register(self, index: int, spec: BodySpec, body, where: RigidTransform) -> None:
+        """The body's collision shape on the Drake ``body`` at ``where`` (its friction)."""
+        shape = SHAPE_BUILDERS[spec.shape.type](spec.shape)
+        friction = CoulombFriction(float(spec.friction), float(spec.friction))
+        found = self.plant.RegisterCollisionGeometry(
+            body, where, shape, body_name(index, spec), friction
+        )
+        self.geometry[index] = (body, where, shape, found)
+
+    def _place_models(self, scenario: Scenario) -> list[RigidTransform]:
+        """Each native model's links as its scene bodies' Drake bodies (``self.bodies``); each
+        scene body's frame in its Drake body's (identity but for a model's)."""
+        placed = [RigidTransform()] * len(scenario.bodies)
+        index = {b.name: k for k, b in enumerate(scenario.bodies)}
+        for model in self.models:
+            for name, link, in_link in zip(
+                model.layout.bodies, model.links, model.in_link, strict=True
+            ):
+                self.bodies[index[name]] = link
+                placed[index[name]] = in_link
+        return placed
+
+    def _create_joints(self, scenario: Scenario, placed: list, owned: set) -> list:
+        """The joint tree's joints (``joints.add_joints``) with the stated limits, but for a
+        native model's (``owned``)."""
         limits = {j.name: tuple(j.limits) for j in scenario.joints if j.limits is not None}
-        return add_joints(self.plant, self.tree, self.bodies, scenario.gravity, limits)
+        return add_joints(
+            self.plant, self.tree, self.bodies, scenario.gravity, limits, placed, owned
+        )
 
     def _inertia(self, index: int) -> np.ndarray:
         """(3, 3) kg·m², body frame, about the centre of mass: the compiled scene's."""
@@ -383,21 +449,28 @@ class DrakeAdapter:
         coordinates are 0 at the stated poses)."""
         for k in self.free:
             spec, body = scenario.bodies[k], self.bodies[k]
-            self.plant.SetFreeBodyPose(self.context, body, pose(spec.position, spec.orientation))
+            where = pose(spec.position, spec.orientation).multiply(
+                self.placement.placed[k].inverse()
+            )
+            self.plant.SetFreeBodyPose(self.context, body, where)
             self.plant.SetFreeBodySpatialVelocity(
                 self.context,
                 body,
                 SpatialVelocity(
                     np.asarray(spec.angular_velocity, dtype=float),
                     np.asarray(spec.velocity, dtype=float),
-                ),
+                ).Shift(-where.rotation().multiply(self.placement.point(k))),
             )
-        if self.tree is not None:
+        if self.kinematic:
+            known = model_velocities(self.plant, self.context, self.models)
             stated = [(b.velocity, b.angular_velocity) for b in scenario.bodies]
             self.plant.SetVelocities(
                 self.context,
-                joint_velocities(self.plant, self.context, self.bodies, self.moving, stated),
+                joint_velocities(
+                    self.plant, self.context, self.placement, self.moving, stated, known
+                ),
             )
+        self.start_positions = self.plant.GetPositions(self.context).copy()
         self._fixed_pose = (
             np.array([b.position for b in scenario.bodies], dtype=float).reshape(-1, 3),
             np.array([b.orientation for b in scenario.bodies], dtype=float).reshape(-1, 4),
@@ -435,8 +508,8 @@ class DrakeAdapter:
         found = []
         for i in range(len(names)):
             for j in range(i + 1, len(names)):
-                if still[i] and still[j]:
-                    continue  # two world geometries never touch
+                if (still[i] and still[j]) or not {i, j} <= self.geometry.keys():
+                    continue  # two world geometries never touch; a native model's are its own
                 wanted = pair_value(scenario, names[i], names[j], "friction")
                 if abs(wanted - drake_friction(own[i], own[j])) > SAME_VALUE * max(1.0, wanted):
                     found.append((i, j, wanted))
@@ -525,9 +598,9 @@ class DrakeAdapter:
         in order, a fixed body at its scene pose and at rest; with joints through Drake's own
         kinematics (``joints.kinematic_states``), else each free body's q (qw qx qy qz x y z)
         and v (world ω, velocity) read as they are."""
-        if self.tree is not None:
+        if self.kinematic:
             return kinematic_states(
-                self.plant, self.bodies, self.moving, times, raw, self._fixed_pose
+                self.plant, self.placement, self.moving, times, raw, self._fixed_pose
             )
         s, n = raw.shape[0], len(self.scenario.bodies)
         pos = np.repeat(self._fixed_pose[0][None], s, axis=0)
@@ -593,7 +666,30 @@ class DrakeAdapter:
     def joint_report(self) -> JointReport:
         """The joints Drake built, at the current state (``joints.joint_report``; the parity
         gate calls it at t = 0)."""
-        return joint_report(self.plant, self.context, self.scenario, self.tree, self.bodies)
+        return joint_report(self.plant, self.context, self.scenario, self.tree, self.placement)
+
+    def model_probe(self, q: np.ndarray, nu: np.ndarray) -> ModelProbe:
+        """The bodies, M(q) and bias at the joint tree's state (q, ν) (relative to t = 0),
+        on a scratch context (the simulation's is left as it is): Drake's positions from the
+        ones at t = 0 (``joints.set_tree_positions``), v = T ν (``joints.tree_velocities``),
+        ``CalcMassMatrix`` and ``CalcBiasTerm`` - ``CalcGravityGeneralizedForces`` (C(q, v) v
+        - τ_g: the velocity products and gravity; springs and applied loads are not in it)
+        carried into the tree's coordinates: Tᵀ M T and Tᵀ (M Ṫ ν + C v - τ_g)."""
+        plant = self.plant
+        context = plant.CreateDefaultContext()
+        q, nu = np.asarray(q, dtype=float), np.asarray(nu, dtype=float)
+        set_tree_positions(plant, context, self.tree, self.placement, self.start_positions, q)
+        change, drift = tree_velocities(plant, context, self.tree, self.placement)
+        plant.SetVelocities(context, change @ nu)
+        mass = plant.CalcMassMatrix(context)
+        bias = plant.CalcBiasTerm(context) - plant.CalcGravityGeneralizedForces(context)
+        pos, quat, _, _ = body_states(plant, context, self.placement, self.moving, self._fixed_pose)
+        return ModelProbe(
+            pos=pos,
+            quat=quat,
+            mass_matrix=change.T @ mass @ change,
+            bias=change.T @ (mass @ drift(nu) + bias),
+        )
 
     # -- provenance ------------------------------------------------------------------------
 
@@ -628,6 +724,13 @@ class DrakeAdapter:
         if self.joints:
             settings["joints"] = {joint.name(): joint.type_name() for joint in self.joints}
             settings["jointed_pairs_filtered"] = self.filtered_pairs
+        if self.scene.models:
+            settings["model_loader"] = s.model_loader
+        if self.models:
+            settings["models"] = {
+                m.layout.name: plant.GetModelInstanceName(m.instance) for m in self.models
+            }
+            settings["model_geometry_filtered"] = self.filtered_geometry
         if s.profile == CONTINUOUS:
             settings["integration"] = self._integrator_settings()
         return Provenance(

@@ -21,7 +21,13 @@ from __future__ import annotations
 
 import math
 
-from validation.engine_api import API_VERSION, Capabilities, EngineDeclaration, EngineOption
+from validation.engine_api import (
+    API_VERSION,
+    MODEL_LOADER_OPTION,
+    Capabilities,
+    EngineDeclaration,
+    EngineOption,
+)
 
 NAME = "drake"
 """The engine's spec name."""
@@ -83,6 +89,7 @@ FEATURES = (
     "loads",
     "friction",
     "joints",
+    "non_colliding",
 )
 """Every scene feature but ``restitution`` (and ``joint_limits``: ``DISCRETE_FEATURES``): the
 ground is a ``HalfSpace`` on the world body at the scene's pose (tilted too), fixed bodies are
@@ -91,7 +98,10 @@ length of 0, which Drake's element refuses, is an isotropic ``LinearBushingRollP
 undamped), constant loads are ``ExternallyAppliedSpatialForce`` values fixed on the plant's
 applied spatial force port, friction is ``CoulombFriction`` per geometry (Drake combines a pair
 by 2μ₁μ₂/(μ₁+μ₂)), and joints are Drake's ``RevoluteJoint``, ``PrismaticJoint``,
-``BallRpyJoint`` and ``WeldJoint`` (``validation.engines.drake.joints``)."""
+``BallRpyJoint`` and ``WeldJoint`` (``validation.engines.drake.joints``), and a body with
+``collides: false`` registers no collision geometry (a native model's links with
+``collisions: false``: their file's geometry is not registered or is filtered,
+``validation.engines.drake.models``)."""
 
 DISCRETE_FEATURES = ("joint_limits",)
 """Features of the discrete profile only: its SAP solver enforces a hinge's or slider's limits
@@ -128,8 +138,14 @@ OPTIONS = (
         "(Drake's default)",
         INTEGRATORS,
     ),
+    MODEL_LOADER_OPTION,
 )
-"""The settings a Drake spec may carry."""
+"""The settings a Drake spec may carry; ``model_loader`` (native, the default: Drake's
+``Parser`` reads a scene's model files, ``validation.engines.drake.models``; physval: the
+bodies and joints physval expanded them into)."""
+
+NATIVE = str(MODEL_LOADER_OPTION.default)
+"""The ``model_loader`` value of Drake's own parser."""
 
 CONTINUOUS_ONLY = ("accuracy", "integrator")
 DISCRETE_ONLY = ("contact_approximation",)
