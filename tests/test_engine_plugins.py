@@ -320,7 +320,10 @@ def test_the_json_schema_names_the_installed_engines():
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate({**scene, "engines": ["bullet"]}, schema)
     described = schema["properties"]["engines"]["items"]["description"]
-    assert "mujoco(profile, integrator, solver, cone, restitution, iterations, model_loader)" in described
+    assert (
+        "mujoco(profile, integrator, solver, cone, restitution, iterations, model_loader)"
+        in described
+    )
 
 
 def test_capabilities_can_depend_on_the_spec(monkeypatch):

@@ -67,7 +67,8 @@ DECLARATION = EngineDeclaration(
         if item.name != "dt"
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}), integrators=INTEGRATORS
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
+        integrators=INTEGRATORS,
     ),  # joints and their limits by the documented impulse (mini_engine.joints)
     check_settings=_check,
 )

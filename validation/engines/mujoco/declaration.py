@@ -56,6 +56,7 @@ DECLARATION = EngineDeclaration(
         MODEL_LOADER_OPTION,
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}), integrators=INTEGRATOR_WORDS
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
+        integrators=INTEGRATOR_WORDS,
     ),
 )
