@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_models import ENGINES, assert_energy_kept, assert_refused_at_file, write_scene
 
-from tests.test_models import ENGINES, assert_energy_kept, assert_refused_at_file, write_scene
 from validation.scenario.compiled import compile_scene
 from validation.scenario.engine_spec import not_installed
 from validation.scenario.load import load_scenario

@@ -8,8 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from test_models import write_scene
 
-from tests.test_models import write_scene
 from validation.scenario import urdf
 from validation.scenario.compiled import compile_scene
 from validation.scenario.load import load_scenario
