@@ -140,6 +140,8 @@ an adapter written before them (a plugin) is never asked to build a joint it can
 MODEL_FEATURES: dict[str, str] = {
     "non_colliding": "bodies that take part in no contact (collides: false: a model's links "
     "with collisions: false)",
+    "placed_shapes": "shapes placed off the centre of mass or turned from the body axes "
+    "(a shape's offset and orientation: a model's collision shapes)",
 }
 """Features of scenes with robot models (issue 36), claimed only where a declaration names
 them (an engine that ignored ``collides: false`` would collide what the scene keeps apart)."""

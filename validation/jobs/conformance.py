@@ -246,6 +246,16 @@ CAPABILITY_SCENES: dict[str, Callable[[], Scenario]] = {
         100 * DT,
         joints=[{**_hinge(), "limits": [-0.2, 0.2]}],
     ),
+    "placed_shapes": lambda: _scene(
+        "conformance_placed_shapes",
+        [
+            {
+                **_body("b", "box", inertia=[0.02, 0.03, 0.04], angular_velocity=[0, 0, 1.0]),
+                "shape": {**SHAPE_FIELDS["box"], "offset": [0.05, 0.0, 0.0]},
+            }
+        ],
+        20 * DT,
+    ),
     "non_colliding": lambda: _scene(
         "conformance_non_colliding",
         [

@@ -26,6 +26,11 @@ def _contacts(scenario: Scenario) -> str | None:
     return None
 
 
+def _placed_shapes(scenario: Scenario) -> str | None:
+    body = next((b for b in scenario.bodies if b.shape.placed), None)
+    return None if body is None else f"body {body.name!r}'s shape sits off its centre of mass"
+
+
 def _non_colliding(scenario: Scenario) -> str | None:
     body = next((b for b in scenario.bodies if not b.collides), None)
     return None if body is None else f"body {body.name!r} takes part in no contact"
@@ -94,6 +99,7 @@ FEATURE_NEEDS: dict[str, Callable[[Scenario], str | None]] = {
     "joints": _joints,
     "joint_limits": _joint_limits,
     "non_colliding": _non_colliding,
+    "placed_shapes": _placed_shapes,
 }
 """Feature -> why a scene needs it (None when it does not); one entry per ``FEATURES``."""
 

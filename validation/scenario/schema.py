@@ -25,6 +25,7 @@ from pydantic import (
     Field,
     Strict,
     field_validator,
+    model_validator,
 )
 
 from validation.scenario.engine_spec import (
@@ -87,29 +88,77 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class SphereShape(_Strict):
+IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)
+
+
+class _PlacedShape(_Strict):
+    """Where a shape sits in its body: by default centred on the centre of mass, its axes the
+    body's. A shape placed elsewhere needs the body's ``inertia`` stated (the solid shape's
+    own would be about another point): a robot link's collision shape, for instance."""
+
+    offset: Vec3 = Field(
+        default=(0.0, 0.0, 0.0), description="m, the shape's centre in the body frame"
+    )
+    orientation: tuple[Finite, Finite, Finite, Finite] = Field(
+        default=IDENTITY_QUATERNION,
+        description="unit quaternion w x y z, the shape's axes to the body's",
+    )
+
+    @field_validator("orientation")
+    @classmethod
+    def _unit_quaternion(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        return _unit(value)
+
+    @property
+    def placed(self) -> bool:
+        """Whether the shape sits away from the centre of mass or turned from the body axes."""
+        return any(self.offset) or tuple(self.orientation) != IDENTITY_QUATERNION
+
+
+class SphereShape(_PlacedShape):
     """A solid sphere."""
 
     type: Literal["sphere"]
     radius: Positive = Field(description="m")
 
 
-class BoxShape(_Strict):
-    """A solid box; half extents along the body axes."""
+class BoxShape(_PlacedShape):
+    """A solid box; half extents along the shape's axes (the body's by default)."""
 
     type: Literal["box"]
     half_extents: PositiveVec3 = Field(description="m, (hx, hy, hz)")
 
 
-class CapsuleShape(_Strict):
-    """A solid capsule along body z: a cylinder of 2*half_length plus two hemispheres."""
+class CapsuleShape(_PlacedShape):
+    """A solid capsule along the shape's z: a cylinder of 2*half_length plus two hemispheres."""
 
     type: Literal["capsule"]
     radius: Positive = Field(description="m")
     half_length: Positive = Field(description="m, half the cylinder's length")
 
 
-ShapeSpec = Annotated[SphereShape | BoxShape | CapsuleShape, Field(discriminator="type")]
+class CylinderShape(_PlacedShape):
+    """A solid cylinder along the shape's z, flat ends: length 2*half_length."""
+
+    type: Literal["cylinder"]
+    radius: Positive = Field(description="m")
+    half_length: Positive = Field(description="m, half the cylinder's length")
+
+
+ShapeSpec = Annotated[
+    SphereShape | BoxShape | CapsuleShape | CylinderShape, Field(discriminator="type")
+]
+
+
+def _unit(value: tuple[float, ...]) -> tuple[float, ...]:
+    """A quaternion normalised, or ValueError when it is not near unit length."""
+    norm = math.sqrt(sum(v * v for v in value))
+    if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
+        raise ValueError(
+            f"expected a unit quaternion w x y z (norm within {UNIT_QUATERNION_TOLERANCE} of 1); "
+            f"got norm {norm:.9g}"
+        )
+    return tuple(v / norm for v in value)
 
 
 def _inertia_matrix(value: Any) -> np.ndarray:
@@ -185,13 +234,16 @@ class BodySpec(_Strict):
     @field_validator("orientation")
     @classmethod
     def _unit_quaternion(cls, value: tuple[float, ...]) -> tuple[float, ...]:
-        norm = math.sqrt(sum(v * v for v in value))
-        if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
+        return _unit(value)
+
+    @model_validator(mode="after")
+    def _placed_shape_states_inertia(self) -> BodySpec:
+        if self.shape.placed and self.inertia is None:
             raise ValueError(
-                f"expected a unit quaternion w x y z (norm within {UNIT_QUATERNION_TOLERANCE} of 1); "
-                f"got norm {norm:.9g}"
+                "expected an inertia: a shape placed off the centre of mass (offset, "
+                "orientation) gives no solid inertia about it"
             )
-        return tuple(v / norm for v in value)
+        return self
 
     @cached_property
     def inertia_matrix(self) -> np.ndarray | None:
