@@ -49,6 +49,7 @@ from pydrake.geometry import (
     Box,
     Capsule,
     CollisionFilterDeclaration,
+    Cylinder,
     GeometrySet,
     HalfSpace,
     Sphere,
@@ -146,6 +147,8 @@ SHAPE_BUILDERS = {
     "box": lambda s: Box(*(2.0 * np.asarray(s.half_extents, dtype=float))),
     # Drake's Capsule(radius, length): length is the cylinder's, along the geometry's z.
     "capsule": lambda s: Capsule(s.radius, 2.0 * s.half_length),
+    # Drake's Cylinder(radius, length): its full length, along the geometry's z.
+    "cylinder": lambda s: Cylinder(s.radius, 2.0 * s.half_length),
 }
 """Scene shape type -> Drake ``Shape`` (full widths and lengths, where the scene has halves)."""
 
@@ -299,8 +302,8 @@ class DrakeAdapter:
 
     def _create_body(self, index: int, spec: BodySpec):
         """One scene body: a free ``RigidBody`` with the scene's mass and inertia about its
-        centre of mass (body axes), its collision shape at the body origin; a fixed body's
-        shape on the world body at its pose (and no plant body). A body with ``collides:
+        centre of mass (body axes), its collision shape at the shape's place in the body
+        (``_register``); a fixed body's shape on the world body at its pose (and no plant body). A body with ``collides:
         false`` registers no collision shape (it touches nothing: ``non_colliding``)."""
         plant = self.plant
         if spec.fixed:
@@ -318,7 +321,11 @@ class DrakeAdapter:
         return body
 
     def _register(self, index: int, spec: BodySpec, body, where: RigidTransform) -> None:
-        """The body's collision shape on the Drake ``body`` at ``where`` (its friction)."""
+        """The body's collision shape on the Drake ``body``, whose frame is the scene body's
+        at ``where``: at the shape's ``offset`` and ``orientation`` in the scene body (a
+        placed shape; the body's inertia, about its centre of mass, is the scene's whatever
+        the shape's place), with its friction."""
+        where = where @ pose(spec.shape.offset, spec.shape.orientation)
         shape = SHAPE_BUILDERS[spec.shape.type](spec.shape)
         friction = CoulombFriction(float(spec.friction), float(spec.friction))
         found = self.plant.RegisterCollisionGeometry(

@@ -77,8 +77,9 @@ DISCRETE_STEPPING = "discrete"
 plant step of dt (semi-implicit Euler of the free motion with the contact solve)."""
 
 SHAPES = ("sphere", "box", "capsule")
-"""``pydrake.geometry.Sphere``, ``Box`` (full widths: twice the half-extents), ``Capsule``
-(radius and cylinder length, twice the scene's ``half_length``, along body z)."""
+"""``pydrake.geometry.Sphere``, ``Box`` (full widths: twice the half-extents), ``Capsule`` and
+``Cylinder`` (radius and cylinder length, twice the scene's ``half_length``, along the shape's
+z), each at the shape's offset and orientation in its body (``placed_shapes``)."""
 
 FEATURES = (
     "ground",
@@ -90,6 +91,7 @@ FEATURES = (
     "friction",
     "joints",
     "non_colliding",
+    "placed_shapes",
 )
 """Every scene feature but ``restitution`` (and ``joint_limits``: ``DISCRETE_FEATURES``): the
 ground is a ``HalfSpace`` on the world body at the scene's pose (tilted too), fixed bodies are

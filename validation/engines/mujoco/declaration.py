@@ -14,6 +14,9 @@ from validation.engine_api import (
     EngineOption,
 )
 
+SHAPES = ("sphere", "box", "capsule")
+"""Every scene shape: geoms ``sphere``, ``box``, ``capsule`` and ``cylinder`` (``mjcf.GEOM_SIZES``)."""
+
 INTEGRATOR_WORDS = ("Euler", "RK4", "implicit", "implicitfast")
 """MuJoCo's integrators as spec words (``mjcf.INTEGRATORS`` maps them to MJCF)."""
 
@@ -56,6 +59,7 @@ DECLARATION = EngineDeclaration(
         MODEL_LOADER_OPTION,
     ),
     capabilities=Capabilities(
+        shapes=SHAPES,
         features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
         integrators=INTEGRATOR_WORDS,
     ),

@@ -6,8 +6,9 @@ Model (all SI units, world frame z up, quaternions w x y z as in the scene):
   pos="0 0 0">``) and oriented as the scene's body frame; a free joint unless the body
   is fixed. Mass and the full body-frame inertia are written explicitly, so MuJoCo never
   recomputes them from the geoms (engines.md 1.3);
-- one geom per body (sphere ``[r]``, box half extents, capsule ``[r, half_length]`` along
-  body z) and a plane for ``scenario.ground``, placed with the one ground pose of
+- one geom per body (sphere ``[r]``, box half extents, capsule and cylinder ``[r,
+  half_length]`` along the shape's z), at the shape's ``offset`` and ``orientation`` in the
+  body (a placed shape: geom ``pos``/``quat``), and a plane for ``scenario.ground``, placed with the one ground pose of
   ``physics.ground_pose`` (the plane's normal is its geom z axis);
 - constant applied forces and torques are not part of the MJCF: the adapter writes them to
   ``xfrc_applied`` (world frame, the force at the body's centre of mass);
@@ -160,8 +161,19 @@ GEOM_SIZES: dict[str, Callable[[object], tuple[float, ...]]] = {
     "sphere": lambda s: (s.radius,),
     "box": lambda s: tuple(s.half_extents),
     "capsule": lambda s: (s.radius, s.half_length),
+    "cylinder": lambda s: (s.radius, s.half_length),
 }
-"""Scenario shape -> MuJoCo geom ``size`` (engines.md 1.3: capsule = [r, half-length], along z)."""
+"""Scenario shape -> MuJoCo geom ``size`` (engines.md 1.3: capsule and cylinder = [r,
+half-length], along the geom's z)."""
+
+
+def _placement(shape) -> dict[str, str]:
+    """A placed shape's geom ``pos`` and ``quat`` in its body (whose frame is the centre of
+    mass, the explicit ``<inertial>`` unchanged by them: ``inertiafromgeom="false"``); none
+    for a shape at the centre of mass along the body axes."""
+    if not shape.placed:
+        return {}
+    return {"pos": _fmt(shape.offset), "quat": _fmt(shape.orientation)}
 
 
 def _inertial_attributes(body: BodySpec) -> dict[str, str]:
@@ -668,6 +680,7 @@ def _add_body(
         name=_geom_name(body.name),
         type=body.shape.type,
         size=_fmt(GEOM_SIZES[body.shape.type](body.shape)),
+        **_placement(body.shape),
         **geom,
     )
     return element

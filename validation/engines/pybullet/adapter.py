@@ -298,6 +298,12 @@ SHAPE_KEYWORDS = {
         "radius": s.radius,
         "height": 2.0 * s.half_length,
     },
+    # GEOM_CYLINDER's height is its full length, along the shape's z (as the capsule's).
+    "cylinder": lambda s: {
+        "shapeType": pybullet.GEOM_CYLINDER,
+        "radius": s.radius,
+        "height": 2.0 * s.half_length,
+    },
 }
 """Scene shape type -> ``createCollisionShape`` keywords (same size conventions)."""
 
@@ -513,11 +519,21 @@ class PybulletAdapter:
         return body
 
     def _collision_shape(self, spec: BodySpec, centre: np.ndarray | None = None) -> int:
-        """The body's shape; a link's placed at its ``centre`` in the link frame (PyBullet
-        puts a link's shape at the link frame's origin, the joint, engines.md 2.5)."""
-        placed = {} if centre is None else {"collisionFramePosition": centre.tolist()}
+        """The body's shape at its place in the link frame (a base's: the body frame): the
+        body's centre there (a link's ``centre``: PyBullet puts a link's shape at the link
+        frame's origin, the joint, engines.md 2.5) plus the shape's ``offset``, turned by its
+        ``orientation`` (the link frame has the body's axes; the inertial frame, and so the
+        body's stated inertia, is set apart from it)."""
+        shape = spec.shape
+        frame = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
+        placed = {}
+        if shape.placed or centre is not None:
+            placed = {
+                "collisionFramePosition": (frame + np.asarray(shape.offset)).tolist(),
+                "collisionFrameOrientation": to_xyzw(np.asarray(shape.orientation)),
+            }
         return pybullet.createCollisionShape(
-            **SHAPE_KEYWORDS[spec.shape.type](spec.shape), **placed, physicsClientId=self.client
+            **SHAPE_KEYWORDS[shape.type](shape), **placed, physicsClientId=self.client
         )
 
     def _set_mass_properties(

@@ -14,6 +14,10 @@ from validation.engine_api import (
     EngineOption,
 )
 
+SHAPES = ("sphere", "box", "capsule")
+"""Every scene shape: ``GEOM_SPHERE``, ``GEOM_BOX``, ``GEOM_CAPSULE`` and ``GEOM_CYLINDER``
+(along the shape's z), at the shape's offset and orientation (``collisionFramePosition``)."""
+
 INERTIA_MODES = ("file", "shapes")
 """The ``urdf_inertia`` option: ``file`` (``URDF_USE_INERTIA_FROM_FILE``: the URDF's
 ``<inertial>``) or ``shapes`` (PyBullet's own default: the file's mass, and an inertia computed
@@ -60,6 +64,7 @@ DECLARATION = EngineDeclaration(
         ),
     ),
     capabilities=Capabilities(
+        shapes=SHAPES,
         integrators=("semi_implicit_euler",),
         features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
     ),

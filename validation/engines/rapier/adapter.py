@@ -40,7 +40,7 @@ from validation.engines.rapier.joints import JointBuilder
 from validation.engines.rapier.readback import from_xyzw, world_inertia
 from validation.engines.reference import dynamic_bodies
 from validation.reference.loads import applied_loads
-from validation.reference.rotation import quat_to_matrix
+from validation.reference.rotation import quat_multiply, quat_to_matrix
 from validation.scenario import BodySpec, Scenario
 from validation.scenario.compiled import (
     CompiledScene,
@@ -85,8 +85,26 @@ SHAPE_BUILDERS = {
     "box": lambda s: rapier3d.Collider.cuboid(*s.half_extents),
     # Rapier's capsule half-height is the cylinder's half-length, along body z for capsule_z.
     "capsule": lambda s: rapier3d.Collider.capsule_z(s.half_length, s.radius),
+    # Rapier's cylinder runs along the collider's y: ``SHAPE_TURNS`` lays it along the shape's z.
+    "cylinder": lambda s: rapier3d.Collider.cylinder(s.half_length, s.radius),
 }
 """Scene shape type -> ``ColliderBuilder`` (same size conventions)."""
+
+Y_TO_Z = (np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0)
+"""w x y z: a quarter turn about x, taking the collider's y axis onto the shape's z."""
+
+SHAPE_TURNS = {"cylinder": Y_TO_Z}
+"""The collider's axes in the shape's, for a builder whose axis is not the shape's z (the
+identity for the others)."""
+
+
+def collider_place(shape) -> tuple[np.ndarray, np.ndarray]:
+    """The collider's translation (3,) and quaternion w x y z (4,) relative to its rigid body
+    (the scene body's frame, at the centre of mass): the shape's ``offset``, and its
+    ``orientation`` turned by the builder's own axes (``SHAPE_TURNS``)."""
+    turn = np.asarray(SHAPE_TURNS.get(shape.type, (1.0, 0.0, 0.0, 0.0)), dtype=float)
+    orientation = quat_multiply(np.asarray(shape.orientation, dtype=float), turn)
+    return np.asarray(shape.offset, dtype=float), orientation
 
 
 def rotation(quat) -> rapier3d.Rotation3:
@@ -264,20 +282,28 @@ class RapierAdapter:
         return builder.user_data(index)
 
     def _create_body(self, index: int, spec: BodySpec):
-        """One scene body: its pose is the scene's (origin at the centre of mass), the
-        principal axes go into the collider's mass properties (module docstring)."""
+        """One scene body: its pose is the scene's (origin at the centre of mass), its
+        collider at the shape's place in it (``collider_place``); the centre of mass and the
+        principal axes go into the collider's mass properties, which Rapier reads in the
+        collider's frame: the body origin and the principal axes as seen from there (module
+        docstring), so a placed shape leaves them where the scene states them."""
         pose = rapier3d.Isometry3(tuple(spec.position), rotation(spec.orientation))
-        collider = self._collider(
-            SHAPE_BUILDERS[spec.shape.type](spec.shape), index, spec.restitution, spec.friction
+        offset, axes = collider_place(spec.shape)
+        builder = SHAPE_BUILDERS[spec.shape.type](spec.shape).position(
+            rapier3d.Isometry3(tuple(offset), rotation(axes))
         )
+        collider = self._collider(builder, index, spec.restitution, spec.friction)
         if spec.fixed:
             return self.world.add_body(rapier3d.RigidBody.fixed().position(pose), [collider])
         moments, q_principal = principal_axes(self._inertia(index))
+        to_collider = quat_to_matrix(axes[None])[0].T
         mass_properties = rapier3d.MassProperties(
-            local_com=(0.0, 0.0, 0.0),
+            local_com=tuple(float(c) for c in -(to_collider @ offset)),
             mass=float(spec.mass),
             principal_inertia=tuple(float(m) for m in moments),
-            principal_inertia_local_frame=rotation(q_principal),
+            principal_inertia_local_frame=rotation(
+                quat_multiply(axes * np.array([1.0, -1.0, -1.0, -1.0]), q_principal)
+            ),
         )
         body = (
             rapier3d.RigidBody.dynamic()

@@ -41,7 +41,9 @@ inertia is a 32-bit float (machine epsilon 1.19e-7), dt included (1e-3 s is stor
 
 SHAPES = ("sphere", "box", "capsule")
 """Every scene shape: ``Collider.ball``, ``Collider.cuboid`` (half-extents), ``Collider.capsule_z``
-(half-height of the cylinder along body z, as the scene's ``half_length``)."""
+(half-height of the cylinder along body z, as the scene's ``half_length``), ``Collider.cylinder``
+(half-height and radius; Rapier's axis is y, turned onto the shape's z), each at the shape's
+offset and orientation relative to its rigid body (``placed_shapes``)."""
 
 FEATURES = (
     "ground",
