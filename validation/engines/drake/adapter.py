@@ -6,7 +6,8 @@ Every fact it relies on is measured in ``docs/engines-drake.md`` (section number
 Boundary conventions (engines-drake.md 2). Each moving scene body is one free ``RigidBody``
 whose frame origin is its centre of mass and whose axes are the scene's body axes: its
 ``SpatialInertia`` is made from the scene's mass and full (body-frame) inertia about the
-centre of mass, so nothing is converted. A free body's generalized positions are
+centre of mass, so nothing is converted; its collision shape sits at the scene shape's
+``offset`` and ``orientation`` in that frame. A free body's generalized positions are
 ``qw qx qy qz x y z`` (scalar first, body to world) and its velocities ``wx wy wz vx vy vz``,
 both in the world frame (``floating_positions_start`` / ``floating_velocities_start_in_v``
 locate them in the plant's state). A fixed scene body is collision geometry of the world body

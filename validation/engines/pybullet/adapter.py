@@ -14,6 +14,9 @@ rotation, body frame) into ``baseInertialFrameOrientation``; so
     q_body     = q_pybullet ⊗ q_P⁻¹   (what ``observe`` returns, w x y z)
 
 and positions and velocities need no conversion (both frames have their origin at the COM).
+A body's collision shape (a cylinder ``GEOM_CYLINDER`` along its z) sits in the link frame (the
+base's: the body frame) at the scene shape's ``offset`` and ``orientation``
+(``collisionFramePosition``/``Orientation``), apart from the inertial frame.
 
 Profiles (``ENGINE_OPTIONS["pybullet"]``):
 

@@ -4,9 +4,10 @@
 Every fact it relies on is measured in ``docs/engines-rapier.md`` (section numbers below).
 
 Boundary conventions (engines-rapier.md 2). A Rapier body's pose is its own frame; the adapter
-puts the collider and the centre of mass at the body's origin and the principal axes of the
-scene's inertia into the collider's ``MassProperties`` (``principal_inertia_local_frame``), so
-the body frame *is* the scene's body frame and nothing is converted but the quaternion order:
+puts the centre of mass at the body's origin, the collider at the scene shape's offset and
+orientation from it, and the principal axes of the scene's inertia into the collider's
+``MassProperties`` (``principal_inertia_local_frame``, in the collider's frame), so the body
+frame *is* the scene's body frame and nothing is converted but the quaternion order:
 Rapier's ``Rotation3.quaternion`` is x y z w, its constructor ``Rotation3(w, x, y, z)``.
 Velocities are the centre of mass's, angular velocities in the world frame. Everything Rapier
 holds is float32 (``declaration.PRECISION``): the parity gate takes the float32 tolerance and
