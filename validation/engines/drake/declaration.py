@@ -76,7 +76,7 @@ DISCRETE_STEPPING = "discrete"
 """The discrete profile's time integration as ``Capabilities.integrators`` names it: one
 plant step of dt (semi-implicit Euler of the free motion with the contact solve)."""
 
-SHAPES = ("sphere", "box", "capsule")
+SHAPES = ("sphere", "box", "capsule", "cylinder")
 """``pydrake.geometry.Sphere``, ``Box`` (full widths: twice the half-extents), ``Capsule`` and
 ``Cylinder`` (radius and cylinder length, twice the scene's ``half_length``, along the shape's
 z), each at the shape's offset and orientation in its body (``placed_shapes``)."""

@@ -14,7 +14,7 @@ from validation.engine_api import (
     EngineOption,
 )
 
-SHAPES = ("sphere", "box", "capsule")
+SHAPES = ("sphere", "box", "capsule", "cylinder")
 """Every scene shape: geoms ``sphere``, ``box``, ``capsule`` and ``cylinder`` (``mjcf.GEOM_SIZES``)."""
 
 INTEGRATOR_WORDS = ("Euler", "RK4", "implicit", "implicitfast")

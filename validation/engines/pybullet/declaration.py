@@ -14,7 +14,7 @@ from validation.engine_api import (
     EngineOption,
 )
 
-SHAPES = ("sphere", "box", "capsule")
+SHAPES = ("sphere", "box", "capsule", "cylinder")
 """Every scene shape: ``GEOM_SPHERE``, ``GEOM_BOX``, ``GEOM_CAPSULE`` and ``GEOM_CYLINDER``
 (along the shape's z), at the shape's offset and orientation (``collisionFramePosition``)."""
 

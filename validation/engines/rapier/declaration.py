@@ -39,7 +39,7 @@ PRECISION = "float32"
 inertia is a 32-bit float (machine epsilon 1.19e-7), dt included (1e-3 s is stored as
 0.0010000000475). The parity gate takes the float32 tolerance, and the provenance says so."""
 
-SHAPES = ("sphere", "box", "capsule")
+SHAPES = ("sphere", "box", "capsule", "cylinder")
 """Every scene shape: ``Collider.ball``, ``Collider.cuboid`` (half-extents), ``Collider.capsule_z``
 (half-height of the cylinder along body z, as the scene's ``half_length``), ``Collider.cylinder``
 (half-height and radius; Rapier's axis is y, turned onto the shape's z), each at the shape's
