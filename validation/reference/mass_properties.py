@@ -2,7 +2,8 @@
 
 Each shape is the scene's (``validation.scenario.schema``): a sphere of ``radius``; a box of
 ``half_extents`` along the body axes; a capsule, a cylinder of length ``2 · half_length``
-along body z capped by two hemispheres of its ``radius``. The formulas are derived here from
+along body z capped by two hemispheres of its ``radius``; a cylinder, the same without the
+caps (flat ends). The formulas are derived here from
 the solids (a capsule from its cylinder and caps, moved by the parallel-axis theorem) and
 checked against a numerical integration over the solid in ``tests/test_reference_side.py``.
 """
@@ -69,4 +70,16 @@ def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarra
         CYLINDER_TRANSVERSE_RADIAL * radius**2 + CYLINDER_TRANSVERSE_LENGTH * length**2
     )
     transverse = cylinder_transverse + 2.0 * (cap_about_centroid + cap_mass * centroid_distance**2)
+    return np.diag([transverse, transverse, axial])
+
+
+def cylinder_inertia(mass: float, radius: float, half_length: float) -> np.ndarray:
+    """(3, 3) kg·m², body z the axis, of a solid cylinder with flat ends: ``mass`` kg,
+    ``radius`` m, length ``ℓ = 2 · half_length`` m. Axial ``m r²/2``; transverse, about a
+    diameter through the centre, ``m (r²/4 + ℓ²/12) = m (3r² + ℓ²)/12``."""
+    length = 2.0 * half_length
+    axial = CYLINDER_AXIAL * mass * radius**2
+    transverse = mass * (
+        CYLINDER_TRANSVERSE_RADIAL * radius**2 + CYLINDER_TRANSVERSE_LENGTH * length**2
+    )
     return np.diag([transverse, transverse, axial])
