@@ -63,13 +63,11 @@ def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarra
     density = mass / (cylinder_volume + caps_volume)
     cylinder_mass = density * cylinder_volume
     cap_mass = 0.5 * density * caps_volume
-    axial = CYLINDER_AXIAL * cylinder_mass * radius**2 + 2.0 * BALL_MOMENT * cap_mass * radius**2
+    cylinder = np.diag(cylinder_inertia(cylinder_mass, radius, half_length))
+    axial = cylinder[2] + 2.0 * BALL_MOMENT * cap_mass * radius**2
     cap_about_centroid = (BALL_MOMENT - HEMISPHERE_CENTROID**2) * cap_mass * radius**2
     centroid_distance = half_length + HEMISPHERE_CENTROID * radius
-    cylinder_transverse = cylinder_mass * (
-        CYLINDER_TRANSVERSE_RADIAL * radius**2 + CYLINDER_TRANSVERSE_LENGTH * length**2
-    )
-    transverse = cylinder_transverse + 2.0 * (cap_about_centroid + cap_mass * centroid_distance**2)
+    transverse = cylinder[0] + 2.0 * (cap_about_centroid + cap_mass * centroid_distance**2)
     return np.diag([transverse, transverse, axial])
 
 
