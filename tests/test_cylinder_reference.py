@@ -99,12 +99,13 @@ def test_a_cylinder_standing_on_its_end_touches_at_the_end_centre():
 
 
 def test_a_cylinder_tilted_by_less_than_the_tie_still_touches_at_its_end_centre():
-    """Turned 1e-12 rad: the end's rim spans 2 r sin θ = 2e-13 m in height, within
-    ``contacts.TIE``: the whole end is deepest together, its centre the point, not the rim
-    point 0.1 m off it."""
-    nearly = turn((1, 0, 0), 1e-12)
+    """Turned 1e-10 rad about x: the end's rim spans 2 r sin θ = 2e-11 m in height, within
+    ``contacts.TIE``: the whole end is deepest together, its centre (h sin θ along +y) the
+    point, not the rim point 0.1 m off it."""
+    angle = 1e-10
+    nearly = turn((1, 0, 0), angle)
     found = one(contacts.PLANE, contacts.CYLINDER, GROUND, ((1, 2, 0.19), nearly, SIZE))
-    check(found, 0.01, (0, 0, 1), (1, 2 - 0.2e-12, -0.005))
+    check(found, 0.01, (0, 0, 1), (1, 2 + SIZE[1] * angle, -0.005))
 
 
 def test_a_cylinder_lying_on_its_side_touches_at_the_middle_of_its_lowest_line():
