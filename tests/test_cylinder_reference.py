@@ -312,6 +312,15 @@ def test_a_cylinder_that_cannot_touch_the_box_is_accepted(tmp_path, capsys, apar
     assert main(["check", str(path)]) == 0, capsys.readouterr().err
 
 
+def test_two_cylinders_joined_by_a_joint_never_touch_and_are_accepted(tmp_path, capsys):
+    """A joint's parent and child are an excluded pair: no cylinder pair is left to measure."""
+    tin = "  - {name: tin, shape: {type: cylinder, radius: 0.1, half_length: 0.1}, mass: 1.0, position: [0, 0, 0.5]}"
+    path = cylinder_scene(tmp_path, [tin])
+    joint = "joints:\n  - {name: pin, type: hinge, parent: can, child: tin, anchor: [0, 0, 0.3], axis: [1, 0, 0]}\n"
+    path.write_text(path.read_text() + joint)
+    assert main(["check", str(path)]) == 0, capsys.readouterr().err
+
+
 def test_a_cylinder_with_a_sphere_and_the_ground_is_accepted(tmp_path, capsys):
     sphere = "  - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [1, 0, 0]}"
     assert main(["check", str(cylinder_scene(tmp_path, [sphere], ground=True))]) == 0, (

@@ -44,7 +44,7 @@ Cylinders:
 - sphere and cylinder: the point of the solid cylinder closest to the sphere's centre; a
   centre inside the cylinder leaves through the side or the end of least overlap;
 - a cylinder against a capsule, a box or a cylinder has no closed form here yet (``PAIRS``
-  leaves them out, ``unmeasured``): a scene where such a pair can touch is refused by
+  leaves them out: ``measured`` is false): a scene where such a pair can touch is refused by
   ``physval check``.
 """
 

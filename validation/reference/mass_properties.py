@@ -5,7 +5,8 @@ Each shape is the scene's (``validation.scenario.schema``): a sphere of ``radius
 along body z capped by two hemispheres of its ``radius``; a cylinder, the same without the
 caps (flat ends). The formulas are derived here from
 the solids (a capsule from its cylinder and caps, moved by the parallel-axis theorem) and
-checked against a numerical integration over the solid in ``tests/test_reference_side.py``.
+checked against a numerical integration over the solid in ``tests/test_reference_side.py``
+(the cylinder in ``tests/test_cylinder_reference.py``).
 """
 
 from __future__ import annotations

@@ -412,13 +412,13 @@ def measured_contacts(scenario: Scenario) -> Found:
     cylinder has no closed form yet)."""
     bodies = scenario.bodies
     for i, j in unmeasured_pairs(scenario):
-        first, second = sorted((bodies[i], bodies[j]), key=lambda b: b.shape.type != "cylinder")
-        where = i if bodies[i] is first else j
+        where, other = (i, j) if bodies[i].shape.type == "cylinder" else (j, i)
+        first, second = bodies[where], bodies[other]
         yield (
             ("bodies", where, "shape"),
             f"{first.name!r} and {second.name!r} can touch: a {first.shape.type} that can "
             f"touch a {second.shape.type} is not measured yet (keep them apart with "
-            "collides: false, or fix one of them)",
+            "collides: false on one, or fix both)",
         )
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from itertools import combinations_with_replacement
 
 import numpy as np
 
@@ -200,15 +201,20 @@ def scene_shapes(scenario: Scenario) -> contacts.Shapes:
 def unmeasured_pairs(scenario: Scenario) -> list[tuple[int, int]]:
     """(i, j), i < j shape indices (``scene_shapes``' order), of every pair that can touch
     (not both fixed, not excluded) and that the reference finder has no closed form for
-    (``contacts.measured``): its contacts could not be measured."""
+    (``contacts.measured``): its contacts could not be measured. Only the shapes of such
+    kinds are paired (a pile of 10,000 spheres costs nothing)."""
     shapes = scene_shapes(scenario)
-    first, second = np.triu_indices(shapes.kind.size, k=1)
-    can = ~(shapes.fixed[first] & shapes.fixed[second]) & shapes.allowed(first, second)
-    return [
-        (int(i), int(j))
-        for i, j in zip(first[can], second[can], strict=True)
-        if not contacts.measured(int(shapes.kind[i]), int(shapes.kind[j]))
-    ]
+    found: set[tuple[int, int]] = set()
+    for kind_a, kind_b in combinations_with_replacement(np.unique(shapes.kind).tolist(), 2):
+        if contacts.measured(kind_a, kind_b):
+            continue
+        a, b = np.flatnonzero(shapes.kind == kind_a), np.flatnonzero(shapes.kind == kind_b)
+        first, second = (x.ravel() for x in np.meshgrid(a, b, indexing="ij"))
+        first, second = np.minimum(first, second), np.maximum(first, second)
+        can = (first < second) & ~(shapes.fixed[first] & shapes.fixed[second])
+        can &= shapes.allowed(first, second)
+        found |= set(zip(first[can].tolist(), second[can].tolist(), strict=True))
+    return sorted(found)
 
 
 def ground_pose(ground: GroundSpec) -> tuple[np.ndarray, np.ndarray]:
