@@ -239,6 +239,17 @@ def test_the_batched_finder_finds_a_cylinder_on_the_ground_and_a_sphere_on_it():
     assert shapes.bound_radius[0] == pytest.approx(np.hypot(0.1, 0.2))
 
 
+def test_the_finder_names_a_pair_it_has_no_closed_form_for():
+    """Only reached past ``physval check``: an error naming the shapes, not a lost pair."""
+    shapes = contacts.Shapes(
+        kind=np.array([contacts.BOX, contacts.CYLINDER]),
+        size=np.array([(0.1, 0.1, 0.1), SIZE]),
+        fixed=np.array([False, False]),
+    )
+    with pytest.raises(ValueError, match="a box against a cylinder has no closed form"):
+        contacts.find_contacts(shapes, np.zeros((1, 2, 3)), np.broadcast_to(EYE, (1, 2, 3, 3)), 0.0)
+
+
 # --- the pairs without a closed form: refused at check --------------------------------------
 
 

@@ -493,6 +493,17 @@ def measured(kind_a: int, kind_b: int) -> bool:
     return (min(kind_a, kind_b), max(kind_a, kind_b)) in PAIRS
 
 
+def _closed_form(kind_a: int, kind_b: int):
+    """``PAIRS``' closed form of a candidate pair; a pair without one (which ``physval check``
+    refuses before any run) is an error naming the shapes, never a pair left out silently."""
+    if not measured(kind_a, kind_b):
+        raise ValueError(
+            f"a {SHAPES[kind_a]} against a {SHAPES[kind_b]} has no closed form in the "
+            "reference contact finder (physval check refuses such scenes)"
+        )
+    return PAIRS[(kind_a, kind_b)]
+
+
 # --- every touching pair of many states ---------------------------------------------------
 
 
@@ -652,7 +663,7 @@ def _touching(shapes: Shapes, pos, rot, margin: float) -> tuple[np.ndarray, ...]
     for code in np.unique(codes):
         rows = codes == code
         s, i, j = state[rows], a[rows], b[rows]
-        contact = PAIRS[divmod(int(code), len(SHAPES))](
+        contact = _closed_form(*divmod(int(code), len(SHAPES)))(
             pos[s, i], rot[s, i], shapes.size[i], pos[s, j], rot[s, j], shapes.size[j]
         )
         near = contact.depth >= -margin
