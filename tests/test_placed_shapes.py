@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from validation.engines.base import Snapshot
+from validation.measure.recording import record
 from validation.measure.runner import run_engine
 from validation.reference import contacts
 from validation.scenario.compiled import compile_scene
@@ -137,3 +139,30 @@ def test_mini_cannot_represent_a_placed_shape_or_a_cylinder(tmp_path, shape, wor
     run = run_engine(compiled, parse_engine_spec("mini"))
     assert run.status == "unsupported", (run.status, run.message)
     assert f"{word} ({reason})" in run.message, run.message
+
+
+class _Held:
+    """A scripted engine that holds every body at its starting pose (the measurement, not
+    any engine, is under test): ``advance`` only moves the clock."""
+
+    def __init__(self, scene):
+        self.scene, self.time = scene, 0.0
+
+    def advance(self, steps: int) -> None:
+        self.time += steps * self.scene.scenario.dt
+
+    def observe(self) -> Snapshot:
+        start = self.scene.start
+        still = np.zeros_like(start.vel[0])
+        return Snapshot(self.time, start.pos[0], start.quat[0], still, still)
+
+
+def test_penetration_max_reads_the_shape_at_its_placed_pose(tmp_path):
+    """The body turned a quarter about x (body y -> world z), its box 0.05 m along body -y:
+    the box hangs 0.05 m below the centre of mass, SINK into the ground; unplaced it would be
+    0.048 m clear of it."""
+    shape = "{type: box, half_extents: [0.1, 0.1, 0.1], offset: [0, -0.05, 0]}"
+    path = scene(tmp_path, shape, (0.0, 0.0, 0.15 - SINK), QUARTER_X)
+    compiled = compile_scene(load_scenario(path))
+    recording = record(_Held(compiled), compiled)
+    assert recording.penetration_max == pytest.approx(SINK, abs=ROUND_OFF)
