@@ -166,3 +166,14 @@ def test_penetration_max_reads_the_shape_at_its_placed_pose(tmp_path):
     compiled = compile_scene(load_scenario(path))
     recording = record(_Held(compiled), compiled)
     assert recording.penetration_max == pytest.approx(SINK, abs=ROUND_OFF)
+
+
+def test_a_small_shape_far_off_its_centre_of_mass_sinking_through_is_deep_penetration(tmp_path):
+    """A 0.1 m sphere 2 m below its body's centre of mass, 0.12 m into the ground: more than
+    its own radius (``stability.PENETRATION_FRACTION``), though less than the body's 2.1 m
+    bounding radius about its centre of mass: the overlap is judged against the shape."""
+    shape = "{type: sphere, radius: 0.1, offset: [0, 0, -2.0]}"
+    path = scene(tmp_path, shape, (0.0, 0.0, 2.0 + 0.1 - 0.12))
+    compiled = compile_scene(load_scenario(path))
+    recording = record(_Held(compiled), compiled)
+    assert recording.unstable.startswith("deep_penetration"), recording.unstable
