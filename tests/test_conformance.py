@@ -167,7 +167,8 @@ def test_a_capability_declared_missing_is_refused_without_building_the_engine(mo
 
     monkeypatch.setattr(MiniAdapter, "load", load)
     result = _only("mini", "capabilities")
-    assert result.passed and "refused springs" in result.detail, result
+    refused = result.detail.split("refused ")[1].split(", ")
+    assert result.passed and "springs" in refused, result
 
 
 def test_conformance_exit_codes(monkeypatch, capsys):

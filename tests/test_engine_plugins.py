@@ -206,7 +206,9 @@ def test_the_example_plugin_is_listed_with_its_version(plugin_path, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "  freeflight                     physval-freeflight 0.1.0: " in done.stdout, done.stdout
     words = " ".join(done.stdout.split())  # the lines wrap within 100 columns
-    assert "lacks ground, tilted_ground, contacts, fixed_bodies, springs" in words, words
+    # a plugin that names no shapes builds the first three: never asked for a cylinder
+    assert "supports sphere, box, capsule, loads; lacks cylinder, ground" in words, words
+    assert "lacks cylinder, ground, tilted_ground, contacts, fixed_bodies, springs" in words, words
     assert " rotation: rk4|exponential (default rk4): orientation update" in words, words
 
 
@@ -214,9 +216,12 @@ def test_the_example_plugin_passes_the_conformance_suite(plugin_path, tmp_path):
     done = _physval(plugin_path, "conformance", "freeflight(substeps=2)", cwd=tmp_path)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "conformance of freeflight(substeps=2): 9 of 9 checks pass" in done.stdout, done.stdout
-    assert "refused ground, tilted_ground, contacts, fixed_bodies, springs" in done.stdout, (
+    assert "refused cylinder, ground, tilted_ground, contacts, fixed_bodies, springs" in (
         done.stdout
-    )
+    ), done.stdout
+    # declared no shapes: built and judged as the first three, never as a cylinder
+    assert "ran sphere, box, capsule, loads;" in done.stdout, done.stdout
+    assert "parity: rotated sphere, box, capsule with" in done.stdout, done.stdout
 
 
 TOSS = """\

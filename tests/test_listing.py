@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from validation.cli import main
-from validation.engine_api import FEATURES, Capabilities, declarations
+from validation.engine_api import FEATURES, SHAPES, Capabilities, declarations
 from validation.engines.mini.declaration import DECLARATION as MINI
 from validation.jobs.listing import LIST_WIDTH, _capability_text, version_of
 from validation.measure.definitions import EXPECTATION_DEFINITIONS, METRIC_DEFINITIONS
@@ -62,9 +62,10 @@ def test_version_names_physval_and_the_engines(capsys):
 
 
 def test_an_engine_with_every_capability_says_so_and_one_without_names_what_it_lacks():
-    everything = Capabilities(features=frozenset(FEATURES))
+    everything = Capabilities(shapes=SHAPES, features=frozenset(FEATURES))
     assert _capability_text(replace(MINI, capabilities=everything)).startswith(
         "supports every shape and scene feature"
     )
     text = _capability_text(replace(MINI, capabilities=Capabilities()))
-    assert "lacks joints, joint_limits" in text, text
+    # the default names the first three shapes and the first contract's features only
+    assert "lacks cylinder, joints, joint_limits" in text, text

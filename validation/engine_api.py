@@ -87,8 +87,14 @@ class EngineOption:
         return self.choices if self.type is str else self.type
 
 
-SHAPES = ("sphere", "box", "capsule")
-"""Every body shape of the scenario format."""
+BASE_SHAPES = ("sphere", "box", "capsule")
+"""The shapes of the first adapter contract: an engine that declares no ``shapes`` builds
+these (``Capabilities.shapes``' default), so an adapter written before cylinders (a plugin) is
+never asked to build one."""
+
+SHAPES = (*BASE_SHAPES, "cylinder")
+"""Every body shape of the scenario format (capability words): a cylinder only where a
+declaration names it."""
 
 MODEL_LOADERS = ("native", "physval")
 """How an engine gets a scene's ``models`` (issue 36): ``native``, its own loader reads the file
@@ -167,7 +173,7 @@ class Capabilities:
     (its rows are ``unsupported``, with the reason), never approximated silently.
 
     Attributes:
-        shapes: the body shapes it builds (of ``SHAPES``).
+        shapes: the body shapes it builds (of ``SHAPES``; default ``BASE_SHAPES``).
         features: the scene features it represents (keys of ``FEATURES``; default
             ``BASE_FEATURES``, joints only where named).
         integrators: the time integration schemes it offers, as its options name them
@@ -182,7 +188,7 @@ class Capabilities:
             (``validation.measure.resolution``).
     """
 
-    shapes: tuple[str, ...] = SHAPES
+    shapes: tuple[str, ...] = BASE_SHAPES
     features: frozenset[str] = frozenset(BASE_FEATURES)
     integrators: tuple[str, ...] = ()
     precision: str = "float64"

@@ -88,6 +88,7 @@ SHAPE_FIELDS: dict[str, dict] = {
     "sphere": {"type": "sphere", "radius": 0.1},
     "box": {"type": "box", "half_extents": [0.1, 0.2, 0.3]},
     "capsule": {"type": "capsule", "radius": 0.05, "half_length": 0.15},
+    "cylinder": {"type": "cylinder", "radius": 0.08, "half_length": 0.12},
 }
 """One shape of each type (m)."""
 

@@ -604,7 +604,9 @@ def _positions_only(states: Trajectory) -> Trajectory:
 
 def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
     """(count,) deepest overlap m (>= 0) of each state and (count,) the smaller bounding radius
-    of that pair (inf where nothing touches); ties go to the lower pair code."""
+    of that pair's shapes about their own centres (``contacts.Shapes.shape_radius``: a shape
+    placed off its body's centre of mass is as large as itself), inf where nothing touches;
+    ties go to the lower pair code."""
     deepest = np.zeros(count)
     radius = np.full(count, np.inf)
     if touching.key.size:
@@ -615,9 +617,8 @@ def _deepest_per_state(scene: CompiledScene, touching: _Touching, count: int):
         pick = order[first]
         a, b = np.divmod(touching.key[pick], scene.shape_count)
         deepest[touching.observation[pick]] = np.maximum(touching.depth[pick], 0.0)
-        radius[touching.observation[pick]] = np.minimum(
-            scene.bound_radius[a], scene.bound_radius[b]
-        )
+        size = scene.shapes.shape_radius
+        radius[touching.observation[pick]] = np.minimum(size[a], size[b])
     return deepest, radius
 
 

@@ -6,8 +6,11 @@ test: a mistake there would move every engine's impact and penetration rows. Thi
 that finder, written from the geometry alone and sharing no code with any engine.
 
 Shapes (``SHAPES``): an infinite plane (through its body position, normal = its body +z), a
-sphere (radius), a capsule (radius, half length of its segment along body z) and a box (half
-extents). Each pair gives **one** contact, the deepest, which is all the measurement reads:
+sphere (radius), a capsule (radius, half length of its segment along body z), a box (half
+extents) and a cylinder (radius, half length along body z, flat ends). A shape may be placed
+in its body (``Shapes.offset``, ``Shapes.turn``): its pose is the body's pose composed with
+its placement. Each pair gives **one** contact, the deepest, which is all the measurement
+reads:
 
 - ``depth`` m, positive when the shapes overlap, minus their distance when they are apart;
 - ``normal`` unit, from A to B (A has the lower shape code, ``SHAPES``'s order);
@@ -31,6 +34,18 @@ The closed forms, per pair (each batched over pairs with NumPy):
 
 A core that passes through a box (a capsule's segment or a sphere's centre inside it) is
 pushed out through the box face of least overlap.
+
+Cylinders:
+
+- plane and cylinder: per flat end, its lowest rim point, or the end's centre when the whole
+  end lies level within ``TIE`` (its rim's heights span ``2 r sin θ <= TIE``): standing on an
+  end, the contact is the end's centre; lying on its side, the two ends' rim points tie and
+  the contact is the middle of the lowest line; tilted on its rim, the lowest rim point;
+- sphere and cylinder: the point of the solid cylinder closest to the sphere's centre; a
+  centre inside the cylinder leaves through the side or the end of least overlap;
+- a cylinder against a capsule, a box or a cylinder has no closed form here yet (``PAIRS``
+  leaves them out: ``measured`` is false): a scene where such a pair can touch is refused by
+  ``physval check``.
 """
 
 from __future__ import annotations
@@ -39,11 +54,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SHAPES = ("plane", "sphere", "capsule", "box")
+SHAPES = ("plane", "sphere", "capsule", "box", "cylinder")
 """Shape codes, by index: a pair's body A is the shape of lower code (the ground, a plane,
 always A)."""
 
-PLANE, SPHERE, CAPSULE, BOX = range(len(SHAPES))
+PLANE, SPHERE, CAPSULE, BOX, CYLINDER = range(len(SHAPES))
 
 TIE = 1e-9
 """m. Points of one pair within this of the deepest are deepest together (their centroid is
@@ -415,6 +430,46 @@ def box_box(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> PairContact:
     return PairContact(depth, normal, point)
 
 
+# --- cylinders: the lowest rim point, the closest point of the solid --------------------------
+
+
+def plane_cylinder(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> PairContact:
+    normal, axis = rot_a[:, :, 2], rot_b[:, :, 2]
+    radius, half_length = size_b[:, 0], size_b[:, 1]
+    across = normal - _dot(normal, axis)[:, None] * axis  # the normal within an end's plane
+    up, tilt = _unit(across, np.zeros(3))  # tilt: sin θ, θ the angle of the ends to the plane
+    level = 2.0 * radius * tilt <= TIE  # the end's whole face is deepest: its centre
+    down = -up * np.where(level, 0.0, radius)[:, None]
+    ends = (
+        pos_b[:, None, :]
+        + np.stack([1.0, -1.0])[None, :, None] * (axis * half_length[:, None])[:, None, :]
+    )
+    return _against_plane(pos_a, rot_a, ends + down[:, None, :], np.zeros(pos_a.shape[0]))
+
+
+def sphere_cylinder(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> PairContact:
+    radius, half_length = size_b[:, 0], size_b[:, 1]
+    local = np.einsum("kji,kj->ki", rot_b, pos_a - pos_b)  # the sphere's centre, B's frame
+    outward, reach = _unit(local * [1.0, 1.0, 0.0], np.array([1.0, 0.0, 0.0]))
+    side = outward * np.minimum(reach, radius)[:, None]
+    nearest = side + np.clip(local[:, 2], -half_length, half_length)[:, None] * UP
+    outside = (reach > radius) | (np.abs(local[:, 2]) > half_length)
+    # inside: leave through the side (along ``outward``) or the nearer end, the lesser overlap
+    through_side, through_end = radius - reach, half_length - np.abs(local[:, 2])
+    by_side = through_side <= through_end
+    end_way = np.where(local[:, 2] < 0.0, -1.0, 1.0)[:, None] * UP
+    leave = np.where(by_side[:, None], outward, end_way)
+    overlap = np.where(by_side, through_side, through_end)
+    surface = np.where(outside[:, None], nearest, local + leave * overlap[:, None])
+    world = pos_b + np.einsum("kij,kj->ki", rot_b, surface)
+    apart = _between_spheres(pos_a, size_a[:, 0], world, np.zeros_like(radius))
+    exit_normal = -np.einsum("kij,kj->ki", rot_b, leave)  # the cylinder lies against the exit
+    depth = np.where(outside, apart.depth, size_a[:, 0] + overlap)
+    normal = np.where(outside[:, None], apart.normal, exit_normal)
+    point = pos_a + normal * (size_a[:, 0] - 0.5 * depth)[:, None]
+    return PairContact(depth, normal, point)
+
+
 PAIRS = {
     (PLANE, SPHERE): plane_sphere,
     (PLANE, CAPSULE): plane_capsule,
@@ -425,10 +480,28 @@ PAIRS = {
     (CAPSULE, CAPSULE): capsule_capsule,
     (CAPSULE, BOX): capsule_box,
     (BOX, BOX): box_box,
+    (PLANE, CYLINDER): plane_cylinder,
+    (SPHERE, CYLINDER): sphere_cylinder,
 }
 """(shape A, shape B), A's code the lower -> the closed form of their deepest contact, each
 ``f(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> PairContact`` over ``k`` pairs: ``pos``
-(k, 3) m, ``rot`` (k, 3, 3) body to world, ``size`` (k, 3) m (``Shapes.size``)."""
+(k, 3) m, ``rot`` (k, 3, 3) shape to world, ``size`` (k, 3) m (``Shapes.size``)."""
+
+
+def measured(kind_a: int, kind_b: int) -> bool:
+    """Whether the pair of shape codes has a closed form (``PAIRS``, either order)."""
+    return (min(kind_a, kind_b), max(kind_a, kind_b)) in PAIRS
+
+
+def _closed_form(kind_a: int, kind_b: int):
+    """``PAIRS``' closed form of a candidate pair; a pair without one (which ``physval check``
+    refuses before any run) is an error naming the shapes, never a pair left out silently."""
+    if not measured(kind_a, kind_b):
+        raise ValueError(
+            f"a {SHAPES[kind_a]} against a {SHAPES[kind_b]} has no closed form in the "
+            "reference contact finder (physval check refuses such scenes)"
+        )
+    return PAIRS[(kind_a, kind_b)]
 
 
 # --- every touching pair of many states ---------------------------------------------------
@@ -440,27 +513,67 @@ class Shapes:
 
     Attributes:
         kind: (N,) int, ``SHAPES`` codes. size: (N, 3) m: sphere (radius, 0, 0), capsule
-            (radius, half length, 0), box (half extents), plane zeros.
+            and cylinder (radius, half length, 0), box (half extents), plane zeros.
         fixed: (N,) bool, never moves (two fixed shapes are never a pair).
         excluded: (e, 2) int, pairs of shapes that never touch each other, lower index first:
             the parent and child of a joint (as MuJoCo's parent filter and Bullet's adjacent
             links do), whose shapes meet at the joint by construction.
+        offset: (N, 3) m, each shape's centre in its body's frame (from the body's position,
+            its centre of mass); zeros by default.
+        turn: (N, 3, 3) each shape's axes to its body's axes; identities by default.
     """
 
     kind: np.ndarray
     size: np.ndarray
     fixed: np.ndarray
     excluded: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    offset: np.ndarray | None = None
+    turn: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        count = self.kind.size
+        if self.offset is None:
+            object.__setattr__(self, "offset", np.zeros((count, 3)))
+        if self.turn is None:
+            object.__setattr__(self, "turn", np.broadcast_to(np.eye(3), (count, 3, 3)))
+
+    @property
+    def placed(self) -> np.ndarray:
+        """(N,) bool, the shapes off their body's centre of mass or turned from its axes."""
+        return self.offset.any(axis=1) | (self.turn != np.eye(3)).any(axis=(1, 2))
+
+    def poses(self, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The shapes' poses (``pos (..., N, 3)``, ``rot (..., N, 3, 3)``) of their bodies'
+        poses: each body's pose composed with its shape's placement (``offset``, ``turn``)."""
+        if not self.placed.any():
+            return pos, rot
+        return pos + np.einsum("...ij,...j->...i", rot, self.offset), rot @ self.turn
+
+    @property
+    def shape_radius(self) -> np.ndarray:
+        """(N,) m, each shape's bounding sphere about its own centre (inf for a plane)."""
+        size = self.size
+        return np.select(
+            [
+                self.kind == SPHERE,
+                self.kind == CAPSULE,
+                self.kind == BOX,
+                self.kind == CYLINDER,
+            ],
+            [
+                size[:, 0],
+                size[:, 0] + size[:, 1],
+                np.linalg.norm(size, axis=1),
+                np.hypot(*size[:, :2].T),
+            ],
+            np.inf,
+        )
 
     @property
     def bound_radius(self) -> np.ndarray:
-        """(N,) m, each shape's bounding sphere about its centre (inf for a plane)."""
-        radius = np.select(
-            [self.kind == SPHERE, self.kind == CAPSULE, self.kind == BOX],
-            [self.size[:, 0], self.size[:, 0] + self.size[:, 1], np.linalg.norm(self.size, axis=1)],
-            np.inf,
-        )
-        return radius
+        """(N,) m, each shape's bounding sphere about its body's centre of mass: its own
+        (``shape_radius``) grown by the distance ``|offset|`` its centre sits from it."""
+        return self.shape_radius + np.linalg.norm(self.offset, axis=1)
 
     @property
     def can_touch(self) -> bool:
@@ -516,10 +629,12 @@ only adds candidates that the exact check drops)."""
 
 
 def find_contacts(shapes: Shapes, pos: np.ndarray, rot: np.ndarray, margin: float) -> Found:
-    """Every pair touching (``depth >= -margin``) in each of ``s`` states ``pos (s, N, 3)``,
-    ``rot (s, N, 3, 3)``: the broad phase's candidates (planes against every shape; finite
-    shapes whose bounding spheres come within ``margin``), then each pair's closed form
+    """Every pair touching (``depth >= -margin``) in each of ``s`` states of the bodies,
+    ``pos (s, N, 3)``, ``rot (s, N, 3, 3)``: each shape at its pose (``Shapes.poses``), the
+    broad phase's candidates (planes against every shape; finite shapes whose bounding spheres
+    about their own centres come within ``margin``), then each pair's closed form
     (``PAIRS``)."""
+    pos, rot = shapes.poses(pos, rot)
     finite = np.flatnonzero(shapes.kind != PLANE)
     load = finite.size * (finite.size - 1) // 2
     load = load if load <= ALL_PAIRS else finite.size * (NEIGHBOUR_CELLS.shape[0] + 1)
@@ -548,7 +663,7 @@ def _touching(shapes: Shapes, pos, rot, margin: float) -> tuple[np.ndarray, ...]
     for code in np.unique(codes):
         rows = codes == code
         s, i, j = state[rows], a[rows], b[rows]
-        contact = PAIRS[divmod(int(code), len(SHAPES))](
+        contact = _closed_form(*divmod(int(code), len(SHAPES)))(
             pos[s, i], rot[s, i], shapes.size[i], pos[s, j], rot[s, j], shapes.size[j]
         )
         near = contact.depth >= -margin
@@ -585,7 +700,7 @@ def _finite_candidates(shapes: Shapes, centres, index, margin: float) -> tuple[n
     """(state, i, j) of the finite shapes ``index (m,)`` at ``centres (s, m, 3)`` whose
     bounding spheres come within ``margin``: every pair of a small scene, the pairs of
     neighbouring grid cells (cells as wide as the largest bounding diameter) of a large one."""
-    radius = shapes.bound_radius[index]
+    radius = shapes.shape_radius[index]
     if index.size * (index.size - 1) // 2 <= ALL_PAIRS:
         first, second = np.triu_indices(index.size, k=1)
         state = np.repeat(np.arange(centres.shape[0]), first.size)

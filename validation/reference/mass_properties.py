@@ -2,9 +2,11 @@
 
 Each shape is the scene's (``validation.scenario.schema``): a sphere of ``radius``; a box of
 ``half_extents`` along the body axes; a capsule, a cylinder of length ``2 · half_length``
-along body z capped by two hemispheres of its ``radius``. The formulas are derived here from
+along body z capped by two hemispheres of its ``radius``; a cylinder, the same without the
+caps (flat ends). The formulas are derived here from
 the solids (a capsule from its cylinder and caps, moved by the parallel-axis theorem) and
-checked against a numerical integration over the solid in ``tests/test_reference_side.py``.
+checked against a numerical integration over the solid in ``tests/test_reference_side.py``
+(the cylinder in ``tests/test_cylinder_reference.py``).
 """
 
 from __future__ import annotations
@@ -62,11 +64,21 @@ def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarra
     density = mass / (cylinder_volume + caps_volume)
     cylinder_mass = density * cylinder_volume
     cap_mass = 0.5 * density * caps_volume
-    axial = CYLINDER_AXIAL * cylinder_mass * radius**2 + 2.0 * BALL_MOMENT * cap_mass * radius**2
+    cylinder = np.diag(cylinder_inertia(cylinder_mass, radius, half_length))
+    axial = cylinder[2] + 2.0 * BALL_MOMENT * cap_mass * radius**2
     cap_about_centroid = (BALL_MOMENT - HEMISPHERE_CENTROID**2) * cap_mass * radius**2
     centroid_distance = half_length + HEMISPHERE_CENTROID * radius
-    cylinder_transverse = cylinder_mass * (
+    transverse = cylinder[0] + 2.0 * (cap_about_centroid + cap_mass * centroid_distance**2)
+    return np.diag([transverse, transverse, axial])
+
+
+def cylinder_inertia(mass: float, radius: float, half_length: float) -> np.ndarray:
+    """(3, 3) kg·m², body z the axis, of a solid cylinder with flat ends: ``mass`` kg,
+    ``radius`` m, length ``ℓ = 2 · half_length`` m. Axial ``m r²/2``; transverse, about a
+    diameter through the centre, ``m (r²/4 + ℓ²/12) = m (3r² + ℓ²)/12``."""
+    length = 2.0 * half_length
+    axial = CYLINDER_AXIAL * mass * radius**2
+    transverse = mass * (
         CYLINDER_TRANSVERSE_RADIAL * radius**2 + CYLINDER_TRANSVERSE_LENGTH * length**2
     )
-    transverse = cylinder_transverse + 2.0 * (cap_about_centroid + cap_mass * centroid_distance**2)
     return np.diag([transverse, transverse, axial])

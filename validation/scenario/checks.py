@@ -25,7 +25,12 @@ from validation.scenario.compiled import compile_scene
 from validation.scenario.definability import UNDEFINED_WHEN, Traits, scene_traits, why_undefined
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.joints import JOINT_RULES
-from validation.scenario.physics import body_inertia, pair_rule, symmetry_frame
+from validation.scenario.physics import (
+    body_inertia,
+    pair_rule,
+    symmetry_frame,
+    unmeasured_pairs,
+)
 from validation.scenario.problems import Problem, path_text
 from validation.scenario.schema import (
     ANY_METRIC,
@@ -401,6 +406,22 @@ def step_count(scenario: Scenario) -> Found:
         yield ("duration",), fraction
 
 
+def measured_contacts(scenario: Scenario) -> Found:
+    """Every pair of bodies that can touch has a contact the reference side can measure
+    (``validation.reference.contacts.PAIRS``: a cylinder against a capsule, a box or a
+    cylinder has no closed form yet)."""
+    bodies = scenario.bodies
+    for i, j in unmeasured_pairs(scenario):
+        where, other = (i, j) if bodies[i].shape.type == "cylinder" else (j, i)
+        first, second = bodies[where], bodies[other]
+        yield (
+            ("bodies", where, "shape"),
+            f"{first.name!r} and {second.name!r} can touch: a {first.shape.type} that can "
+            f"touch a {second.shape.type} is not measured yet (keep them apart with "
+            "collides: false on one, or fix both)",
+        )
+
+
 Rule = Callable[[Scenario], Found]
 
 RULES: tuple[Rule, ...] = (
@@ -414,6 +435,7 @@ RULES: tuple[Rule, ...] = (
     joint_expectations_fit_their_joint,
     precession_needs_a_symmetry_axis,
     loads_on_moving_bodies,
+    measured_contacts,
     known_findings,
     sweep_steps,
     engine_specs,

@@ -13,18 +13,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from itertools import combinations_with_replacement
 
 import numpy as np
 
 from validation.reference import contacts, rotation
 from validation.reference.loads import WORLD, Springs
-from validation.reference.mass_properties import box_inertia, capsule_inertia, sphere_inertia
+from validation.reference.mass_properties import (
+    box_inertia,
+    capsule_inertia,
+    cylinder_inertia,
+    sphere_inertia,
+)
 from validation.scenario.schema import BodySpec, GroundSpec, Scenario, ShapeSpec, SpringSpec
 
 SOLID_INERTIA: dict[str, Callable[[ShapeSpec, float], np.ndarray]] = {
     "sphere": lambda s, mass: sphere_inertia(mass, s.radius),
     "box": lambda s, mass: box_inertia(mass, s.half_extents),
     "capsule": lambda s, mass: capsule_inertia(mass, s.radius, s.half_length),
+    "cylinder": lambda s, mass: cylinder_inertia(mass, s.radius, s.half_length),
 }
 """Scenario shape type -> the reference's solid inertia (3, 3) kg·m² of a shape and a mass."""
 
@@ -147,6 +154,7 @@ SHAPE_SIZES: dict[str, Callable[[ShapeSpec], tuple[float, ...]]] = {
     "sphere": lambda s: (s.radius, 0.0, 0.0),
     "capsule": lambda s: (s.radius, s.half_length, 0.0),
     "box": lambda s: tuple(s.half_extents),
+    "cylinder": lambda s: (s.radius, s.half_length, 0.0),
 }
 """Scenario shape type -> its ``contacts.Shapes.size`` row (m); the type names are the
 reference finder's ``contacts.SHAPES``."""
@@ -156,13 +164,17 @@ def scene_shapes(scenario: Scenario) -> contacts.Shapes:
     """The scene's collision shapes for ``validation.reference.contacts``: its bodies in
     scenario order, then the ground plane if any (fixed); a joint's parent and child never
     touch each other, nor does a body with ``collides: false`` touch anything
-    (``Shapes.excluded``)."""
+    (``Shapes.excluded``); each shape placed in its body by its ``offset`` and
+    ``orientation`` (``Shapes.offset``, ``Shapes.turn``)."""
     bodies = scenario.bodies
     kinds = [contacts.SHAPES.index(b.shape.type) for b in bodies]
     sizes = [SHAPE_SIZES[b.shape.type](b.shape) for b in bodies]
     fixed = [b.fixed for b in bodies]
+    offsets = [b.shape.offset for b in bodies]
+    turns = [rotation.quat_to_matrix(np.asarray(b.shape.orientation, dtype=float)) for b in bodies]
     if scenario.ground is not None:
         kinds, sizes, fixed = [*kinds, contacts.PLANE], [*sizes, (0.0, 0.0, 0.0)], [*fixed, True]
+        offsets, turns = [*offsets, (0.0, 0.0, 0.0)], [*turns, np.eye(3)]
     index = {body.name: k for k, body in enumerate(bodies)}
     jointed = {
         (min(index[j.parent], index[j.child]), max(index[j.parent], index[j.child]))
@@ -181,7 +193,28 @@ def scene_shapes(scenario: Scenario) -> contacts.Shapes:
         size=np.array(sizes, dtype=float).reshape(-1, 3),
         fixed=np.array(fixed, dtype=bool),
         excluded=np.array(sorted(jointed | apart), dtype=np.int64).reshape(-1, 2),
+        offset=np.array(offsets, dtype=float).reshape(-1, 3),
+        turn=np.array(turns, dtype=float).reshape(-1, 3, 3),
     )
+
+
+def unmeasured_pairs(scenario: Scenario) -> list[tuple[int, int]]:
+    """(i, j), i < j shape indices (``scene_shapes``' order), of every pair that can touch
+    (not both fixed, not excluded) and that the reference finder has no closed form for
+    (``contacts.measured``): its contacts could not be measured. Only the shapes of such
+    kinds are paired (a pile of 10,000 spheres costs nothing)."""
+    shapes = scene_shapes(scenario)
+    found: set[tuple[int, int]] = set()
+    for kind_a, kind_b in combinations_with_replacement(np.unique(shapes.kind).tolist(), 2):
+        if contacts.measured(kind_a, kind_b):
+            continue
+        a, b = np.flatnonzero(shapes.kind == kind_a), np.flatnonzero(shapes.kind == kind_b)
+        first, second = (x.ravel() for x in np.meshgrid(a, b, indexing="ij"))
+        first, second = np.minimum(first, second), np.maximum(first, second)
+        can = (first < second) & ~(shapes.fixed[first] & shapes.fixed[second])
+        can &= shapes.allowed(first, second)
+        found |= set(zip(first[can].tolist(), second[can].tolist(), strict=True))
+    return sorted(found)
 
 
 def ground_pose(ground: GroundSpec) -> tuple[np.ndarray, np.ndarray]:

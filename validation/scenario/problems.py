@@ -13,6 +13,7 @@ from validation.scenario.schema import (
     BodySpec,
     BoxShape,
     CapsuleShape,
+    CylinderShape,
     GroundSpec,
     PairSpec,
     Scenario,
@@ -116,7 +117,12 @@ def _node_at(data: Any, loc: tuple) -> Any:
     return data
 
 
-_SHAPES = {"sphere": SphereShape, "box": BoxShape, "capsule": CapsuleShape}
+_SHAPES = {
+    "sphere": SphereShape,
+    "box": BoxShape,
+    "capsule": CapsuleShape,
+    "cylinder": CylinderShape,
+}
 _EXPECTATIONS = {
     model.model_fields["kind"].annotation.__args__[0]: model for model in EXPECTATION_MODELS
 }
@@ -141,8 +147,9 @@ def _allowed_keys(data: Any, loc: tuple) -> list[str]:
 
 
 SHAPE_EXAMPLE = (
-    "{type: sphere, radius: 0.1}, {type: box, half_extents: [0.1, 0.1, 0.1]} or "
-    "{type: capsule, radius: 0.05, half_length: 0.2}"
+    "{type: sphere, radius: 0.1}, {type: box, half_extents: [0.1, 0.1, 0.1]}, "
+    "{type: capsule, radius: 0.05, half_length: 0.2} or "
+    "{type: cylinder, radius: 0.05, half_length: 0.2}"
 )
 TOLERANCE_EXAMPLE = "a number such as 1.0e-3, or per engine: {default: 1.0e-3, mujoco: 1.0e-6}"
 MAPPING_HINTS = {

@@ -10,8 +10,8 @@ from mini_engine.settings import CHOICES, INTEGRATORS, Settings
 from validation.engine_api import (
     API_VERSION,
     BASE_FEATURES,
+    BASE_SHAPES,
     JOINT_FEATURES,
-    MODEL_FEATURES,
     Capabilities,
     Count,
     EngineDeclaration,
@@ -67,8 +67,10 @@ DECLARATION = EngineDeclaration(
         if item.name != "dt"
     ),
     capabilities=Capabilities(
-        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, *MODEL_FEATURES}),
+        shapes=BASE_SHAPES,  # mini_engine has no cylinder
+        features=frozenset({*BASE_FEATURES, *JOINT_FEATURES, "non_colliding"}),
         integrators=INTEGRATORS,
-    ),  # joints and their limits by the documented impulse (mini_engine.joints)
+    ),  # joints and their limits by the documented impulse (mini_engine.joints); no
+    # placed_shapes: mini_engine's bodies carry their shape at the centre of mass, on its axes
     check_settings=_check,
 )
