@@ -105,7 +105,8 @@ cylinder's inertia is 10 % or more off."""
 
 
 def solid_cylinder_inertia(radius: float, half_length: float, mass: float) -> np.ndarray:
-    """The closed form, body frame: m r²/2 about the axis (z), m(3r² + ℓ²)/12 across (ℓ = 2h)."""
+    """The closed form, body frame: m r²/2 about the axis (z), m(3r² + ℓ²)/12 across
+    (ℓ = 2h)."""
     across = mass * (3 * radius**2 + (2 * half_length) ** 2) / 12
     return np.diag([across, across, mass * radius**2 / 2])
 

@@ -304,8 +304,9 @@ class DrakeAdapter:
     def _create_body(self, index: int, spec: BodySpec):
         """One scene body: a free ``RigidBody`` with the scene's mass and inertia about its
         centre of mass (body axes), its collision shape at the shape's place in the body
-        (``_register``); a fixed body's shape on the world body at its pose (and no plant body). A body with ``collides:
-        false`` registers no collision shape (it touches nothing: ``non_colliding``)."""
+        (``_register``); a fixed body's shape on the world body at its pose (and no plant
+        body). A body with ``collides: false`` registers no collision shape (it touches
+        nothing: ``non_colliding``)."""
         plant = self.plant
         if spec.fixed:
             if spec.collides:

@@ -15,7 +15,8 @@ from validation.engine_api import (
 )
 
 SHAPES = ("sphere", "box", "capsule", "cylinder")
-"""Every scene shape: geoms ``sphere``, ``box``, ``capsule`` and ``cylinder`` (``mjcf.GEOM_SIZES``)."""
+"""Every scene shape: geoms ``sphere``, ``box``, ``capsule`` and ``cylinder``
+(``mjcf.GEOM_SIZES``)."""
 
 INTEGRATOR_WORDS = ("Euler", "RK4", "implicit", "implicitfast")
 """MuJoCo's integrators as spec words (``mjcf.INTEGRATORS`` maps them to MJCF)."""

@@ -8,8 +8,8 @@ Model (all SI units, world frame z up, quaternions w x y z as in the scene):
   recomputes them from the geoms (engines.md 1.3);
 - one geom per body (sphere ``[r]``, box half extents, capsule and cylinder ``[r,
   half_length]`` along the shape's z), at the shape's ``offset`` and ``orientation`` in the
-  body (a placed shape: geom ``pos``/``quat``), and a plane for ``scenario.ground``, placed with the one ground pose of
-  ``physics.ground_pose`` (the plane's normal is its geom z axis);
+  body (a placed shape: geom ``pos``/``quat``), and a plane for ``scenario.ground``, placed
+  with the one ground pose of ``physics.ground_pose`` (the plane's normal is its geom z axis);
 - constant applied forces and torques are not part of the MJCF: the adapter writes them to
   ``xfrc_applied`` (world frame, the force at the body's centre of mass);
 - springs as spatial tendons between two sites (stiffness, damping, springlength = the
