@@ -54,6 +54,12 @@ from validation.scenario.urdf import ModelLayout
 GEOMETRY_ELEMENTS = ("collision", "visual")
 """A URDF link's geometry elements, removed before Drake parses a model that does not collide."""
 
+HELD_FRICTION = 0.0
+"""N·m or N: a parsed joint's dry friction in Drake. ``MultibodyPlant`` has no joint friction:
+the parser warns ("MultibodyPlant does not currently support non-zero joint friction", kept in
+the provenance by ``parser_log``) and drops a URDF's ``<dynamics friction>`` (and an MJCF's
+``frictionloss``); the ``model_fields`` tier reads Drake's as this."""
+
 FILE_TYPES = {"urdf": "urdf", "mjcf": "xml"}
 """``ModelLayout.format`` -> Drake's ``file_type`` for ``AddModelsFromString``."""
 

@@ -200,6 +200,21 @@ def set_joint_state(model, data, layouts) -> None:
             data.qvel[model.jnt_dofadr[jid]] = layout.initial_velocity(file_joint)
 
 
+def joint_friction(model, scenario) -> np.ndarray:
+    """(j,) N·m or N: each scene joint's dry friction as MuJoCo holds it, ``dof_frictionloss``
+    (its URDF importer reads ``<dynamics friction>`` into it, its MJCF parser
+    ``frictionloss``; 0 for a joint MuJoCo welded, and for every joint ``mjcf`` writes from
+    the scene's, which have none): the ``JointReport.friction`` of the ``model_fields`` tier."""
+    import mujoco
+
+    friction = np.zeros(len(scenario.joints))
+    for k, joint in enumerate(scenario.joints):
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+        if jid >= 0:
+            friction[k] = model.dof_frictionloss[model.jnt_dofadr[jid]]
+    return friction
+
+
 def body_offsets(scene, body_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per scene body, its frame in the MuJoCo body's (``ModelLayout.body_in_link``):
     rotations (n, 3, 3), translations (n, 3), and (n,) whether it is a model's body (the

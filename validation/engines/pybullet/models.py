@@ -35,6 +35,14 @@ from validation.scenario.urdf import IDENTITY, Frame, ModelLayout
 LOADERS = {"urdf": "loadURDF", "mjcf": "loadMJCF"}
 """A model file's format -> PyBullet's loader."""
 
+HELD_FRICTION = 0.0
+"""N·m or N: a loaded joint's dry friction as PyBullet's step applies it. ``loadURDF`` keeps
+``<dynamics friction>`` in ``getJointInfo``'s jointFriction (index 7), but nothing in the
+step reads it once ``release_motors`` has switched the velocity motors off: measured on
+pybullet_data's pendulum5.urdf (friction 1.0 on every joint) against copies with friction 0
+and 100, the joint angles after 1 s of swing agree to the last digit. The file's friction is
+dropped: the ``model_fields`` tier reads PyBullet's as this."""
+
 NO_COLLISIONS = (0, 0)
 """``setCollisionFilterGroupMask``'s group and mask of a model link that collides with
 nothing (``collisions: false``): no group, and a mask that accepts none."""
