@@ -87,7 +87,7 @@ def test_tier_one_names_a_dropped_friction_and_mujoco_agrees(tmp_path):
     assert "friction" not in agreed.message, agreed
     dropped = model_fields(scene, model, dataclasses.replace(joints, friction=None))
     assert dropped.message.startswith("joint p/joint"), dropped.message
-    assert "friction differs by 1.00e+00" in dropped.message
+    assert "friction differs by 1.00e+00 (relative; engine 0, file 1)" in dropped.message
 
 
 def _swing(file: str) -> list[float]:

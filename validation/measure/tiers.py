@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -216,8 +216,15 @@ def _joint_differences(
             scale = inertia.get(joint.name, 0.0)
             found.append(_difference(item, "armature", engine.armature[k], 0.0, scale))
         scale = friction_scale(scene, expected.friction[k], inertia.get(joint.name, 0.0))
-        found.append(_difference(item, "friction", friction[k], expected.friction[k], scale))
+        found.append(_friction(item, friction[k], expected.friction[k], scale))
     return found
+
+
+def _friction(item: str, engine: float, stated: float, scale: float) -> Difference:
+    """The friction difference, its message showing both values (a dropped friction reads
+    "engine 0, file 1")."""
+    shown = f"engine {float(engine):.6g}, file {float(stated):.6g}"
+    return replace(_difference(item, "friction", engine, stated, scale), detail=shown)
 
 
 def friction_scale(scene: CompiledScene, stated: float, inertia: float) -> float:
