@@ -84,6 +84,12 @@ SHAPES = {
 """A collision element's kind (``robot.Geometry``) -> the scene shape it becomes under
 ``collisions: true``; any other kind (a mesh, a plane, an ellipsoid) refuses the model."""
 
+LINK_CONTACT = {"restitution": 0.0, "friction": 0.0}
+"""A model link's contact values as a scene body (the scene's body defaults; a ``pairs:``
+entry may set a pair's): the native loaders give the file's shapes the pairs these make
+(``validation/engines/*/`` ``native.py``, ``models.py``), so native and physval runs of a
+scene meet the same contacts."""
+
 PACKAGE_PREFIX = "pkg:"
 """A ``file`` that starts with this names a path inside an installed Python package."""
 
@@ -467,6 +473,7 @@ class _Expansion:
                     "name": self.name(link.name),
                     "shape": shape,
                     "collides": collides,
+                    **LINK_CONTACT,
                     "mass": link.mass,
                     "inertia": link.inertia.tolist(),
                     "position": frame.translation.tolist(),
