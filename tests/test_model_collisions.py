@@ -213,3 +213,97 @@ def test_a_link_without_collision_keeps_the_placeholder_that_touches_nothing(tmp
         PLACEHOLDER_RADIUS,
         False,
     )
+
+
+# --- native loaders with collisions: true ----------------------------------------------------
+
+SWING = 1.0
+"""s: pendulum5 hung 0.6 m above the ground swings down through it within this (its 2.5 m
+chain reaches 1.9 m below the ground without contact)."""
+
+RESTING_DEPTH = 0.01
+"""m: how far a link's centre may end below its sphere's radius above the ground: the
+contact's penetration (measured: lowest centres 0.0470 m MuJoCo, 0.0500 PyBullet, 0.0486
+Drake, 0.0471 mini for radius 0.05 m)."""
+
+NATIVE = ("mujoco", "pybullet", "drake")
+
+
+def _falling_pendulum(folder: Path, collisions: bool):
+    from validation.scenario.compiled import compile_scene
+
+    document = {
+        "dt": 0.001,
+        "duration": SWING,
+        "engines": list(NATIVE),
+        "ground": {"restitution": 0.0, "friction": 0.5},
+        "models": [
+            {"name": "p", "file": PENDULUM, "position": [0, 0, 0.6], "collisions": collisions}
+        ],
+    }
+    path = folder / f"fall{collisions}.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return compile_scene(load_scenario(path))
+
+
+def _lowest(scene, engine: str) -> float:
+    """m: the lowest model body centre over the swing (every 0.1 s) in ``engine``'s native
+    loading."""
+    from validation.engines.registry import create_adapter
+    from validation.scenario.engine_spec import parse_engine_spec
+
+    adapter = create_adapter(parse_engine_spec(engine))
+    adapter.load(scene)
+    lowest = np.inf
+    try:
+        for _ in range(round(SWING / 0.1)):
+            adapter.advance(100)
+            lowest = min(lowest, float(np.asarray(adapter.observe().pos)[..., 2].min()))
+    finally:
+        getattr(adapter, "close", lambda: None)()
+    return lowest
+
+
+@pytest.mark.parametrize("engine", NATIVE)
+def test_a_native_loaders_model_meets_the_ground_only_with_collisions(tmp_path, engine):
+    assert _lowest(_falling_pendulum(tmp_path, False), engine) < 0.0
+    radius = 0.05  # pendulum5's spheres
+    assert _lowest(_falling_pendulum(tmp_path, True), engine) > radius - RESTING_DEPTH
+
+
+def test_mujocos_pairs_carry_the_scenes_values_not_the_files(tmp_path):
+    """Each model geom pairs with the ground at the ground's own solref/solimp (the scene's
+    restitution for a link of restitution 0) and condim 1 (friction √(0·μ) = 0)."""
+    from validation.engines.mujoco.adapter import MujocoAdapter
+    from validation.scenario.engine_spec import parse_engine_spec
+
+    adapter = MujocoAdapter(parse_engine_spec("mujoco"))
+    adapter.load(_falling_pendulum(tmp_path, True))
+    model = adapter.model
+    ground = model.geom("ground").id
+    assert model.npair == 5 and ((model.pair_geom1 == ground) | (model.pair_geom2 == ground)).all()
+    assert (model.pair_dim == 1).all()
+    assert np.array_equal(model.pair_solref, np.repeat(model.geom_solref[[ground]], 5, axis=0))
+    model_geoms = [g for g in range(model.ngeom) if g != ground]
+    assert (
+        not model.geom_contype[model_geoms].any() and not model.geom_conaffinity[model_geoms].any()
+    )
+
+
+def test_drakes_model_geometry_has_the_scenes_friction(tmp_path):
+    from pydrake.geometry import Role
+
+    from validation.engines.drake.adapter import DrakeAdapter
+    from validation.engines.drake.models import FRICTION_PROPERTY
+    from validation.scenario.engine_spec import parse_engine_spec
+    from validation.scenario.urdf import LINK_CONTACT
+
+    adapter = DrakeAdapter(parse_engine_spec("drake"))
+    adapter.load(_falling_pendulum(tmp_path, True))
+    inspector = adapter.diagram.GetSubsystemByName("scene_graph").model_inspector()
+    (model,) = adapter.models
+    assert len(model.geometry) == 5 and not model.idle
+    for gid in model.geometry:
+        friction = inspector.GetProximityProperties(gid).GetProperty(*FRICTION_PROPERTY)
+        assert friction.static_friction() == LINK_CONTACT["friction"]
+    assert set(model.geometry) <= set(inspector.GetAllGeometryIds(Role.kProximity))
