@@ -16,6 +16,14 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
   1.51 refuses a ``.stl`` collision mesh outright, and Kuka's are ``.stl``); an MJCF keeps its
   geoms (Drake computes the bodies' inertia from them, ``inertiafromgeom``), and every
   proximity geometry the file added is filtered from everything (``filter_model_geometry``).
+- ``collisions: true``: a URDF is parsed with its ``<collision>`` elements and without its
+  ``<visual>`` ones; an MJCF with its geoms. Every proximity geometry on a model link gets the
+  scene's friction for a model link (``urdf.LINK_CONTACT``: 0, so Drake's 2ab/(a+b) with any
+  other is the scene's geometric mean, 0) in place of the file's or Drake's default
+  (``_scene_contacts``); an MJCF's worldbody geoms (physval's reading leaves them out) are
+  filtered from everything. Drake keeps its own filter of geometry on bodies joined by a
+  joint (as physval's reading). A mesh is Drake's to read (a scene with a mesh collision shape
+  does not load: physval's reading refuses it).
 - Placement: a URDF's root link is welded to the world at the model's position and
   orientation (``fixed_base``: through a ``FixedOffsetFrame`` of the world at that pose, so the
   weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
