@@ -117,3 +117,17 @@ def test_pybullets_step_drops_the_files_joint_friction(tmp_path):
     assert text.count('friction="1.0"') == 5
     assert HELD_FRICTION == 0.0
     assert np.array_equal(_swing(str(model_path(PENDULUM, tmp_path))), _swing(str(frictionless)))
+
+
+def test_drakes_parser_drops_the_files_joint_friction(tmp_path):
+    """``HELD_FRICTION``'s source: Drake's parser says it drops the friction (the provenance)."""
+    from validation.engines.drake.adapter import DrakeAdapter
+    from validation.engines.drake.models import HELD_FRICTION as DRAKE_FRICTION
+
+    adapter = DrakeAdapter(parse_engine_spec("drake"))
+    adapter.load(pendulum_scene(tmp_path, engines=("drake",)))
+    (model,) = adapter.models
+    dropped = [
+        w for w in model.warnings if "does not currently support non-zero joint friction" in w
+    ]
+    assert len(dropped) == 5 and DRAKE_FRICTION == 0.0

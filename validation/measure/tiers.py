@@ -8,9 +8,9 @@ its algorithms in ``validation.reference.articulated``), never against another e
    link's mass, centre of mass and world inertia (its ``ModelReport``) and each model joint's
    type, anchor, axis, limits, damping, armature and friction (its ``JointReport``), against
    the scene's (a joint's friction against the model file's, ``ModelLayout.frictions``: the
-   scene's joints have none). Every field is a relative difference on its own physical scale (the ``*_SCALE``
-   and ``*_FLOOR`` constants below); the row's value is the largest, its message names the
-   link or joint and the field.
+   scene's joints have none). Every field is a relative difference on its own physical scale
+   (the ``*_SCALE`` and ``*_FLOOR`` constants below); the row's value is the largest, its
+   message names the link or joint and the field.
 2. ``fk_error`` (``fk_error``): every model link's pose at the initial configuration and at
    ``RANDOM_STATES`` seeded random joint states (``probe_states``) against the reference's
    forward kinematics.

@@ -148,8 +148,9 @@ def _urdf_text(layout: ModelLayout) -> str:
     """The URDF at ``layout.path`` as text, its namespace prefixes kept (Drake reads
     ``drake:rotor_inertia`` by its prefix; ElementTree would write ``ns0:``): without its
     links' geometry elements when the model does not collide, or without its visuals when it
-    does (``GEOMETRY_ELEMENTS``), each relative mesh file a ``file://`` URL (Drake refuses a bare path in text); a root link named ``world``
-    renamed ``RENAMED_WORLD`` (``root_name``)."""
+    does (``GEOMETRY_ELEMENTS``), each relative mesh file a ``file://`` URL (Drake refuses a
+    bare path in text); a root link named ``world`` renamed ``RENAMED_WORLD``
+    (``root_name``)."""
     for _, (prefix, uri) in ElementTree.iterparse(layout.path, events=("start-ns",)):
         ElementTree.register_namespace(prefix, uri)
     root = ElementTree.parse(layout.path).getroot()
@@ -378,7 +379,8 @@ def _named(layout: ModelLayout):
 
 def filter_model_geometry(scene_graph, models: list[NativeModel]) -> int:
     """Every proximity geometry of the models with ``collisions: false``, and the idle ones
-    of the others (``NativeModel.idle``), excluded from contact with every geometry (after ``Finalize``); the number of geometries filtered."""
+    of the others (``NativeModel.idle``), excluded from contact with every geometry (after
+    ``Finalize``); the number of geometries filtered."""
     quiet = [
         g
         for model in models
