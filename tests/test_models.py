@@ -292,7 +292,11 @@ REFUSALS = {
         "models[0].joint_positions",
         "no movable joint 'arm/elbow'",
     ),
-    "collisions": ({"collisions": True}, "models[0].collisions", "not supported yet"),
+    "collisions": (
+        {"collisions": True},
+        "models[0].collisions",
+        "link 'lbr_iiwa_link_0' has no mass",
+    ),
     "outside limits": (
         {"joint_positions": {"arm/lbr_iiwa_joint_2": 3.0}},
         "models[0].joint_positions",

@@ -194,6 +194,10 @@ class JointReport:
     armature: np.ndarray | None = None
     """(j,) kg·m² or kg, the reflected inertia added to a joint's diagonal of M; None: not
     reported (physval's scenes have none: 0)."""
+    friction: np.ndarray | None = None
+    """(j,) N·m or N, the joint's dry (Coulomb) friction the engine holds (MuJoCo's
+    ``frictionloss``); None: not reported, read as 0 by the ``model_fields`` tier (physval's
+    scene joints have no friction, so an engine built from them holds none)."""
 
 
 @dataclass(frozen=True)

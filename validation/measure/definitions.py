@@ -73,9 +73,11 @@ METRIC_DEFINITIONS: dict[str, str] = {
     "inertia at q0 (to the link's largest principal moment), and every model joint's type "
     f"({TYPE_DIFFERENCE:g} when it differs), anchor (to the reach), axis (|Δ unit vector|), limits "
     f"(to max(|limit|, {LIMIT_FLOOR:g})), damping (to the stated damping, or, where none is stated, to M_kk(q0)/duration) and "
-    "armature (to M_kk(q0)), where the engine reports them; the message names the worst link or "
-    "joint and field. Under native model loading a difference is this row, never a "
-    "model_mismatch",
+    "armature (to M_kk(q0)), where the engine reports them, and friction against the model "
+    "file's (to the file's, or, where none is stated, to "
+    f"M_kk(q0)·{PROBE_SPEED:g} rad/s/duration; an engine that reports none holds none: 0); "
+    "the message names the worst link or joint and field. Under native model loading a "
+    "difference is this row, never a model_mismatch",
     "fk_error": "model tier 2, scenes with models: max over the probed joint states (q0 and "
     f"{RANDOM_STATES} seeded random ones within the limits, rates within ±{PROBE_SPEED:g}) and "
     "model links of max(|Δ centre|, rotation angle × the model's reach) (m) between the engine's "

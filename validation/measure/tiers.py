@@ -6,10 +6,11 @@ its algorithms in ``validation.reference.articulated``), never against another e
 
 1. ``model_fields`` (``model_fields``): what the engine holds after loading, each model
    link's mass, centre of mass and world inertia (its ``ModelReport``) and each model joint's
-   type, anchor, axis, limits, damping and armature (its ``JointReport``), against the
-   scene's. Every field is a relative difference on its own physical scale (the ``*_SCALE``
-   and ``*_FLOOR`` constants below); the row's value is the largest, its message names the
-   link or joint and the field.
+   type, anchor, axis, limits, damping, armature and friction (its ``JointReport``), against
+   the scene's (a joint's friction against the model file's, ``ModelLayout.frictions``: the
+   scene's joints have none). Every field is a relative difference on its own physical scale
+   (the ``*_SCALE`` and ``*_FLOOR`` constants below); the row's value is the largest, its
+   message names the link or joint and the field.
 2. ``fk_error`` (``fk_error``): every model link's pose at the initial configuration and at
    ``RANDOM_STATES`` seeded random joint states (``probe_states``) against the reference's
    forward kinematics.
@@ -31,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -154,8 +155,9 @@ def _difference(item: str, field: str, engine, expected, scale: float) -> Differ
 
 def scene_joint_report(scene: CompiledScene) -> JointReport:
     """The reference side's ``JointReport`` with the fields tier 1 compares beyond the gate's:
-    each joint's stated limits (NaN where unlimited), damping, and armature 0 (physval's
-    joints have none)."""
+    each joint's stated limits (NaN where unlimited), damping, armature 0 (physval's joints
+    have none) and friction: a model joint's in its file (``ModelLayout.friction``), 0 for
+    the scene's own joints."""
     joints = scene.scenario.joints
     limits = np.array(
         [j.limits if j.limits is not None else (math.nan, math.nan) for j in joints], dtype=float
@@ -169,16 +171,24 @@ def scene_joint_report(scene: CompiledScene) -> JointReport:
         limits=limits,
         damping=np.array([j.damping for j in joints], dtype=float),
         armature=np.zeros(len(joints)),
+        friction=np.array([_file_friction(scene, j.name) for j in joints], dtype=float),
     )
+
+
+def _file_friction(scene: CompiledScene, joint: str) -> float:
+    layout = scene.model_of(joint)
+    return 0.0 if layout is None else layout.friction(joint)
 
 
 def _joint_differences(
     scene: CompiledScene, engine: JointReport, reaches: dict[str, float]
 ) -> list[Difference]:
     """Type, anchor (relative to the model's reach), axis (|Δ unit vector|), limits (relative
-    to max(|limit|, ``LIMIT_FLOOR``)), damping (relative to ``damping_scale``) and armature
-    (relative to the joint's diagonal of M(q0)) of every model joint the engine reports."""
+    to max(|limit|, ``LIMIT_FLOOR``)), damping (relative to ``damping_scale``), armature
+    (relative to the joint's diagonal of M(q0)) and friction (relative to ``friction_scale``;
+    an engine that reports none holds none: 0) of every model joint the engine reports."""
     expected = scene_joint_report(scene)
+    friction = np.zeros(len(expected.types)) if engine.friction is None else engine.friction
     inertia = _joint_inertia(scene)
     found = []
     for k, joint in enumerate(scene.scenario.joints):
@@ -205,7 +215,24 @@ def _joint_differences(
         if engine.armature is not None:
             scale = inertia.get(joint.name, 0.0)
             found.append(_difference(item, "armature", engine.armature[k], 0.0, scale))
+        scale = friction_scale(scene, expected.friction[k], inertia.get(joint.name, 0.0))
+        found.append(_friction(item, friction[k], expected.friction[k], scale))
     return found
+
+
+def _friction(item: str, engine: float, stated: float, scale: float) -> Difference:
+    """The friction difference, its message showing both values (a dropped friction reads
+    "engine 0, file 1")."""
+    shown = f"engine {float(engine):.6g}, file {float(stated):.6g}"
+    return replace(_difference(item, "friction", engine, stated, scale), detail=shown)
+
+
+def friction_scale(scene: CompiledScene, stated: float, inertia: float) -> float:
+    """N·m or N: a friction difference is relative to the file's friction (a dropped one
+    differs by 1), or, where the file states none, to the torque that would stop the joint
+    turning at ``PROBE_SPEED`` over the run (M_kk · PROBE_SPEED / t_end), as ``damping_scale``
+    judges an engine's own default by what it would do to the run."""
+    return abs(float(stated)) if stated else inertia * PROBE_SPEED / scene.scenario.duration
 
 
 def damping_scale(scene: CompiledScene, stated: float, inertia: float) -> float:

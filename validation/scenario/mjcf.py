@@ -20,9 +20,12 @@ The subset:
   else its body's nearest ``childclass``, else the top-level class ``main``;
 - ``<worldbody>``'s tree of ``<body>`` (``pos``, and ``quat``, ``axisangle``, ``euler``,
   ``xyaxes`` or ``zaxis``): each body is a link; the worldbody is a massless link ``world``
-  (a fixed base); geoms on it are not bodies (ignored: ``collisions`` is false);
+  (a fixed base); geoms on it are not bodies (ignored, with ``collisions: true`` too: the
+  scene has its own ground);
 - at most one ``<joint>`` per body, ``hinge`` (a physval hinge) or ``slide`` (a slider), with
-  ``pos`` (the pivot, in the body's frame), ``axis``, ``range`` and ``limited``, ``damping``;
+  ``pos`` (the pivot, in the body's frame), ``axis``, ``range`` and ``limited``, ``damping``,
+  ``frictionloss`` (the joint's dry friction: physval's scene joints have none, so it is
+  carried to the ``model_fields`` tier only, ``robot.Joint.friction``);
   a body without a joint is welded to its parent (a fixed joint ``<body>.weld``, not in the
   file); a ``<freejoint/>`` (or ``type="free"``) only on the one top-level body, which is then
   the model's root (``fixed_base`` chooses whether it is held);
@@ -30,13 +33,18 @@ The subset:
   ``inertiafromgeom``, the body's geoms (sphere, capsule and cylinder, also by ``fromto``, box,
   ellipsoid) each of ``mass`` or ``density`` (default 1000 kg/m³) times its volume, with the
   reference side's solid formulas (``validation/reference/mass_properties.py``) summed about
-  the body's centre of mass by the parallel-axis theorem.
+  the body's centre of mass by the parallel-axis theorem;
+- collision geometry (``collisions: true``): every geom of a body, its type, ``size`` and
+  ``pos``/orientation or ``fromto`` (``robot.Geometry``); ``contype``, ``conaffinity``,
+  ``group`` and the geom's contact values are not read (physval has no collision groups: a
+  body's geom collides as the scene's bodies do; its friction and restitution are the
+  scene's), so a body with a visual geom beside its collision geom has two.
 
 Refused, each with one line naming the element: anything else that changes the model's
 mechanics (``include``, ``frame``, ``equality``, ``tendon``, ``composite``, ball joints, a free
 joint inside the tree, two joints on one body, mesh or other geoms that would give mass, and
-a nonzero ``armature``, ``stiffness``, ``frictionloss`` or ``ref``: physval's joints have no
-rotor inertia, spring, dry friction or reference offset). Elements that do not change the
+a nonzero ``armature``, ``stiffness`` or ``ref``: physval's joints have no rotor inertia,
+spring or reference offset). Elements that do not change the
 mechanics of a passive model without contacts (``option``, ``size``, ``visual``, ``actuator``,
 ``sensor``, ``contact``, ``keyframe``, ``custom``, ``statistic``, sites, cameras, lights) are
 ignored: the scene's own ``dt`` and ``gravity`` apply.
@@ -46,7 +54,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ElementTree
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +72,7 @@ from validation.scenario.robot import (
     IDENTITY,
     MASSLESS,
     Frame,
+    Geometry,
     Joint,
     Link,
     Robot,
@@ -134,7 +143,6 @@ REFUSED_COMPILER = (
 UNSUPPORTED_JOINT_VALUES = {
     "armature": "physval's joints have no rotor inertia",
     "stiffness": "physval's joints have no spring",
-    "frictionloss": "physval's joints have no dry friction",
     "ref": "physval's joints are at 0 in the file's pose",
 }
 """Joint attributes refused when nonzero, and why."""
@@ -430,6 +438,7 @@ def _joint(
         _limits(values, kind, joint_name, reading.compiler),
         float(values.get("damping", "0")),
         child_in_joint=translation(-pivot),
+        friction=float(values.get("frictionloss", "0")),
     )
 
 
@@ -455,12 +464,13 @@ def _link(element: ElementTree.Element, reading: _Reading, childclass: str) -> L
     """The body's inertial frame, mass and inertia: its ``<inertial>``, or its geoms'."""
     name = element.get("name")
     inertial = element.find("inertial")
+    geoms = [_attributes(g, reading, childclass) for g in element.findall("geom")]
+    geometry = tuple(Geometry(*_placement(name, g, reading.compiler)) for g in geoms)
     source = reading.compiler.inertia_from_geom
     if source == "true" or (source == "auto" and inertial is None):
-        geoms = [_attributes(g, reading, childclass) for g in element.findall("geom")]
-        return _from_geoms(name, geoms, reading.compiler)
+        return replace(_from_geoms(name, geoms, reading.compiler), geometry=geometry)
     if inertial is None:
-        return Link(name, *MASSLESS)
+        return Link(name, *MASSLESS, geometry)
     values = inertial.attrib
     mass = float(values.get("mass", "0"))
     if mass < 0:
@@ -470,7 +480,7 @@ def _link(element: ElementTree.Element, reading: _Reading, childclass: str) -> L
         inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
     else:
         inertia = np.diag(_floats(values, "diaginertia", 3))
-    return Link(name, _frame(values, reading.compiler), mass, inertia)
+    return Link(name, _frame(values, reading.compiler), mass, inertia, geometry)
 
 
 def _from_geoms(name: str, geoms: list[dict], compiler: _Compiler) -> Link:
@@ -502,6 +512,20 @@ def _solid(body: str, values: dict, compiler: _Compiler) -> tuple[float, Frame, 
         )
     if values.get("shellinertia", "false") == "true":
         raise ValueError(f"a shellinertia geom in body {body!r} is outside the subset")
+    _, sizes, frame = _placement(body, values, compiler)
+    volume, unit_inertia = SOLIDS[kind](*sizes)
+    density = float(values.get("density", DEFAULT_DENSITY))
+    mass = float(values["mass"]) if "mass" in values else density * volume
+    return mass, frame, unit_inertia * mass
+
+
+def _placement(body: str, values: dict, compiler: _Compiler) -> tuple[str, tuple, Frame]:
+    """A geom's type, sizes (``SIZE_COUNTS`` of them; none for a type without, a mesh's) and
+    frame in the body: ``pos`` and its orientation, or a capsule's or cylinder's ``fromto``
+    (its centre, +z along it, half its length)."""
+    kind = values.get("type", "sphere")
+    if kind not in SIZE_COUNTS:
+        return kind, (), _frame(values, compiler)
     sizes = list(_floats(values, "size", 1 if "fromto" in values else SIZE_COUNTS[kind]))
     frame = _frame(values, compiler)
     if "fromto" in values:
@@ -511,10 +535,7 @@ def _solid(body: str, values: dict, compiler: _Compiler) -> tuple[float, Frame, 
         axis = ends[3:] - ends[:3]
         frame = Frame(_z_to(axis), (ends[:3] + ends[3:]) / 2)
         sizes = [sizes[0], np.linalg.norm(axis) / 2]
-    volume, unit_inertia = SOLIDS[kind](*sizes[: SIZE_COUNTS[kind]])
-    density = float(values.get("density", DEFAULT_DENSITY))
-    mass = float(values["mass"]) if "mass" in values else density * volume
-    return mass, frame, unit_inertia * mass
+    return kind, tuple(float(v) for v in sizes[: SIZE_COUNTS[kind]]), frame
 
 
 def _cylinder(radius: float, half_length: float) -> tuple[float, np.ndarray]:

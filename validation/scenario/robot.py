@@ -44,14 +44,27 @@ def translation(offset) -> Frame:
 
 
 @dataclass(frozen=True)
+class Geometry:
+    """One collision element of a link: ``kind`` the file's word for its geometry (``sphere``,
+    ``box``, ``cylinder``, ``capsule``, ``mesh``, ...), ``sizes`` its numbers in physval's
+    terms (a sphere's radius; a box's half extents; a cylinder's or capsule's radius and half
+    length, along its frame's z), ``frame`` where it sits in the link's frame."""
+
+    kind: str
+    sizes: tuple[float, ...]
+    frame: Frame
+
+
+@dataclass(frozen=True)
 class Link:
     """A link's inertial frame (in the link frame), mass (kg, 0: massless) and inertia (kg·m²,
-    about the inertial frame's axes)."""
+    about the inertial frame's axes); ``geometry`` its collision elements."""
 
     name: str
     inertial: Frame
     mass: float
     inertia: np.ndarray
+    geometry: tuple[Geometry, ...] = ()
 
 
 MASSLESS = (IDENTITY, 0.0, np.zeros((3, 3)))
@@ -64,7 +77,9 @@ class Joint:
     frame in the parent link's frame; ``axis`` a unit vector in the joint frame; ``limits``
     the file's (absolute coordinates) or None; ``child_in_joint`` the child link's frame in
     the joint frame at coordinate 0; ``in_file`` False for a weld the file does not write as
-    a joint (an MJCF body without joints)."""
+    a joint (an MJCF body without joints); ``friction`` the file's dry friction (N·m or N:
+    URDF ``<dynamics friction>``, MJCF ``frictionloss``), which physval's scene joints do not
+    have: carried in ``ModelLayout.frictions`` for the ``model_fields`` tier only."""
 
     name: str
     kind: str
@@ -76,6 +91,7 @@ class Joint:
     damping: float
     child_in_joint: Frame = IDENTITY
     in_file: bool = True
+    friction: float = 0.0
 
 
 @dataclass

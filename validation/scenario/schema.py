@@ -372,8 +372,8 @@ class ModelSpec(_Strict):
     )
     collisions: Annotated[bool, Strict()] = Field(
         default=False,
-        description="true: the model's collision shapes take part in contacts (not read yet: "
-        "refused)",
+        description="true: each link's one collision primitive (sphere, box, cylinder, capsule) "
+        "is its body's shape and takes part in contacts; false: no model link touches anything",
     )
 
     @field_validator("orientation")

@@ -27,10 +27,23 @@ at 0, or at the limit nearest 0 when its limits exclude 0 (the A1's knees). Limi
 file: absolute) become physval's (relative to t = 0) by subtracting the joint's initial
 position.
 
-Shapes: the model's collision geometry is not read (``collisions: true`` is refused); each
-body gets a ``PLACEHOLDER_RADIUS`` sphere with the link's inertia stated explicitly and
-``collides: false``: with ``collisions: false`` no model link touches anything, in any engine
-(the capability ``non_colliding``).
+Joint friction (URDF ``<dynamics friction>``, MJCF ``frictionloss``) is read, but physval's
+scene joints have none: it is kept in ``ModelLayout.frictions`` for the ``model_fields`` tier
+(an engine that drops the file's friction differs there), not in the expanded joints.
+
+Shapes. With ``collisions: false`` (the default) each body gets a ``PLACEHOLDER_RADIUS``
+sphere with the link's inertia stated explicitly and ``collides: false``: no model link
+touches anything, in any engine (the capability ``non_colliding``). With ``collisions: true``
+each link's collision geometry (URDF ``<collision>``'s ``<origin>`` and ``<geometry>``
+sphere, box, cylinder or PyBullet's capsule; MJCF geoms, ``validation/scenario/mjcf.py``)
+becomes its body's shape (``SHAPES``), placed by the shape's ``offset`` and ``orientation``
+in the body's frame (the link's inertial frame: the inertial frame's inverse times the
+element's origin) with ``collides: true``; its friction and restitution are the scene's
+body defaults (0; ``pairs`` may set them). One shape per body, so the model is refused at
+``models[i].collisions``, one line naming the link, when a link has several collision
+elements, a mesh (or any geometry without a scene shape), or is massless with geometry (it
+would be folded into its parent's body); a link without a collision element keeps the
+placeholder with ``collides: false``.
 """
 
 from __future__ import annotations
@@ -49,6 +62,7 @@ from validation.scenario.robot import (
     IDENTITY,
     MASSLESS,
     Frame,
+    Geometry,
     Joint,
     Link,
     Robot,
@@ -60,6 +74,21 @@ from validation.scenario.schema import BodySpec, ModelSpec
 PLACEHOLDER_RADIUS = 0.01
 """m: the sphere each model body is given (its inertia is the link's, stated explicitly); a
 link's size, not its contact shape."""
+
+SHAPES = {
+    "sphere": lambda sizes: {"type": "sphere", "radius": sizes[0]},
+    "box": lambda sizes: {"type": "box", "half_extents": list(sizes)},
+    "cylinder": lambda sizes: {"type": "cylinder", "radius": sizes[0], "half_length": sizes[1]},
+    "capsule": lambda sizes: {"type": "capsule", "radius": sizes[0], "half_length": sizes[1]},
+}
+"""A collision element's kind (``robot.Geometry``) -> the scene shape it becomes under
+``collisions: true``; any other kind (a mesh, a plane, an ellipsoid) refuses the model."""
+
+LINK_CONTACT = {"restitution": 0.0, "friction": 0.0}
+"""A model link's contact values as a scene body (the scene's body defaults; a ``pairs:``
+entry may set a pair's): the native loaders give the file's shapes the pairs these make
+(``validation/engines/*/`` ``native.py``, ``models.py``), so native and physval runs of a
+scene meet the same contacts."""
 
 PACKAGE_PREFIX = "pkg:"
 """A ``file`` that starts with this names a path inside an installed Python package."""
@@ -121,6 +150,9 @@ class ModelLayout:
             (``validation.scenario.packages.resolve`` finds a mesh with them).
         starts: ``(file joint, coordinate at t = 0)`` of every movable joint: the scene's
             ``joint_positions`` entry, else 0 clamped into the joint's limits.
+        frictions: each of ``joints``' dry friction in the file (N·m or N; URDF ``<dynamics
+            friction>``, MJCF ``frictionloss``; 0 for a weld): physval's scene joints have no
+            friction, so this is the only place it is kept (the ``model_fields`` tier).
     """
 
     name: str
@@ -135,6 +167,11 @@ class ModelLayout:
     root_link: str
     package_paths: tuple[tuple[str, str], ...] = ()
     starts: tuple[tuple[str, float], ...] = ()
+    frictions: tuple[float, ...] = ()
+
+    def friction(self, joint: str) -> float:
+        """The file's dry friction of the scene joint ``joint`` (one of ``joints``)."""
+        return self.frictions[self.joints.index(joint)] if self.frictions else 0.0
 
     def initial_position(self, file_joint: str) -> float:
         """The file joint's coordinate at t = 0 (rad or m, the file's convention): the scene's
@@ -170,10 +207,35 @@ def _origin(element: ElementTree.Element | None) -> Frame:
     )
 
 
+def _half(numbers: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(v) / 2.0 for v in numbers)
+
+
+URDF_GEOMETRY = {
+    "sphere": lambda e: (float(e.get("radius", "0")),),
+    "box": lambda e: _half(_numbers(e.get("size"), 3)),
+    "cylinder": lambda e: (float(e.get("radius", "0")), float(e.get("length", "0")) / 2.0),
+    "capsule": lambda e: (float(e.get("radius", "0")), float(e.get("length", "0")) / 2.0),
+}
+"""A URDF ``<geometry>`` child -> its sizes in physval's terms (``robot.Geometry``): a box's
+``size`` is its full extents, a cylinder's ``length`` its full length along z (``capsule``,
+PyBullet's extension, the same); any other (``mesh``) has no sizes."""
+
+
+def _geometry(collision: ElementTree.Element) -> Geometry:
+    """A ``<collision>``'s geometry and its frame in the link (``<origin>``)."""
+    shape = next(iter(collision.find("geometry")), None)
+    if shape is None:
+        raise ValueError("a <collision> with an empty <geometry>")
+    read = URDF_GEOMETRY.get(shape.tag)
+    return Geometry(shape.tag, read(shape) if read else (), _origin(collision))
+
+
 def _link(element: ElementTree.Element) -> Link:
+    geometry = tuple(_geometry(c) for c in element.findall("collision"))
     inertial = element.find("inertial")
     if inertial is None:
-        return Link(element.get("name", ""), *MASSLESS)
+        return Link(element.get("name", ""), *MASSLESS, geometry)
     mass = float(inertial.find("mass").get("value", "0"))
     if mass < 0:
         raise ValueError(f"link {element.get('name')!r} has a negative mass {mass}")
@@ -181,7 +243,7 @@ def _link(element: ElementTree.Element) -> Link:
     get = (lambda key: float(values.get(key, "0"))) if values is not None else (lambda key: 0.0)
     xx, yy, zz, xy, xz, yz = (get(k) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz"))
     inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    return Link(element.get("name", ""), _origin(inertial), mass, inertia)
+    return Link(element.get("name", ""), _origin(inertial), mass, inertia, geometry)
 
 
 def _joint(element: ElementTree.Element) -> Joint:
@@ -202,6 +264,7 @@ def _joint(element: ElementTree.Element) -> Joint:
         if not limits[0] < limits[1]:
             raise ValueError(f"joint {name!r} has limits {list(limits)}: expected lower < upper")
     dynamics = element.find("dynamics")
+    dynamic = (lambda key: float(dynamics.get(key, "0"))) if dynamics is not None else _zero
     return Joint(
         name,
         JOINT_KINDS[kind],
@@ -210,8 +273,13 @@ def _joint(element: ElementTree.Element) -> Joint:
         _origin(element),
         axis / np.linalg.norm(axis),
         limits,
-        float(dynamics.get("damping", "0")) if dynamics is not None else 0.0,
+        dynamic("damping"),
+        friction=dynamic("friction"),
     )
+
+
+def _zero(key: str) -> float:
+    return 0.0
 
 
 def read_urdf(path: Path) -> Robot:
@@ -311,6 +379,7 @@ class _Expansion:
         self.links: list[str] = []
         self.body_in_link: list[Frame] = []
         self.file_joints: list[str | None] = []
+        self.frictions: list[float] = []
         self.starts: dict[str, float] = {}
 
     def name(self, text: str) -> str:
@@ -329,6 +398,7 @@ class _Expansion:
             self.add_body(root, placed)
             if self.model.fixed_base:
                 self.file_joints.append(None)
+                self.frictions.append(0.0)
                 self.joints.append(
                     {
                         "name": self.name(FIXED_BASE_JOINT),
@@ -338,7 +408,9 @@ class _Expansion:
                         "anchor": base.translation.tolist(),
                     }
                 )
-        elif not self.model.fixed_base:
+        elif self.model.fixed_base:
+            self.fold(root)
+        else:
             raise ModelError(
                 "fixed_base",
                 f"the root link {root.name!r} has no mass: a free root needs one "
@@ -346,7 +418,50 @@ class _Expansion:
             )
         self.descend(root.name, placed)
 
+    def shape(self, link: Link) -> tuple[dict, bool]:
+        """The body's shape and whether it collides: the link's one collision element placed
+        in the body's frame (the link's inertial frame) under ``collisions: true``; else, or
+        for a link without one, the ``PLACEHOLDER_RADIUS`` sphere that touches nothing.
+        ``ModelError`` at ``collisions`` for a link of several elements or of a kind with no
+        scene shape (``SHAPES``)."""
+        placeholder = {"type": "sphere", "radius": PLACEHOLDER_RADIUS}
+        if not self.model.collisions or not link.geometry:
+            return placeholder, False
+        if len(link.geometry) > 1:
+            raise ModelError(
+                "collisions",
+                f"link {link.name!r} has {len(link.geometry)} collision elements: physval "
+                "gives a body one shape",
+            )
+        (geometry,) = link.geometry
+        if geometry.kind not in SHAPES:
+            raise ModelError(
+                "collisions",
+                f"link {link.name!r}'s collision geometry is a {geometry.kind}: physval's "
+                f"shapes are {', '.join(SHAPES)}",
+            )
+        inverse = Frame(
+            link.inertial.rotation.T, -link.inertial.rotation.T @ link.inertial.translation
+        )
+        in_body = inverse * geometry.frame
+        shape = SHAPES[geometry.kind](geometry.sizes)
+        shape["offset"] = in_body.translation.tolist()
+        shape["orientation"] = _quaternion(in_body.rotation)
+        return shape, True
+
+    def fold(self, link: Link) -> None:
+        """A massless link about to be folded into its parent (or the world): refused under
+        ``collisions: true`` when it has collision geometry (it would be a second shape of
+        its parent's body, or a shape of the world)."""
+        if self.model.collisions and link.geometry:
+            raise ModelError(
+                "collisions",
+                f"link {link.name!r} has no mass: its collision geometry would belong to the "
+                "body it is folded into (physval gives a body one shape)",
+            )
+
     def add_body(self, link: Link, placed: _Placed) -> None:
+        shape, collides = self.shape(link)
         frame = placed.frame * link.inertial
         centre_velocity = placed.velocity + np.cross(
             placed.angular_velocity, frame.translation - placed.frame.translation
@@ -356,8 +471,9 @@ class _Expansion:
                 link,
                 {
                     "name": self.name(link.name),
-                    "shape": {"type": "sphere", "radius": PLACEHOLDER_RADIUS},
-                    "collides": self.model.collisions,
+                    "shape": shape,
+                    "collides": collides,
+                    **LINK_CONTACT,
                     "mass": link.mass,
                     "inertia": link.inertia.tolist(),
                     "position": frame.translation.tolist(),
@@ -406,6 +522,7 @@ class _Expansion:
                 raise ModelError(
                     "file", f"link {link.name!r} has no mass but moves on joint {joint.name!r}"
                 )
+            self.fold(link)
             self.descend(link.name, placed)  # a massless fixed link carries nothing
             return
         limits = None
@@ -432,6 +549,7 @@ class _Expansion:
             record["limits"] = list(limits)
         self.joints.append(record)
         self.file_joints.append(joint.name if joint.in_file else None)
+        self.frictions.append(joint.friction)
         self.descend(link.name, placed)
 
 
@@ -451,12 +569,6 @@ def expand_model(
 
 
 def _expanded(model: ModelSpec, scene: Path, meshes: bool) -> _Expansion:
-    if model.collisions:
-        raise ModelError(
-            "collisions",
-            "true is not supported yet: a model's collision shapes are not read "
-            "(collisions: false gives its bodies placeholder spheres)",
-        )
     try:
         path = model_path(model.file, scene)
     except ValueError as error:
@@ -545,6 +657,7 @@ def model_layouts(scenario) -> tuple[ModelLayout, ...]:
                 root_link=expansion.robot.root,
                 package_paths=tuple(sorted(PACKAGE_PATHS.items())),
                 starts=tuple(expansion.starts.items()),
+                frictions=tuple(expansion.frictions),
             )
         )
     return tuple(layouts)

@@ -16,6 +16,14 @@ so that the adapter reads Drake's links as the scene's bodies (docs/engines-drak
   1.51 refuses a ``.stl`` collision mesh outright, and Kuka's are ``.stl``); an MJCF keeps its
   geoms (Drake computes the bodies' inertia from them, ``inertiafromgeom``), and every
   proximity geometry the file added is filtered from everything (``filter_model_geometry``).
+- ``collisions: true``: a URDF is parsed with its ``<collision>`` elements and without its
+  ``<visual>`` ones; an MJCF with its geoms. Every proximity geometry on a model link gets the
+  scene's friction for a model link (``urdf.LINK_CONTACT``: 0, so Drake's 2ab/(a+b) with any
+  other is the scene's geometric mean, 0) in place of the file's or Drake's default
+  (``_scene_contacts``); an MJCF's worldbody geoms (physval's reading leaves them out) are
+  filtered from everything. Drake keeps its own filter of geometry on bodies joined by a
+  joint (as physval's reading). A mesh is Drake's to read (a scene with a mesh collision shape
+  does not load: physval's reading refuses it).
 - Placement: a URDF's root link is welded to the world at the model's position and
   orientation (``fixed_base``: through a ``FixedOffsetFrame`` of the world at that pose, so the
   weld's anchor is the base's point), or floats from that pose. Drake's MJCF parser attaches
@@ -41,18 +49,36 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, Role
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    GeometrySet,
+    ProximityProperties,
+    Role,
+    RoleAssign,
+)
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import CoulombFriction
 from pydrake.multibody.tree import FixedOffsetFrame
 
 from validation.engines.drake.joints import pose
 from validation.scenario.packages import PACKAGE_URI, resolve
 from validation.scenario.robot import xml_root
-from validation.scenario.urdf import ModelLayout
+from validation.scenario.urdf import LINK_CONTACT, ModelLayout
 
-GEOMETRY_ELEMENTS = ("collision", "visual")
-"""A URDF link's geometry elements, removed before Drake parses a model that does not collide."""
+GEOMETRY_ELEMENTS = {False: ("collision", "visual"), True: ("visual",)}
+"""``collisions`` -> the URDF link elements removed before Drake parses the model: all its
+geometry when it does not collide; its ``<visual>`` elements when it does (illustration only:
+a visual's undefined material or unreadable mesh would stop the parse for nothing)."""
+
+HELD_FRICTION = 0.0
+"""N·m or N: a parsed joint's dry friction in Drake. ``MultibodyPlant`` has no joint friction:
+the parser warns ("MultibodyPlant does not currently support non-zero joint friction", kept in
+the provenance by ``parser_log``) and drops a URDF's ``<dynamics friction>`` (and an MJCF's
+``frictionloss``); the ``model_fields`` tier reads Drake's as this."""
+
+FRICTION_PROPERTY = ("material", "coulomb_friction")
+"""The proximity property (group, name) Drake reads a geometry's friction from."""
 
 FILE_TYPES = {"urdf": "urdf", "mjcf": "xml"}
 """``ModelLayout.format`` -> Drake's ``file_type`` for ``AddModelsFromString``."""
@@ -90,6 +116,7 @@ class NativeModel:
             frame (``layout.body_in_link``) as a ``RigidTransform``.
         joints: scene joint name -> the Drake joint (the fixed-base weld included).
         geometry: the proximity geometry the file added (filtered when it must not collide).
+        idle: of it, what must not collide although the model does (``_scene_contacts``).
         warnings: what Drake's parser logged while reading the file (its differences from
             the file: attributes it ignores, inertias it cannot take), for the provenance.
     """
@@ -101,6 +128,7 @@ class NativeModel:
     joints: dict
     geometry: tuple
     warnings: tuple = ()
+    idle: tuple = ()
 
 
 def transform(frame) -> RigidTransform:
@@ -119,14 +147,15 @@ def base_pose(layout: ModelLayout) -> RigidTransform:
 def _urdf_text(layout: ModelLayout) -> str:
     """The URDF at ``layout.path`` as text, its namespace prefixes kept (Drake reads
     ``drake:rotor_inertia`` by its prefix; ElementTree would write ``ns0:``): without its
-    links' geometry elements when the model does not collide, else with each relative mesh
-    file a ``file://`` URL (Drake refuses a bare path in text); a root link named ``world``
-    renamed ``RENAMED_WORLD`` (``root_name``)."""
+    links' geometry elements when the model does not collide, or without its visuals when it
+    does (``GEOMETRY_ELEMENTS``), each relative mesh file a ``file://`` URL (Drake refuses a
+    bare path in text); a root link named ``world`` renamed ``RENAMED_WORLD``
+    (``root_name``)."""
     for _, (prefix, uri) in ElementTree.iterparse(layout.path, events=("start-ns",)):
         ElementTree.register_namespace(prefix, uri)
     root = ElementTree.parse(layout.path).getroot()
     for link in root.iter("link"):
-        for tag in GEOMETRY_ELEMENTS if not layout.spec.collisions else ():
+        for tag in GEOMETRY_ELEMENTS[layout.spec.collisions]:
             for element in link.findall(tag):
                 link.remove(element)
     for mesh in root.iter("mesh"):
@@ -206,14 +235,11 @@ def _written(values) -> str:
 
 
 def _parse(plant, layout: ModelLayout) -> list:
-    """The model instances Drake's parser makes of the file (one, for URDF and MJCF): the
-    file itself; a URDF as ``_urdf_text`` when it must not collide or its root is named
-    ``world``; an MJCF away from the origin inside a base body at the model's pose
-    (``_placed_mjcf``)."""
+    """The model instances Drake's parser makes of the file (one, for URDF and MJCF): a URDF
+    as ``_urdf_text``; an MJCF away from the origin inside a base body at the model's pose
+    (``_placed_mjcf``), else the file itself."""
     parser = _parser(plant, layout)
-    if layout.format == "urdf" and not (
-        layout.spec.collisions and root_name(layout) == layout.root_link
-    ):
+    if layout.format == "urdf":
         return parser.AddModelsFromString(_urdf_text(layout), FILE_TYPES["urdf"])
     if _hangs_from_drakes_world(layout) and not _is_origin(layout):
         return parser.AddModelsFromString(_placed_mjcf(layout), FILE_TYPES["mjcf"])
@@ -266,7 +292,32 @@ def add_model(plant, scene_graph, layout: ModelLayout, children=None) -> NativeM
         elif name in (children or {}):
             joints[name] = _inboard(plant, links[layout.bodies.index(children[name])])
     in_link = tuple(transform(frame) for frame in layout.body_in_link)
-    return NativeModel(layout, instance, links, in_link, joints, geometry, tuple(warnings))
+    idle = _scene_contacts(plant, scene_graph, layout, geometry, links)
+    return NativeModel(layout, instance, links, in_link, joints, geometry, tuple(warnings), idle)
+
+
+def _scene_contacts(plant, scene_graph, layout: ModelLayout, geometry, links) -> tuple:
+    """Under ``collisions: true``: each proximity geometry on one of the model's links gets
+    the scene's friction for a model link (``urdf.LINK_CONTACT``) in place of the file's
+    (an MJCF geom's ``friction``, a URDF's ``drake:proximity_properties``) or Drake's default;
+    the others (an MJCF's worldbody geoms, which physval's reading leaves out) are returned,
+    to be filtered from everything (``filter_model_geometry``)."""
+    if not layout.spec.collisions:
+        return ()
+    inspector = scene_graph.model_inspector()
+    mine = {body.index() for body in links}
+    mu = LINK_CONTACT["friction"]
+    idle = []
+    for gid in geometry:
+        if plant.GetBodyFromFrameId(inspector.GetFrameId(gid)).index() not in mine:
+            idle.append(gid)
+            continue
+        properties = ProximityProperties(inspector.GetProximityProperties(gid))
+        if properties.HasProperty(*FRICTION_PROPERTY):
+            properties.RemoveProperty(*FRICTION_PROPERTY)
+        properties.AddProperty(*FRICTION_PROPERTY, CoulombFriction(mu, mu))
+        scene_graph.AssignRole(plant.get_source_id(), gid, properties, RoleAssign.kReplace)
+    return tuple(idle)
 
 
 def _hangs_from_drakes_world(layout: ModelLayout) -> bool:
@@ -327,9 +378,14 @@ def _named(layout: ModelLayout):
 
 
 def filter_model_geometry(scene_graph, models: list[NativeModel]) -> int:
-    """Every proximity geometry of the models with ``collisions: false`` excluded from contact
-    with every geometry (after ``Finalize``); the number of geometries filtered."""
-    quiet = [g for model in models if not model.layout.spec.collisions for g in model.geometry]
+    """Every proximity geometry of the models with ``collisions: false``, and the idle ones
+    of the others (``NativeModel.idle``), excluded from contact with every geometry (after
+    ``Finalize``); the number of geometries filtered."""
+    quiet = [
+        g
+        for model in models
+        for g in (model.geometry if not model.layout.spec.collisions else model.idle)
+    ]
     if not quiet:
         return 0
     every = scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity)

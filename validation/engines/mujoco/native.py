@@ -26,6 +26,20 @@ scene's (``<model>/<link>``, ``<model>/<joint>``). What is MuJoCo's and what is 
 - contacts: ``collisions: false`` removes the geoms that neither collide nor weigh
   (``drop_idle_geoms``) and gives the remaining ones ``contype = conaffinity = 0`` (on the
   compiled model, so the compiler's inertia-from-geom logic sees the file's own values).
+  ``collisions: true`` keeps every geom of the file (MuJoCo's reading of its shapes, meshes
+  included) and gives them the scene's contacts, not the file's: every model geom gets
+  ``contype = conaffinity = 0`` too (the file's bitmasks, ``friction``, ``solref`` and
+  ``<contact>`` pairs do not act), and each geom on a model body gets an explicit ``<pair>``
+  with every geom of the scene that collides (its bodies' and the ground's,
+  ``pair_with_scene``) carrying the matched profile's values for that pair: a model link's
+  scene values are ``urdf.LINK_CONTACT`` (restitution 0, friction 0), so the scene's pair
+  (restitution the larger, friction the geometric mean) is the other end's restitution
+  without friction: that geom's own ``solref``/``solimp`` (``mjcf.geom_surface``: its
+  values as if it met itself) and condim 1. A model's geoms on its world body (an MJCF's
+  floor and rails, which physval's reading leaves out) and on links welded to the world get
+  no pair; the links of one model, and two models, do not meet each other (physval's
+  reading lets a model's links that share no joint touch: a difference of this loader).
+  The ``defaults`` profile gets the same pairs (MuJoCo's own values are not restored).
 
 MuJoCo is imported inside the functions: the adapter imports it first, headless
 (``adapter.NO_RENDERING``).
@@ -38,6 +52,7 @@ import warnings
 import numpy as np
 
 from validation.engines.frames import matrix_to_quat
+from validation.engines.mujoco.mjcf import FRICTIONLESS_CONDIM
 from validation.scenario.packages import PACKAGE_URI, resolve
 
 FREE_JOINT = "free"
@@ -129,11 +144,54 @@ def _set_base(child, layout) -> None:
     root.add_freejoint(name=f"{layout.root_link}/{FREE_JOINT}")
 
 
+def _name_geoms(child) -> None:
+    """Every unnamed geom named ``<body>/collision<k>`` (an explicit pair names its geoms;
+    MuJoCo's URDF importer names none)."""
+    for body in child.bodies:
+        for k, geom in enumerate(body.geoms):
+            geom.name = geom.name or f"{body.name}/collision{k}"
+
+
+def _welded(body) -> bool:
+    """Whether ``body`` (a child spec's) is held to the world: no joint on it or above it."""
+    while body is not None and body.name != WORLD_BODY:
+        if list(body.joints):
+            return False
+        body = body.parent
+    return True
+
+
+def scene_geoms(parent) -> list:
+    """The geoms of the scene (``mjcf``'s, before any model is attached) that collide."""
+    return [g for g in parent.geoms if g.name and (g.contype or g.conaffinity)]
+
+
+def pair_with_scene(parent, child, others) -> None:
+    """Under ``collisions: true``: a ``<pair>`` on ``parent`` between each geom of a moving
+    model body of ``child`` (attached, names prefixed) and each geom of ``others`` (the
+    scene's, ``scene_geoms``), with that scene geom's ``solref``/``solimp`` and condim 1
+    (module docstring: the matched profile's pair of a link of restitution and friction 0)."""
+    for body in child.bodies:
+        if body.name == WORLD_BODY or _welded(body):
+            continue
+        for geom in body.geoms:
+            for other in others:
+                parent.add_pair(
+                    geomname1=geom.name,
+                    geomname2=other.name,
+                    condim=FRICTIONLESS_CONDIM,
+                    solref=list(other.solref),
+                    solimp=list(other.solimp),
+                )
+
+
 def attach_model(parent, layout) -> None:
     """Read ``layout``'s file with MuJoCo's own importer and attach it to ``parent`` (an
-    ``MjSpec``) at the model's pose, names prefixed (module docstring)."""
+    ``MjSpec``) at the model's pose, names prefixed, and under ``collisions: true`` paired
+    with the scene's colliding geoms (module docstring)."""
     import mujoco
 
+    others = scene_geoms(parent)
     child = mujoco.MjSpec.from_file(str(layout.path))
     for name, value in NATIVE_COMPILER.items():
         setattr(child.compiler, name, value)
@@ -141,6 +199,8 @@ def attach_model(parent, layout) -> None:
         child.delete(actuator)  # a scene applies no controls: a passive model
     if not layout.spec.collisions:
         drop_idle_geoms(child)
+    else:
+        _name_geoms(child)
     _resolve_meshes(child, layout)
     _set_base(child, layout)
     spec = layout.spec
@@ -148,16 +208,21 @@ def attach_model(parent, layout) -> None:
         pos=[float(v) for v in spec.position], quat=[float(v) for v in spec.orientation]
     )
     parent.attach(child, prefix=f"{layout.name}/", frame=frame)
+    if layout.spec.collisions:
+        pair_with_scene(parent, child, others)
 
 
 def compile_with_models(xml: str, layouts) -> tuple[object, list[str]]:
     """(MjModel, MuJoCo's attach-conflict warnings) of the scene's MJCF ``xml`` with every
-    model of ``layouts`` (``ModelLayout``) attached."""
+    model of ``layouts`` (``ModelLayout``) attached, and MuJoCo's contacts on when a model's
+    pairs need them (the scene without its models may have had nothing to touch)."""
     import mujoco
 
     parent = mujoco.MjSpec.from_string(xml)
     for layout in layouts:
         attach_model(parent, layout)
+    if parent.pairs:  # the scene without its models may have nothing that touches
+        parent.option.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = parent.compile()
@@ -167,13 +232,13 @@ def compile_with_models(xml: str, layouts) -> tuple[object, list[str]]:
 
 
 def switch_off_collisions(model, layouts) -> None:
-    """``contype = conaffinity = 0`` on every geom of a model with ``collisions: false``
-    (its bodies' and the geoms it attached to the world body, named with its prefix)."""
+    """``contype = conaffinity = 0`` on every geom of every model (its bodies' and the geoms
+    it attached to the world body, named with its prefix): with ``collisions: false`` it
+    touches nothing; with ``collisions: true`` only its explicit pairs act
+    (``pair_with_scene``)."""
     import mujoco
 
     for layout in layouts:
-        if layout.spec.collisions:
-            continue
         prefix = f"{layout.name}/"
         for geom in range(model.ngeom):
             body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
@@ -198,6 +263,21 @@ def set_joint_state(model, data, layouts) -> None:
                 continue  # welded (a fixed joint, the base's weld), or a ball
             data.qpos[model.jnt_qposadr[jid]] = layout.initial_position(file_joint)
             data.qvel[model.jnt_dofadr[jid]] = layout.initial_velocity(file_joint)
+
+
+def joint_friction(model, scenario) -> np.ndarray:
+    """(j,) N·m or N: each scene joint's dry friction as MuJoCo holds it, ``dof_frictionloss``
+    (its URDF importer reads ``<dynamics friction>`` into it, its MJCF parser
+    ``frictionloss``; 0 for a joint MuJoCo welded, and for every joint ``mjcf`` writes from
+    the scene's, which have none): the ``JointReport.friction`` of the ``model_fields`` tier."""
+    import mujoco
+
+    friction = np.zeros(len(scenario.joints))
+    for k, joint in enumerate(scenario.joints):
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+        if jid >= 0:
+            friction[k] = model.dof_frictionloss[model.jnt_dofadr[jid]]
+    return friction
 
 
 def body_offsets(scene, body_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
