@@ -198,7 +198,7 @@ MESH = '<collision><geometry><mesh filename="arm.obj"/></geometry></collision>'
 
 REFUSALS = {
     "two elements": (SPHERE * 2, "link 'arm' has 2 collision elements"),
-    "a mesh": (MESH, "link 'arm''s collision geometry is a mesh"),
+    "a mesh": (MESH, "link 'arm''s collision geometry is 'mesh'"),
 }
 
 

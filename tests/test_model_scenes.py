@@ -156,7 +156,7 @@ KNOWN_ROWS = sorted(
         ),
         *(
             ("pendulum5_swing", engine, "model_fields")
-            for engine in ("drake", "mini", "mujoco", "pybullet", "rapier")
+            for engine in ("drake", "mini", "pybullet", "rapier")
         ),
         *(
             ("inverted_double_pendulum_swing", "pybullet", metric)
@@ -173,8 +173,7 @@ KNOWN_ROWS = sorted(
 )
 """The rows the scenes declare known, each with its measured reason: mini's rotation law
 without the gyroscopic term (three-dimensional swings), MuJoCo's reading of the URDF's joint
-friction and the other engines' dropping it (tier 1; MuJoCo's own model_fields until its
-adapter reports ``dof_frictionloss``), PyBullet's MJCF loader (damping and inertias)."""
+friction and the other engines' dropping it (tier 1), PyBullet's MJCF loader (damping and inertias)."""
 
 
 def test_the_known_findings_are_the_declared_ones(library_run):

@@ -437,7 +437,7 @@ class _Expansion:
         if geometry.kind not in SHAPES:
             raise ModelError(
                 "collisions",
-                f"link {link.name!r}'s collision geometry is a {geometry.kind}: physval's "
+                f"link {link.name!r}'s collision geometry is {geometry.kind!r}: physval's "
                 f"shapes are {', '.join(SHAPES)}",
             )
         inverse = Frame(

@@ -37,6 +37,7 @@ from validation.engines.mujoco.mjcf import (
 from validation.engines.mujoco.native import (
     body_offsets,
     compile_with_models,
+    joint_friction,
     offset_quaternions,
     set_joint_state,
     without_models,
@@ -276,7 +277,8 @@ class MujocoAdapter:
         each stated joint's type (``jnt_type``; a fixed joint is a body welded into its
         parent: no joint), anchor ``xanchor`` (a slide's moved with its child, ``_slid``) and
         axis ``xaxis``, world frame; its range (``jnt_range`` where ``jnt_limited``) less its
-        coordinate at t = 0, ``dof_damping`` and ``dof_armature``; and M(q0), ``mj_fullM``,
+        coordinate at t = 0, ``dof_damping``, ``dof_armature`` and ``dof_frictionloss``
+        (``native.joint_friction``); and M(q0), ``mj_fullM``,
         carried into the joint tree's coordinates: ``M_tree = Tᵀ M T`` (``_tree_velocities``)."""
         m = self.model
         d = mujoco.MjData(m)
@@ -310,6 +312,7 @@ class MujocoAdapter:
             limits=limits,
             damping=damping,
             armature=armature,
+            friction=joint_friction(m, self.scenario),
         )
 
     def _scene_axes(self, d, row: int) -> np.ndarray:
