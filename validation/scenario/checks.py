@@ -13,7 +13,6 @@ problem at its line and column:
 
 from __future__ import annotations
 
-import difflib
 import fnmatch
 import math
 from collections.abc import Callable, Iterator
@@ -42,6 +41,7 @@ from validation.scenario.schema import (
     Scenario,
     Tolerance,
 )
+from validation.scenario.suggest import closest, did_you_mean
 from validation.scenario.yaml_source import SMALLEST_NORMAL, SourceMap
 
 Location = tuple[str | int, ...]
@@ -73,11 +73,6 @@ RESERVED_NAMES = ("world", "ground")
 """Names that mean the world frame (springs) and the ground plane (pairs): no body may take them."""
 
 
-def _hint(name: str, choices: list[str]) -> str:
-    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.5)
-    return f"; did you mean {close[0]!r}?" if close else ""
-
-
 def unique_body_names(scenario: Scenario) -> Found:
     """Body names are unique and not reserved."""
     first: dict[str, int] = {}
@@ -98,7 +93,7 @@ def _reference(scenario: Scenario, name: str, loc: Location, extra: tuple[str, .
         alternatives = f"{' or ' + ' or '.join(repr(e) for e in extra) if extra else ''}"
         yield (
             loc,
-            f"expected a body name{alternatives}; got {name!r}{_hint(name, [*names, *extra])}",
+            f"expected a body name{alternatives}; got {name!r}{did_you_mean(name, [*names, *extra])}",
         )
 
 
@@ -130,7 +125,7 @@ def expectations(scenario: Scenario) -> Found:
                 yield (
                     ("expect", i, "joint"),
                     f"expected a joint name; got {expectation.joint!r}"
-                    f"{_hint(expectation.joint, joints) if joints else ' (the scene has no joints)'}",
+                    f"{did_you_mean(expectation.joint, joints) if joints else ' (the scene has no joints)'}",
                 )
         else:
             yield from _reference(scenario, expectation.body, ("expect", i, "body"), ())
@@ -307,10 +302,41 @@ def engine_specs(scenario: Scenario) -> Found:
         labels.add(label)
 
 
+def _subject_exists(scenario: Scenario, expectation) -> bool:
+    """Whether the body or joint an expectation is of exists in the scene."""
+    if isinstance(expectation, JOINT_EXPECTATION_MODELS):
+        return any(joint.name == expectation.joint for joint in scenario.joints)
+    return any(body.name == expectation.body for body in scenario.bodies)
+
+
+def metric_choices(scenario: Scenario, *extra: str) -> list[str]:
+    """The metrics a mistyped metric name may be told to mean: the fixed ones and those of the
+    expectations whose subject exists (``velocity_at.bal`` of a mistyped body is no metric to
+    suggest: it spells the typo back)."""
+    existing = (e.metric for e in scenario.expect if _subject_exists(scenario, e))
+    return sorted({*METRIC_NAMES, *existing, *extra})
+
+
+def _metric_hint(scenario: Scenario, metric: str, *extra: str) -> str:
+    """What a mistyped metric name may mean: an existing metric (``did you mean 'X'?``), or
+    the expectation whose own subject is mistyped, its metric named after that typo; or
+    nothing."""
+    orphans = {
+        e.metric: i for i, e in enumerate(scenario.expect) if not _subject_exists(scenario, e)
+    }
+    close = closest(metric, [*metric_choices(scenario, *extra), *orphans])
+    if close in orphans:
+        return (
+            f"expect[{orphans[close]}]'s metric is {close!r}, named after a subject the scene does not "
+            "have"
+        )
+    return f"did you mean {close!r}?" if close else ""
+
+
 def check_names(scenario: Scenario) -> Found:
     """A ``checks`` entry names a metric of this scene; a per-engine key names one of its engines."""
     known = {*METRIC_NAMES, *(e.metric for e in scenario.expect)}
-    metrics = sorted(known)
+    metrics = metric_choices(scenario)
     labels = set()
     for text in scenario.engines:
         try:
@@ -319,9 +345,7 @@ def check_names(scenario: Scenario) -> Found:
             continue  # reported by engine_specs
     for metric, tolerance in scenario.checks.items():
         if metric not in known:  # a set: a list made ``check`` quadratic in the entries
-            hint = (
-                _hint(metric, metrics).removeprefix("; ") or f"expected one of {', '.join(metrics)}"
-            )
+            hint = _metric_hint(scenario, metric) or f"expected one of {', '.join(metrics)}"
             yield ("checks", metric), f"unknown metric {metric!r}; {hint}"
         for key in tolerance if isinstance(tolerance, dict) else ():
             if key != "default" and key not in labels:
@@ -345,7 +369,7 @@ def known_findings(scenario: Scenario) -> Found:
         except EngineSpecError as error:
             yield ("known", i, "engine"), str(error)
         if finding.metric != ANY_METRIC and not fnmatch.filter(metrics, finding.metric):
-            hint = _hint(finding.metric, metrics).removeprefix("; ")
+            hint = _metric_hint(scenario, finding.metric, STATUS_METRIC)
             yield (
                 ("known", i, "metric"),
                 f"unknown metric {finding.metric!r}; {hint or 'expected a metric of this scene'}"

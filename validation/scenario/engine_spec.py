@@ -9,13 +9,13 @@ are errors that name the nearest valid word. Nothing here imports an engine.
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 from validation.engine_api import Count, declarations, discover
+from validation.scenario.suggest import did_you_mean
 
 Option = tuple[str, ...] | type
 """Accepted values of one setting: a tuple of words, ``Count``, or ``int``/``float``/``bool``."""
@@ -75,19 +75,12 @@ class EngineSpec:
         return self.label
 
 
-def _suggest(word: str, choices) -> str:
-    """``; did you mean 'X'?`` for the closest choice, case aside (``rk4`` -> ``RK4``)."""
-    by_lower = {choice.lower(): choice for choice in choices}
-    close = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
-    return f"; did you mean {by_lower[close[0]]!r}?" if close else ""
-
-
 def _convert(engine: str, key: str, raw: str, option: Option) -> str | int | float | bool:
     if isinstance(option, tuple):
         if raw not in option:
             raise EngineSpecError(
                 f"{engine} setting {key!r}: expected one of {', '.join(option)}; got {raw!r}"
-                + _suggest(raw, option)
+                + did_you_mean(raw, option)
             )
         return raw
     if option is Count:
@@ -125,7 +118,7 @@ def parse_engine_spec(text: str) -> EngineSpec:
             raise EngineSpecError(f"engine {name!r} is installed but broken: {broken}")
         raise EngineSpecError(
             f"unknown engine {name!r}; expected one of {', '.join(engines)}"
-            + _suggest(name, engines)
+            + did_you_mean(name, engines)
         )
     declaration = engines[name]
     options = {option.name: option.accepted for option in declaration.options}
@@ -137,7 +130,7 @@ def parse_engine_spec(text: str) -> EngineSpec:
         if key not in options:
             raise EngineSpecError(
                 f"{name} has no setting {key!r}; expected one of {', '.join(options)}"
-                + _suggest(key, options)
+                + did_you_mean(key, options)
             )
         if any(key == seen for seen, _ in settings):
             raise EngineSpecError(f"{name}: setting {key!r} given twice")

@@ -3,7 +3,6 @@ with pydantic's errors translated into that form (and a "did you mean")."""
 
 from __future__ import annotations
 
-import difflib
 import re
 from dataclasses import dataclass, replace
 from typing import Any
@@ -20,6 +19,7 @@ from validation.scenario.schema import (
     SphereShape,
     SpringSpec,
 )
+from validation.scenario.suggest import did_you_mean
 from validation.scenario.yaml_source import SourceMap
 
 UNPRINTABLE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff]")
@@ -202,17 +202,16 @@ def _schema_problem(error: dict, data: Any, file: str, source: SourceMap) -> Pro
     if kind == "extra_forbidden":
         key = loc[-1]
         allowed = _allowed_keys(data, loc[:-1])
-        close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.5)
-        hint = (
-            f"; did you mean {close[0]!r}?" if close else f"; expected one of {', '.join(allowed)}"
-        )
+        hint = did_you_mean(str(key), allowed) or f"; expected one of {', '.join(allowed)}"
         message = f"unknown field {key!r}{hint}"
     elif kind == "missing":
         message = "required field is missing"
     elif kind == "union_tag_invalid":
         context = error["ctx"]
         loc = (*loc, context["discriminator"].strip("'"))
+        tags = re.findall(r"'([^']*)'", context["expected_tags"])
         message = f"expected one of {context['expected_tags']}; got {context['tag']!r}"
+        message += did_you_mean(context["tag"], tags)
     elif kind == "union_tag_not_found":
         message = f"required field {error['ctx']['discriminator']} is missing"
     elif kind == "value_error":
