@@ -24,6 +24,7 @@ from validation.scenario.compiled import compile_scene
 from validation.scenario.definability import UNDEFINED_WHEN, Traits, scene_traits, why_undefined
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
 from validation.scenario.joints import JOINT_RULES
+from validation.scenario.partial import Partial
 from validation.scenario.physics import (
     body_inertia,
     pair_rule,
@@ -661,13 +662,45 @@ def _scene_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Pr
     return [p for rule in SCENE_RULES for p in _place(file, source, rule(scenario, traits))]
 
 
-def document_problems(scenario: Scenario, file: str, source: SourceMap) -> list[Problem]:
+ANNOTATION_RULES = frozenset(
+    {
+        expectations,
+        joint_expectations_fit_their_joint,
+        precession_needs_a_symmetry_axis,
+        known_findings,
+        sweep_steps,
+        check_names,
+    }
+)
+"""The rules of what is measured and judged (expectations, known findings, the sweep, the
+checks), not of the scene itself: the scene rules and warnings read a consistent scene
+whatever these find, so they run alongside (every problem of a file in one pass)."""
+
+
+def document_problems(
+    scenario: Scenario, file: str, source: SourceMap, partial: Partial | None = None
+) -> list[Problem]:
     """Every problem the rules find, each placed at its field's line and column: the
-    document rules' errors or, when there are none, the scene rules' errors and the
-    warnings."""
-    problems = [p for rule in RULES for p in _place(file, source, rule(scenario))]
-    if problems:
-        return problems  # the scene rules and warnings read a consistent document
-    return _scene_problems(scenario, file, source) + [
-        p for rule in WARNING_RULES for p in _place(file, source, rule(scenario), warning=True)
-    ]
+    document rules' errors and, when the scene itself is consistent, the scene rules' errors
+    and the warnings. ``partial``: ``scenario`` is the validated part of a file that failed
+    the schema; a reference to what was left out is not reported, and the scene rules wait
+    for a whole scene."""
+    found = {rule: list(rule(scenario)) for rule in RULES}
+    if partial is not None:  # placed in the file; a reference to what was left out is not one
+        found = {
+            rule: [
+                (partial.in_file(loc), message)
+                for loc, message in found[rule]
+                if not partial.refers_to_left_out(loc)
+            ]
+            for rule in RULES
+        }
+    problems = [p for rule in RULES for p in _place(file, source, found[rule])]
+    scene_broken = any(found[rule] for rule in RULES if rule not in ANNOTATION_RULES)
+    if scene_broken or (partial is not None and not partial.whole_scene):
+        return problems  # the scene rules and warnings read a consistent scene
+    return (
+        problems
+        + _scene_problems(scenario, file, source)
+        + [p for rule in WARNING_RULES for p in _place(file, source, rule(scenario), warning=True)]
+    )

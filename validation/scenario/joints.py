@@ -120,7 +120,7 @@ def joints_hold_at_start(scenario: Scenario) -> Found:
     or slide the child only as the joint allows."""
     bodies = {body.name: body for body in scenario.bodies}
     speeds = [abs(x) for b in scenario.bodies for x in (*b.velocity, *b.angular_velocity)]
-    tolerance = JOINT_STATE_TOLERANCE * max(1.0, *speeds)
+    tolerance = JOINT_STATE_TOLERANCE * max([1.0, *speeds])  # a list: no body, no speed
     for k, joint in enumerate(scenario.joints):
         if joint.child not in bodies or (joint.parent != WORLD_NAME and joint.parent not in bodies):
             continue  # joint_references reports it

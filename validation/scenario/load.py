@@ -23,6 +23,7 @@ from validation.bundled import BUNDLED_SCENARIOS, default_scenario_paths  # noqa
 from validation.engine_api import declarations
 from validation.scenario.checks import document_problems
 from validation.scenario.engine_spec import EngineSpecError, parse_engine_spec
+from validation.scenario.partial import validated_part, without_models
 from validation.scenario.physics import initial_overlaps
 from validation.scenario.problems import (
     Problem,
@@ -72,12 +73,20 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:
-        problems = [_schema_problem(e, data, file, source) for e in error.errors(include_url=False)]
-        problems = merged(problems) + raw_engine_problems(data, file, source) + model_problems
-        problems = [p for p in problems if not _filled_by_models(p, data)]
+        errors = error.errors(include_url=False)
+        problems = merged([_schema_problem(e, data, file, source) for e in errors])
+        part = validated_part(data, errors, models_failed=bool(model_problems))
+        if part is None:
+            problems += raw_engine_problems(data, file, source)
+        else:  # the rules on what validated: every problem of the file in one pass
+            found = document_problems(part.scenario, file, source, part)
+            problems += [p for p in found if p not in problems]
+        problems = [p for p in problems + model_problems if not _filled_by_models(p, data)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
-    if model_problems:
-        return None, model_problems
+    if model_problems:  # the rules on the rest, the models' bodies and joints unknown
+        return None, model_problems + document_problems(
+            scenario, file, source, without_models(scenario)
+        )
     problems = document_problems(scenario, file, source)
     return (None if any(not p.warning for p in problems) else scenario), problems
 
