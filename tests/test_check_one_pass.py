@@ -219,3 +219,15 @@ def test_a_model_that_fails_does_not_hold_back_the_rest(tmp_path):
     assert any("models[0]" in line for line in found), found
     assert any("engine 'mini' is listed twice" in line for line in found), found
     assert not any("expect[0].body" in line for line in found), found
+
+
+def test_the_scene_rules_wait_for_a_whole_scene(tmp_path, capsys):
+    """With a body left out the scene is another one: its definability is not judged (it
+    would be of a scene without the ball), the names still are."""
+    path = tmp_path / "scene.yaml"
+    path.write_text(ONE_OF_EACH.replace("radius: 0.1", "radius: -0.1"))
+    assert main(["check", str(path)]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "bodies[0].shape.radius: expected greater than 0" in err, err
+    assert "expect[0].body: expected a body name; got 'bal'" in err, err
+    assert "angular_momentum_drift" not in err, err

@@ -6,9 +6,13 @@ message)`` for every problem, the location being the field path it is reported a
 problem at its line and column:
 
 1. ``RULES``: the document's own consistency (names, references, specs, steps); errors.
-2. ``SCENE_RULES``, once those hold: what the scene can define (``definability``): a check
-   or a known finding on a metric the scene cannot define is an error.
-3. ``WARNING_RULES``: what loads but cannot do its job: a tolerance no reading can exceed.
+2. ``SCENE_RULES``, once those of the scene itself hold (all but ``ANNOTATION_RULES``): what
+   the scene can define (``definability``): a check or a known finding on a metric the scene
+   cannot define is an error.
+3. ``WARNING_RULES``, alike: what loads but cannot do its job: a tolerance no reading can
+   exceed.
+
+A file that failed the schema is judged on its validated part (``partial``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """Loading: a file read strictly, validated by the schema, then by the whole-document
-rules; every problem collected.
+rules; every problem collected in one pass (the rules judge the part of a file that passed
+the schema, ``partial``, and the rest of a file whose models failed).
 
 Every load warns: ``load_scenario`` (``physval run``, ``pytest --physval``, ``sweep``, ...)
 issues each warning of the rules as a ``ScenarioWarning`` placed at its line of the scene
