@@ -331,10 +331,8 @@ def _metric_hint(scenario: Scenario, metric: str, *extra: str) -> str:
     }
     close = closest(metric, [*metric_choices(scenario, *extra), *orphans])
     if close in orphans:
-        return (
-            f"expect[{orphans[close]}]'s metric is {close!r}, named after a subject the scene does not "
-            "have"
-        )
+        subject = f"expect[{orphans[close]}]'s metric is {close!r}"
+        return f"{subject}, named after a subject the scene does not have"
     return f"did you mean {close!r}?" if close else ""
 
 

@@ -80,8 +80,10 @@ def _load(path: Path) -> tuple[Scenario | None, list[Problem]]:
         if part is None:
             problems += raw_engine_problems(data, file, source)
         else:  # the rules on what validated: every problem of the file in one pass
-            found = document_problems(part.scenario, file, source, part)
-            problems += [p for p in found if p not in problems]
+            said = set(problems)  # each said once
+            problems += [
+                p for p in document_problems(part.scenario, file, source, part) if p not in said
+            ]
         problems = [p for p in problems + model_problems if not _filled_by_models(p, data)]
         return None, sorted(problems, key=lambda p: (p.line or 0, p.column or 0))
     if model_problems:  # the rules on the rest, the models' bodies and joints unknown

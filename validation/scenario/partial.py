@@ -47,7 +47,7 @@ DROPPABLE_FIELDS = (
     "sweep",
 )
 """Optional top-level fields left out (their default taken) when they fail as a whole: none
-declares a name other fields refer to, but the ground (``LEFT_OUT_NAMES``)."""
+declares a name other fields refer to but the ground, whose name is then kept as left out."""
 
 SCENE_FIELDS = frozenset(
     {"gravity", "ground", "engines", "bodies", "springs", "joints", "models", "pairs"}
@@ -110,13 +110,13 @@ def _value_at(scenario: Scenario, loc: Location) -> Any:
     return node
 
 
-def _declared_name(field: str, entry: Any) -> str | None:
-    """The name an entry of ``field`` declares, if it reads as one."""
+def _declared_name(list_name: str, entry: Any) -> str | None:
+    """The name an entry of the list ``list_name`` declares, if it reads as one."""
     if not isinstance(entry, dict):
         return None
-    if field in ("bodies", "joints"):
+    if list_name in ("bodies", "joints"):
         name = entry.get("name")
-    elif field == "expect":
+    elif list_name == "expect":
         subject, kind = entry.get("body", entry.get("joint")), entry.get("kind")
         kind = kind if kind in _EXPECTATIONS else "*"  # a mistyped kind: any of its subject's
         name = entry.get("name") or f"{kind}.{subject}"
