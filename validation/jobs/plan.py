@@ -40,6 +40,9 @@ class Plan:
     engines_replaced: bool = False
     """``--engines`` replaced every scene's engine list: its sweep's list too."""
 
+    sweeping: bool = True
+    """The scenes' own sweeps (``sweep:``) run (``--sweeps on``); off, ``sweeps`` is empty."""
+
     @property
     def jobs(self) -> list[tuple[CompiledScene, EngineSpec]]:
         """(scene, spec) in plan order: scenes in file order, specs in the scene's order."""
@@ -50,7 +53,10 @@ class Plan:
         """(scenario, spec, dts) of the scenes that declare ``sweep:``, in plan order: the
         sweep's own engines, or the specs the scene runs in (always these when ``--engines``
         replaced the scenes' lists: a run in one engine sweeps that engine only), leaving out
-        engines not installed here (the scene's own rows say ``not_installed``)."""
+        engines not installed here (the scene's own rows say ``not_installed``); none when
+        the plan does not sweep (``sweeping``)."""
+        if not self.sweeping:
+            return []
         return [
             (scene.scenario, spec, list(scene.scenario.sweep.dt))
             for scene, specs in self.scenes
@@ -130,8 +136,15 @@ def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> st
     )
 
 
-def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
-    """Load and validate everything first; raises ``BadInputError`` listing every problem."""
+def plan_run(
+    paths: list[Path],
+    engines: str | None,
+    dt: float | None,
+    only: str | None,
+    sweeps: bool = True,
+) -> Plan:
+    """Load and validate everything first; raises ``BadInputError`` listing every problem.
+    ``sweeps``: whether the scenes' own sweeps run (``Plan.sweeping``)."""
     problems: list[str] = []
     overrides: list[EngineSpec] | None = None
     if engines is not None:
@@ -174,7 +187,7 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
     if problems:
         raise BadInputError("\n".join(problems))
-    return Plan(scenes, engines_replaced=overrides is not None)
+    return Plan(scenes, engines_replaced=overrides is not None, sweeping=sweeps)
 
 
 def package_paths(flags: list[str] | None) -> dict[str, str]:
