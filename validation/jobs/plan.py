@@ -27,7 +27,7 @@ from validation.scenario.engine_spec import (
     parse_installed_spec,
     split_engine_list,
 )
-from validation.scenario.problems import printable
+from validation.scenario.problems import Problem, printable
 
 
 @dataclass
@@ -126,14 +126,13 @@ def _with_dt(scenario: Scenario, dt: float, file: Path) -> Scenario:
         raise BadInputError(f"--dt {dt} for {printable(file)}: {error}") from None
 
 
-def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> str | None:
+def duplicate_problem(scenario: Scenario, file: Path, names: dict[str, Path]) -> Problem | None:
     """A problem when another file already has this scene's name (their rows would merge)."""
     other = names.setdefault(scenario.name, file)
     if other == file:
         return None
-    return printable(
-        f"{file}: name: {scenario.name!r} is also the name of {other}; expected a unique name"
-    )
+    message = f"{scenario.name!r} is also the name of {other}; expected a unique name"
+    return Problem(str(file), "name", message)
 
 
 def plan_run(
@@ -172,9 +171,9 @@ def plan_run(
             continue
         if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
             continue
-        duplicate = duplicate_name(scenario, file, names)
+        duplicate = duplicate_problem(scenario, file, names)
         if duplicate:
-            problems.append(duplicate)
+            problems.append(str(duplicate))
             continue
         if dt is not None and not problems:
             try:

@@ -842,27 +842,23 @@ def run_main(
     try:
         if resume is not None:
             return _resume_main(resume, jobs, scheduler, junit, history, clock, job_timeout)
-        with clock.phase("planning"):
-            request, plan = _planned(
-                paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
-            )
-            if scheduler is None:  # on a cluster the workers' memory is the cluster's
-                check_memory(plan, jobs, _sample_every)
-        with claim(request.destination) as output:
-            with clock.phase("planning"):
-                header = _header(request, plan)
-                journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
-            return _finish(
-                output,
-                journal,
-                plan,
-                request,
-                jobs,
-                scheduler,
-                clock=clock,
-                job_timeout=job_timeout,
-                extra_files=extra_files,
-            )
+        return run_or_raise(
+            paths,
+            engines,
+            out,
+            dt,
+            only,
+            argv,
+            jobs,
+            baseline,
+            junit,
+            history,
+            scheduler,
+            clock,
+            job_timeout,
+            extra_files,
+            sweeps,
+        )
     except (BadInputError, BackendError) as error:
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -873,6 +869,50 @@ def run_main(
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT
+
+
+def run_or_raise(
+    paths: list[Path],
+    engines: str | None,
+    out: Path | None,
+    dt: float | None,
+    only: str | None,
+    argv: list[str],
+    jobs: int = 1,
+    baseline: str | None = None,
+    junit: str | None = None,
+    history: str | None = None,
+    scheduler: str | None = None,
+    clock: PhaseClock | None = None,
+    job_timeout: float | None = None,
+    extra_files: dict[str, str] | None = None,
+    sweeps: bool = True,
+) -> int:
+    """``run_main`` of a fresh run (no ``--resume``), its refusals raised: ``BadInputError``
+    (before any work, or a refused ``--out``), ``BackendError``, ``OSError`` (the write);
+    otherwise the exit code (``physval.run`` calls it and reads the run folder)."""
+    clock = PhaseClock() if clock is None else clock
+    with clock.phase("planning"):
+        request, plan = _planned(
+            paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
+        )
+        if scheduler is None:  # on a cluster the workers' memory is the cluster's
+            check_memory(plan, jobs, _sample_every)
+    with claim(request.destination) as output:
+        with clock.phase("planning"):
+            header = _header(request, plan)
+            journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
+        return _finish(
+            output,
+            journal,
+            plan,
+            request,
+            jobs,
+            scheduler,
+            clock=clock,
+            job_timeout=job_timeout,
+            extra_files=extra_files,
+        )
 
 
 def _planned(paths, engines, out, dt, only, argv, baseline, junit, history, sweeps):
