@@ -97,9 +97,11 @@ def run(
     ``OSError`` when the run folder cannot be written."""
     from validation.contract import RESULTS_COLUMNS, RESULTS_FILE
     from validation.jobs.plan import BadInputError
-    from validation.jobs.run import run_or_raise
+    from validation.jobs.run import run_main
     from validation.report.read import read_results
 
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise InputError([f"jobs: expected a whole number >= 1; got {jobs!r}"])
     paths = [Path(scenes)] if isinstance(scenes, PathLike) else [Path(s) for s in scenes]
     specs = engines if engines is None or isinstance(engines, str) else ", ".join(engines)
     argv = _argv(paths, specs, out, sweeps, baseline, history)
@@ -113,7 +115,7 @@ def run(
         stack.enter_context(contextlib.redirect_stdout(quiet))
         stack.enter_context(contextlib.redirect_stderr(quiet))
         try:
-            code = run_or_raise(
+            code = run_main(
                 paths,
                 specs,
                 folder,
@@ -124,6 +126,7 @@ def run(
                 baseline="none" if baseline is None else str(baseline),
                 history="none" if history is None else history,
                 sweeps=sweeps,
+                raise_refusals=True,
             )
         except BadInputError as error:
             raise InputError(str(error).split("\n")) from None

@@ -87,6 +87,7 @@ def test_a_failed_check_is_exit_code_1_and_not_passed(tmp_path):
         ({"scenes": PROJECTILE, "engines": "mujoko"}, "--engines: unknown engine 'mujoko'"),
         ({"scenes": "no/such.yaml"}, "no/such.yaml: no such file or folder"),
         ({"scenes": BAD_SCENE}, "bodies[0].shape.radius"),
+        ({"scenes": PROJECTILE, "jobs": 0}, "jobs: expected a whole number >= 1; got 0"),
     ],
 )
 def test_run_refuses_bad_input_with_input_error(arguments, says, tmp_path, private_tmp):

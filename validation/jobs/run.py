@@ -830,6 +830,7 @@ def run_main(
     job_timeout: float | None = None,
     extra_files: dict[str, str] | None = None,
     sweeps: bool = True,
+    raise_refusals: bool = False,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
@@ -837,82 +838,48 @@ def run_main(
     writing). ``clock``: times the phases (``phases.PhaseClock``; printed on stderr at the
     end when it is ``shown``, ``--timings``). ``extra_files``: file name -> text, written into
     the run folder with the record (``RUN_FOLDER_FILES`` must name each: ``physval sim2sim``'s
-    scene). ``sweeps``: whether the scenes' own sweeps run (``--sweeps``)."""
+    scene). ``sweeps``: whether the scenes' own sweeps run (``--sweeps``).
+    ``raise_refusals``: raise a refusal (``BadInputError``, ``BackendError``, the write's
+    ``OSError``) instead of printing it and returning 2 (``physval.run``)."""
     clock = PhaseClock() if clock is None else clock
     try:
         if resume is not None:
             return _resume_main(resume, jobs, scheduler, junit, history, clock, job_timeout)
-        return run_or_raise(
-            paths,
-            engines,
-            out,
-            dt,
-            only,
-            argv,
-            jobs,
-            baseline,
-            junit,
-            history,
-            scheduler,
-            clock,
-            job_timeout,
-            extra_files,
-            sweeps,
-        )
+        with clock.phase("planning"):
+            request, plan = _planned(
+                paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
+            )
+            if scheduler is None:  # on a cluster the workers' memory is the cluster's
+                check_memory(plan, jobs, _sample_every)
+        with claim(request.destination) as output:
+            with clock.phase("planning"):
+                header = _header(request, plan)
+                journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
+            return _finish(
+                output,
+                journal,
+                plan,
+                request,
+                jobs,
+                scheduler,
+                clock=clock,
+                job_timeout=job_timeout,
+                extra_files=extra_files,
+            )
     except (BadInputError, BackendError) as error:
+        if raise_refusals:
+            raise
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as error:  # a full disk, a folder made read-only mid-run
+        if raise_refusals:
+            raise
         print(
             f"cannot write the run: {error}; the finished jobs are kept in its journal "
             "(physval run --resume DIR finishes it)",
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT
-
-
-def run_or_raise(
-    paths: list[Path],
-    engines: str | None,
-    out: Path | None,
-    dt: float | None,
-    only: str | None,
-    argv: list[str],
-    jobs: int = 1,
-    baseline: str | None = None,
-    junit: str | None = None,
-    history: str | None = None,
-    scheduler: str | None = None,
-    clock: PhaseClock | None = None,
-    job_timeout: float | None = None,
-    extra_files: dict[str, str] | None = None,
-    sweeps: bool = True,
-) -> int:
-    """``run_main`` of a fresh run (no ``--resume``), its refusals raised: ``BadInputError``
-    (before any work, or a refused ``--out``), ``BackendError``, ``OSError`` (the write);
-    otherwise the exit code (``physval.run`` calls it and reads the run folder)."""
-    clock = PhaseClock() if clock is None else clock
-    with clock.phase("planning"):
-        request, plan = _planned(
-            paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
-        )
-        if scheduler is None:  # on a cluster the workers' memory is the cluster's
-            check_memory(plan, jobs, _sample_every)
-    with claim(request.destination) as output:
-        with clock.phase("planning"):
-            header = _header(request, plan)
-            journal = Journal.create(output.journal_folder, header, JOURNAL_SCHEMA)
-        return _finish(
-            output,
-            journal,
-            plan,
-            request,
-            jobs,
-            scheduler,
-            clock=clock,
-            job_timeout=job_timeout,
-            extra_files=extra_files,
-        )
 
 
 def _planned(paths, engines, out, dt, only, argv, baseline, junit, history, sweeps):
