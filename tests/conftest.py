@@ -83,6 +83,8 @@ def real_run(tmp_path_factory) -> RealRun:
         "killed",
         "--jobs",
         "1",
+        "--sweeps",
+        "on",
     )
     uninterrupted = root / "uninterrupted"
     before = Path.cwd()

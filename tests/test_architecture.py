@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("mini_engine", "validation")
+PACKAGES = ("mini_engine", "validation", "physval")
 
 WINGS: dict[str, int] = {
     "mini_engine": 0,
@@ -45,6 +45,7 @@ WINGS: dict[str, int] = {
     "validation.jobs": 6,
     "validation.cli": 7,
     "validation.pytest_plugin": 7,
+    "physval": 7,  # the Python API: run's, check's and the loader's machinery, as the cli's
     "validation.entry": 8,
 }
 """Wing (module prefix) -> rank. A wing may import its own modules and those of lower-ranked

@@ -52,7 +52,8 @@ def test_local_cluster_gives_the_files_of_the_local_executor(tmp_path):
     """``physval run`` and ``physval sweep`` on a LocalCluster: every number and every row
     order equal to ``--jobs 1`` (timings aside)."""
     scenes = list(map(str, FOUR_SCENES))
-    run = ["run", *scenes, "--engines", "mini, mujoco", "--dt", "2e-3", *NO_NIGHTLY]
+    run = ["run", *scenes, "--engines", "mini, mujoco", "--dt", "2e-3", "--sweeps", "on"]
+    run += NO_NIGHTLY
     serial = main([*run, "--out", str(tmp_path / "serial"), "--jobs", "1"])
     dask = main([*run, "--out", str(tmp_path / "dask"), "--jobs", "2", "--scheduler", "local"])
     assert serial == dask  # the coarse --dt fails checks in both: exit 1, the same rows

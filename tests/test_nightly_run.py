@@ -197,7 +197,7 @@ def test_a_scene_sweep_runs_with_the_scene(tmp_path):
     (folder / "spin.yaml").write_text(
         SPIN.replace("angular_velocity: [0, 0, 5.0]", "angular_velocity: [0.1, 5.0, 0.1]") + sweep
     )
-    done = run(folder, tmp_path / "r1", "--history", "none")
+    done = run(folder, tmp_path / "r1", "--history", "none", "--sweeps", "on")
     assert done.returncode == EXIT_OK, done.stdout + done.stderr
     table = results(tmp_path / "r1").set_index(["engine", "metric"])
     order = table.loc[("mini", "sweep_order.orientation_error"), "value"]

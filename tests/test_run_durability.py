@@ -92,7 +92,7 @@ def leftovers(folder: Path) -> list[str]:
 def test_sigkill_mid_run_then_resume_gives_the_files_of_an_uninterrupted_run(tmp_path):
     scene = tmp_path / "slow_fall.yaml"
     scene.write_text(SLOW_SCENE)
-    arguments = [str(scene), str(PROJECTILE), "--jobs", "1"]
+    arguments = [str(scene), str(PROJECTILE), "--jobs", "1", "--sweeps", "on"]
     killed = physval("run", *arguments, "--out", "killed", cwd=tmp_path)
     deadline = time.monotonic() + RUN_TIMEOUT_S
     while not list(tmp_path.glob(".killed-staging-*/journal/job-*.zip")):

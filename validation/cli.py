@@ -60,7 +60,7 @@ def command_run(args: argparse.Namespace) -> int:
         from validation.jobs.run import DEFAULT_OUT, RESUME_ALONE, run_main
 
     selection = (args.paths, args.engines, args.dt, args.only, args.out, args.baseline)
-    selection += (args.new_folder, args.package_path)
+    selection += (args.new_folder, args.package_path, args.sweeps)
     if args.resume is not None and any(selection):
         print(
             f"--resume {args.resume}: {RESUME_ALONE}; give only --jobs, --scheduler and the "
@@ -87,7 +87,19 @@ def command_run(args: argparse.Namespace) -> int:
         args.scheduler,
         clock,
         args.job_timeout,
+        sweeps=SWEEPS[args.sweeps] if args.sweeps else _whole_library(args),
     )
+
+
+def _whole_library(args: argparse.Namespace) -> bool:
+    """Whether ``physval run`` runs the whole bundled library (no PATHS, no --only): the
+    nightly run, which sweeps by default; a run of named scenes is the authoring loop."""
+    return not args.paths and args.only is None
+
+
+SWEEPS = {"on": True, "off": False}
+"""``--sweeps``: whether a run runs its scenes' sweeps (default ``_whole_library``: on for the
+bare nightly run of the whole library, off for a run of named scenes, the authoring loop)."""
 
 
 def command_sim2sim(args: argparse.Namespace) -> int:
@@ -359,6 +371,12 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
         metavar="URL",
         help="record the run in this history database (default sqlite:///<the --out "
         "folder's parent>/history.sqlite; 'none': not recorded)",
+    )
+    command.add_argument(
+        "--sweeps",
+        choices=sorted(SWEEPS),
+        help="run the scenes' dt sweeps (sweep:) too (default: on for a bare 'physval run', "
+        "the nightly run of the whole library; off when PATHS or --only name scenes)",
     )
     command.add_argument(
         "--timings",

@@ -27,7 +27,7 @@ from validation.scenario.engine_spec import (
     parse_installed_spec,
     split_engine_list,
 )
-from validation.scenario.problems import printable
+from validation.scenario.problems import Problem, printable
 
 
 @dataclass
@@ -40,6 +40,9 @@ class Plan:
     engines_replaced: bool = False
     """``--engines`` replaced every scene's engine list: its sweep's list too."""
 
+    sweeping: bool = True
+    """The scenes' own sweeps (``sweep:``) run (``--sweeps on``); off, ``sweeps`` is empty."""
+
     @property
     def jobs(self) -> list[tuple[CompiledScene, EngineSpec]]:
         """(scene, spec) in plan order: scenes in file order, specs in the scene's order."""
@@ -50,7 +53,10 @@ class Plan:
         """(scenario, spec, dts) of the scenes that declare ``sweep:``, in plan order: the
         sweep's own engines, or the specs the scene runs in (always these when ``--engines``
         replaced the scenes' lists: a run in one engine sweeps that engine only), leaving out
-        engines not installed here (the scene's own rows say ``not_installed``)."""
+        engines not installed here (the scene's own rows say ``not_installed``); none when
+        the plan does not sweep (``sweeping``)."""
+        if not self.sweeping:
+            return []
         return [
             (scene.scenario, spec, list(scene.scenario.sweep.dt))
             for scene, specs in self.scenes
@@ -120,18 +126,24 @@ def _with_dt(scenario: Scenario, dt: float, file: Path) -> Scenario:
         raise BadInputError(f"--dt {dt} for {printable(file)}: {error}") from None
 
 
-def duplicate_name(scenario: Scenario, file: Path, names: dict[str, Path]) -> str | None:
+def duplicate_problem(scenario: Scenario, file: Path, names: dict[str, Path]) -> Problem | None:
     """A problem when another file already has this scene's name (their rows would merge)."""
     other = names.setdefault(scenario.name, file)
     if other == file:
         return None
-    return printable(
-        f"{file}: name: {scenario.name!r} is also the name of {other}; expected a unique name"
-    )
+    message = f"{scenario.name!r} is also the name of {other}; expected a unique name"
+    return Problem(str(file), "name", message)
 
 
-def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str | None) -> Plan:
-    """Load and validate everything first; raises ``BadInputError`` listing every problem."""
+def plan_run(
+    paths: list[Path],
+    engines: str | None,
+    dt: float | None,
+    only: str | None,
+    sweeps: bool = True,
+) -> Plan:
+    """Load and validate everything first; raises ``BadInputError`` listing every problem.
+    ``sweeps``: whether the scenes' own sweeps run (``Plan.sweeping``)."""
     problems: list[str] = []
     overrides: list[EngineSpec] | None = None
     if engines is not None:
@@ -159,9 +171,9 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
             continue
         if only and not (fnmatch.fnmatch(scenario.name, only) or fnmatch.fnmatch(str(file), only)):
             continue
-        duplicate = duplicate_name(scenario, file, names)
+        duplicate = duplicate_problem(scenario, file, names)
         if duplicate:
-            problems.append(duplicate)
+            problems.append(str(duplicate))
             continue
         if dt is not None and not problems:
             try:
@@ -174,7 +186,7 @@ def plan_run(paths: list[Path], engines: str | None, dt: float | None, only: str
         problems.append(f"no scenario matches {only!r}" if only else "no scenario files found")
     if problems:
         raise BadInputError("\n".join(problems))
-    return Plan(scenes, engines_replaced=overrides is not None)
+    return Plan(scenes, engines_replaced=overrides is not None, sweeping=sweeps)
 
 
 def package_paths(flags: list[str] | None) -> dict[str, str]:

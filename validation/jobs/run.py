@@ -457,7 +457,8 @@ DEFAULT_OUT = Path("reports") / "latest"
 """Where a run without ``--out`` publishes (and keeps a copy under ``reports/runs/``)."""
 
 RESUME_ALONE = (
-    "--resume takes the run's scenes, engines, --dt, --only, --baseline and --out from its journal"
+    "--resume takes the run's scenes, engines, --dt, --only, --sweeps, --baseline and --out from "
+    "its journal"
 )
 """Why --resume refuses other selection flags (only --jobs and --scheduler may change; the
 files it writes besides DIR, --junit and --history, are given again)."""
@@ -506,13 +507,14 @@ class RunRequest:
     baseline: str | None = None
     junit: str | None = None
     history: str | None = None
+    sweeps: bool = True  # a journal written before --sweeps existed: its runs swept
 
     def plan(self) -> Plan:
         """The plan, paths taken from the run's working directory (as given when it is this
         one, so that ``--only`` matches paths as it did); the scenes' sweeps checked."""
         here = Path.cwd() == Path(self.cwd)
         paths = [Path(p) if here else Path(self.cwd) / p for p in self.paths]
-        plan = plan_run(paths, self.engines, self.dt, self.only)
+        plan = plan_run(paths, self.engines, self.dt, self.only, self.sweeps)
         problems = reference_problems(plan.sweeps)
         if problems:
             raise BadInputError("\n".join(problems).replace("--dt:", "sweep.dt:"))
@@ -827,6 +829,8 @@ def run_main(
     clock: PhaseClock | None = None,
     job_timeout: float | None = None,
     extra_files: dict[str, str] | None = None,
+    sweeps: bool = True,
+    raise_refusals: bool = False,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
@@ -834,13 +838,17 @@ def run_main(
     writing). ``clock``: times the phases (``phases.PhaseClock``; printed on stderr at the
     end when it is ``shown``, ``--timings``). ``extra_files``: file name -> text, written into
     the run folder with the record (``RUN_FOLDER_FILES`` must name each: ``physval sim2sim``'s
-    scene)."""
+    scene). ``sweeps``: whether the scenes' own sweeps run (``--sweeps``).
+    ``raise_refusals``: raise a refusal (``BadInputError``, ``BackendError``, the write's
+    ``OSError``) instead of printing it and returning 2 (``physval.run``)."""
     clock = PhaseClock() if clock is None else clock
     try:
         if resume is not None:
             return _resume_main(resume, jobs, scheduler, junit, history, clock, job_timeout)
         with clock.phase("planning"):
-            request, plan = _planned(paths, engines, out, dt, only, argv, baseline, junit, history)
+            request, plan = _planned(
+                paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
+            )
             if scheduler is None:  # on a cluster the workers' memory is the cluster's
                 check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
@@ -859,9 +867,13 @@ def run_main(
                 extra_files=extra_files,
             )
     except (BadInputError, BackendError) as error:
+        if raise_refusals:
+            raise
         print(error, file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as error:  # a full disk, a folder made read-only mid-run
+        if raise_refusals:
+            raise
         print(
             f"cannot write the run: {error}; the finished jobs are kept in its journal "
             "(physval run --resume DIR finishes it)",
@@ -870,7 +882,7 @@ def run_main(
         return EXIT_BAD_INPUT
 
 
-def _planned(paths, engines, out, dt, only, argv, baseline, junit, history):
+def _planned(paths, engines, out, dt, only, argv, baseline, junit, history, sweeps):
     """The run's request (its flags checked before any work) and its plan."""
     request = RunRequest(
         [str(p) for p in paths],
@@ -883,6 +895,7 @@ def _planned(paths, engines, out, dt, only, argv, baseline, junit, history):
         baseline,
         junit,
         history,
+        sweeps,
     )
     request.nightly()  # the flags checked before any work
     return request, request.plan()
