@@ -87,6 +87,7 @@ def command_run(args: argparse.Namespace) -> int:
         args.scheduler,
         clock,
         args.job_timeout,
+        summary_file=args.summary,
     )
 
 
@@ -354,6 +355,12 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
         "the working folder has one; 'none': no comparison)",
     )
     command.add_argument("--junit", metavar="FILE", help="also write JUnit XML here")
+    command.add_argument(
+        "--summary",
+        type=Path,
+        metavar="FILE",
+        help="also write the run's summary in Markdown here (e.g. $GITHUB_STEP_SUMMARY)",
+    )
     command.add_argument(
         "--history",
         metavar="URL",
