@@ -253,6 +253,17 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
     }
 
 
+def _engine_notes(runs: list[EngineRun], scene: str) -> dict[str, list[str]]:
+    """Engine spec -> the notes its adapter recorded for ``scene`` (how its numbers read:
+    physval's own spring force law in PyBullet, MuJoCo's contact calibration), which the
+    report shows next to the engine's rows in the scene's card."""
+    return {
+        run.engine: list(run.provenance.notes)
+        for run in runs
+        if run.scenario == scene and run.provenance is not None and run.provenance.notes
+    }
+
+
 def _sweep_work(plan: Plan) -> list[tuple]:
     """The scenes' own sweeps (``sweep:``) as sweep jobs, cross-checks included."""
     return with_cross_checks(plan.sweeps)
@@ -741,6 +752,7 @@ def _written(
             **hashes[scene.name],
             "description": scene.scenario.description,
             "expect": expectation_records(scene.scenario.expect),
+            "engine_notes": _engine_notes(executed.runs, scene.name),
         }
     provenance["selection"] = run_selection(
         request.paths, request.cwd, request.only, request.engines, request.dt, plan
