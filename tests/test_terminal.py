@@ -20,6 +20,7 @@ from validation.jobs.terminal import (
     compact_matrix,
     counts_lines,
     log_summary,
+    news,
     row_lines,
     summary,
 )
@@ -440,3 +441,14 @@ def test_a_regressions_line_shows_the_baseline_error_before_the_new_one():
     (line,) = row_lines(rows, comparison)
     assert line.startswith("regressed: spin | mini | energy_drift"), line
     assert "error 0.0009" in line and "baseline error 0.000125" in line, line
+
+
+def test_news_never_cuts_a_row_at_its_error():
+    """Before: "new failure: ... velocity_after_impact.light_e05 (error 0…" cut at 100 columns."""
+    rows = _cell_rows("head_on_ratio_10", "mujoco(integrator=RK4)", "failed", 909.1)
+    rows[0]["metric"] = "velocity_after_impact.light_e05_of_a_long_named_body"
+    text = news(rows, width=80)
+    assert "…" not in text, text
+    assert "(error 0.909)" in text, text
+    for line in text.splitlines():
+        assert len(line) <= 80 or "(error" not in line, line

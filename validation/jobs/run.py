@@ -72,6 +72,7 @@ from validation.jobs.sweep import (
 from validation.jobs.terminal import (
     SUMMARY_WIDTH,
     Progress,
+    counts_lines,
     log_summary,
     news,
     packed_lines,
@@ -723,12 +724,15 @@ def _finish(
 
 
 def _print_summary(rows: list[dict], comparison: object, baseline: object) -> None:
-    """The run's summary on stdout: the rich matrix and the news on a terminal; in a log (a
+    """The run's summary on stdout: the rich matrix, the headline and the news on a terminal,
+    within its width; in a log (a
     CI's), the failing and new rows one per line and the compact matrix
     (``terminal.log_summary``)."""
     if sys.stdout.isatty():
-        print(summary(rows, width=shutil.get_terminal_size().columns, color=True))
-        print(news(rows, comparison, baseline))
+        width = shutil.get_terminal_size().columns
+        print(summary(rows, width=width, color=True))
+        print("\n".join(counts_lines(rows, comparison, width)))
+        print(news(rows, comparison, baseline, width))
     else:
         print(log_summary(rows, comparison, baseline))
 

@@ -420,14 +420,16 @@ MAX_NAMED = 10
 
 
 def _named(key: str, rows: pd.DataFrame, width: int) -> list[str]:
-    """``  regressed: scene · engine · metric (error 3.1e-3)``, one per row, within ``width``."""
+    """``  regressed: scene · engine · metric (error 3.1e-3)``, one per row, never cut: the
+    error on a line of its own when the line would pass ``width``."""
     word = NEWS_WORDS[key].removesuffix("s") if key == "new_failures" else NEWS_WORDS[key]
     lines = []
     for _, row in rows.head(MAX_NAMED).iterrows():
         error = pd.to_numeric(pd.Series([row.get("error")]), errors="coerce").iloc[0]
         said = "" if pd.isna(error) else f" (error {error:.3g})"
-        line = f"  {word}: {row['scenario']} · {row['engine']} · {row['metric']}{said}"
-        lines.append(line if len(line) <= width else line[: width - 1] + "…")
+        line = f"  {word}: {row['scenario']} · {row['engine']} · {row['metric']}"
+        fits = len(line + said) <= width or not said
+        lines += [line + said] if fits else [line, f"    {said.strip()}"]  # never cut
     if len(rows) > MAX_NAMED:
         lines.append(f"  ... and {len(rows) - MAX_NAMED} more {NEWS_WORDS[key]} in report.html")
     return lines
