@@ -64,7 +64,7 @@ def test_summary_counts_and_failing_rows_equal_results_csv(tmp_path):
     assert said.pop("regressed") == 0
     assert said == expected, (said, expected)
     assert text.startswith(SUMMARY_MARK)
-    assert "**1 rows need a look" in text
+    assert "**1 row needs a look" in text
     (failing,) = FAILING_ROW.findall(text)
     cells = [cell.strip() for cell in failing.split("|")]
     row = results.set_index("metric").loc["position_error"]

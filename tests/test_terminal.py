@@ -121,10 +121,10 @@ def _cell_rows(scene: str, engine: str, outcome: str, ratio: float) -> list[dict
     return rows
 
 
-def bare_run_rows() -> list[dict]:
+def bare_run_rows(scenes=BARE_RUN_SCENES, specs=BARE_RUN_SPECS) -> list[dict]:
     rows = []
-    for i, scene in enumerate(BARE_RUN_SCENES):
-        for j, engine in enumerate(BARE_RUN_SPECS):
+    for i, scene in enumerate(scenes):
+        for j, engine in enumerate(specs):
             outcome = OUTCOMES[(i + j) % len(OUTCOMES)]
             ratio = 3.4 * 10 ** (i % 5) if outcome == "failed" else 0.012 * (j + 1)
             rows += _cell_rows(scene, engine, outcome, ratio)
@@ -335,13 +335,7 @@ DECLARED = re.compile(r"lines <= (\d+) columns")
 
 
 def fourteen_engine_rows() -> list[dict]:
-    rows = []
-    for i, scene in enumerate(LONG_SCENES):
-        for j, engine in enumerate(FOURTEEN_SPECS):
-            outcome = OUTCOMES[(i + j) % len(OUTCOMES)]
-            ratio = 3.4 * 10 ** (i % 5) if outcome == "failed" else 0.012 * (j + 1)
-            rows += _cell_rows(scene, engine, outcome, ratio)
-    return rows
+    return bare_run_rows(LONG_SCENES, FOURTEEN_SPECS)
 
 
 def test_ci_log_matrix_with_14_engines_never_exceeds_its_declared_width():

@@ -435,12 +435,20 @@ def _named(key: str, rows: pd.DataFrame, width: int) -> list[str]:
     return lines
 
 
+NO_BASELINE_NEWS = ("new_failures", "fixed", "known")
+"""The news sections a run without a baseline has."""
+
+
+def _against_baseline(table: pd.DataFrame) -> bool:
+    """Whether the rows were classified against a baseline (a ``baseline`` class)."""
+    return bool("baseline" in table and table["baseline"].fillna("").astype(bool).any())
+
+
 def _news_keys(table: pd.DataFrame) -> list[str]:
-    """The news sections a run has: every one against a baseline, else the three a run
-    without one has."""
-    if "baseline" in table and table["baseline"].fillna("").astype(bool).any():
+    """The news sections a run has: every one against a baseline, else ``NO_BASELINE_NEWS``."""
+    if _against_baseline(table):
         return [key for key, _, _ in NEWS_SECTIONS]
-    return ["new_failures", "fixed", "known"]
+    return list(NO_BASELINE_NEWS)
 
 
 def news_counts(
@@ -455,7 +463,7 @@ def news_counts(
     selected = news_selections(table, comparison)
     keys = _news_keys(table)
     counts = [f"{len(selected[key])} {NEWS_WORDS[key]}" for key in keys]
-    head = f"news against {baseline}:" if len(keys) > 3 else "news (no baseline):"
+    head = f"news against {baseline}:" if _against_baseline(table) else "news (no baseline):"
     return packed_lines(counts, width, head, ", ")
 
 

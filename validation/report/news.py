@@ -184,7 +184,8 @@ def headline(table: pd.DataFrame, selected: dict[str, pd.DataFrame]) -> str:
     new = sum(len(selected[key]) for key in HEADLINE_NEWS)
     known = int((table["outcome"] == "known").sum())
     if new:
-        return f"{new} rows need a look (new failures, regressions, changed or missing)"
+        rows = "1 row needs" if new == 1 else f"{new} rows need"
+        return f"{rows} a look (new failures, regressions, changed or missing)"
     if known:
         return f"No new failures; {known} of {len(table)} rows are known failures"
     return f"All {len(table)} rows passed or had nothing to judge"
