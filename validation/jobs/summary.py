@@ -3,7 +3,7 @@ and merge-request notes.
 
 The same content as the CI log (``terminal.log_summary``) in the same words: the headline, the
 count of every class, the new failures and regressions with the baseline's error before the
-new one, the failing rows' table and the compact matrix.
+new one, the failing rows' table, the compact matrix and the engines not installed.
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ from validation.files import Written, file_target_problem
 from validation.jobs.plan import BadInputError
 from validation.jobs.terminal import (
     NAMED_NEWS,
-    _value,
     compact_matrix,
+    install_lines,
     judged_table,
+    shown_value,
 )
 from validation.report.news import NEWS_WORDS, class_counts, headline, news_selections
 
@@ -28,10 +29,21 @@ SUMMARY_MARK = "<!-- physval run summary -->"
 empty one, as ``$GITHUB_STEP_SUMMARY`` is before a step writes it)."""
 
 SUMMARY_WRITTEN = Written("a physval summary", SUMMARY_MARK.encode())
+"""How a summary physval wrote begins (``files.Written``)."""
 
-ROW_COLUMNS = ("news", "scene", "engine", "metric", "value", "expected", "tolerance", "error")
-BEFORE_COLUMN = "baseline error"
-"""The failing rows' table's columns; a regression's row adds the baseline's error."""
+ROW_COLUMNS = (
+    "news",
+    "scene",
+    "engine",
+    "metric",
+    "value",
+    "expected",
+    "tolerance",
+    "error",
+    "baseline error",
+)
+"""The failing rows' table's columns: the baseline's error is filled for a regression and a
+changed row."""
 
 
 def check_summary_target(path: Path | None) -> None:
@@ -67,16 +79,16 @@ def summary_markdown(rows: list[dict], comparison: pd.DataFrame | None = None) -
         *(f"| {word} | {n} |" for word, n in counts.items()),
         f"| total | {len(table)} |",
         "",
+        *(f"- {line}" for line in install_lines(rows)),
     ]
     failing = [(key, row) for key in NAMED_NEWS for _, row in selected[key].iterrows()]
     lines += [f"### Failing or new rows ({len(failing)})", ""]
     if failing:
-        columns = [*ROW_COLUMNS, BEFORE_COLUMN]
-        lines += ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
+        lines += ["| " + " | ".join(ROW_COLUMNS) + " |", "|" + " --- |" * len(ROW_COLUMNS)]
         for key, row in failing:
             cells = [NEWS_WORDS[key], row["scenario"], row["engine"], row["metric"]]
-            cells += [_value(row.get(c)) for c in ("value", "expected", "tolerance", "error")]
-            cells.append(_value(row.get("baseline_error")))
+            cells += [shown_value(row.get(c)) for c in ("value", "expected", "tolerance", "error")]
+            cells.append(shown_value(row.get("baseline_error")))
             lines.append("| " + " | ".join(map(_cell, cells)) + " |")
     else:
         lines.append("None.")

@@ -564,7 +564,7 @@ def compact_matrix(rows: list[dict], width: int = SUMMARY_WIDTH) -> list[str]:
     ]
 
 
-def _value(value) -> str:
+def shown_value(value) -> str:
     """A number as the row lines show it (4 significant digits), the text otherwise."""
     number = _number(value)
     if math.isnan(number):
@@ -585,12 +585,12 @@ def row_lines(rows: list[dict], comparison: pd.DataFrame | None = None) -> list[
                 f"{word}: {row['scenario']}",
                 str(row["engine"]),
                 str(row["metric"]),
-                f"value {_value(row.get('value'))}",
-                f"expected {_value(row.get('expected'))}",
-                f"tolerance {_value(row.get('tolerance'))}",
-                f"error {_value(row.get('error'))}",
+                f"value {shown_value(row.get('value'))}",
+                f"expected {shown_value(row.get('expected'))}",
+                f"tolerance {shown_value(row.get('tolerance'))}",
+                f"error {shown_value(row.get('error'))}",
             ]
-            before = _value(row.get("baseline_error"))
+            before = shown_value(row.get("baseline_error"))
             if before:
                 fields.append(f"baseline error {before}")
             lines.append(printable(" | ".join(fields)))
