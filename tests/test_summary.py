@@ -187,3 +187,11 @@ def test_a_run_records_each_scenes_engine_notes_and_its_report_shows_them(tmp_pa
     assert notes and notes == provenance["engines"]["mini"]["notes"]
     page = (tmp_path / "out" / "report.html").read_text()
     assert f'<ul class="engine-notes"><li>{escape(notes[0])}</li>' in page
+
+
+def test_a_summary_inside_out_is_refused_before_any_work(tmp_path, capsys):
+    inside = tmp_path / "out" / "summary.md"
+    assert _run(tmp_path, inside) == EXIT_BAD_INPUT
+    (line,) = message_lines(capsys.readouterr().err)
+    assert line.startswith(f"--summary {inside}: is inside --out"), line
+    assert not (tmp_path / "out").exists()

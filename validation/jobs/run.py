@@ -57,7 +57,7 @@ from validation.jobs.nightly_run import (
     sweep_result_rows,
     write_ci_files,
 )
-from validation.jobs.output import Output, claim
+from validation.jobs.output import Output, check_inside, claim
 from validation.jobs.phases import PhaseClock
 from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
 from validation.jobs.summary import check_summary_target, summary_markdown
@@ -884,6 +884,7 @@ def run_main(
             )
         with clock.phase("planning"):
             request, plan = _planned(paths, engines, out, dt, only, argv, baseline, junit, history)
+            check_inside(request.destination, "--summary", summary_file)
             if scheduler is None:  # on a cluster the workers' memory is the cluster's
                 check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
