@@ -7,11 +7,23 @@ import io
 import math
 import re
 
+import pandas as pd
 import pytest
 from rich.console import Console
 
 from validation.contract import RESULTS_COLUMNS
-from validation.jobs.terminal import PROGRESS_PREFIX, SCENE_MAX_WIDTH, Progress, summary
+from validation.jobs.terminal import (
+    COMPACT_WORDS,
+    PROGRESS_PREFIX,
+    SCENE_MAX_WIDTH,
+    Progress,
+    compact_matrix,
+    counts_lines,
+    log_summary,
+    news,
+    row_lines,
+    summary,
+)
 from validation.nightly.known import outcome_of
 from validation.report.outcomes import outcome_label
 
@@ -109,10 +121,10 @@ def _cell_rows(scene: str, engine: str, outcome: str, ratio: float) -> list[dict
     return rows
 
 
-def bare_run_rows() -> list[dict]:
+def bare_run_rows(scenes=BARE_RUN_SCENES, specs=BARE_RUN_SPECS) -> list[dict]:
     rows = []
-    for i, scene in enumerate(BARE_RUN_SCENES):
-        for j, engine in enumerate(BARE_RUN_SPECS):
+    for i, scene in enumerate(scenes):
+        for j, engine in enumerate(specs):
             outcome = OUTCOMES[(i + j) % len(OUTCOMES)]
             ratio = 3.4 * 10 ** (i % 5) if outcome == "failed" else 0.012 * (j + 1)
             rows += _cell_rows(scene, engine, outcome, ratio)
@@ -303,3 +315,134 @@ def test_the_terminal_news_has_the_reports_sections_and_counts():
     assert "  new failure: b · mini · energy_drift" in text, text
     assert "  changed: d · mini · sweep_order.x" in text, text
     assert max(len(line) for line in text.splitlines()) <= 100
+
+
+FOURTEEN_SPECS = [
+    *BARE_RUN_SPECS,
+    "rapier",
+    "rapier(solver_iterations=16)",
+    "drake",
+    "drake(time_step=0.0001,discrete_contact_approximation=similar)",
+]
+"""14 engine specs, as the issue's CI log: the long spellings a nightly runs."""
+
+LONG_SCENES = [
+    *BARE_RUN_SCENES,
+    "a_user_scene_whose_name_is_longer_than_any_column_can_hold_in_a_ci_log_line_of_100",
+]
+
+DECLARED = re.compile(r"lines <= (\d+) columns")
+
+
+def fourteen_engine_rows() -> list[dict]:
+    return bare_run_rows(LONG_SCENES, FOURTEEN_SPECS)
+
+
+def test_ci_log_matrix_with_14_engines_never_exceeds_its_declared_width():
+    rows = fourteen_engine_rows()
+    lines = compact_matrix(rows, width=100)
+    declared = int(DECLARED.search(lines[0]).group(1))
+    assert declared == max(100, len(LONG_SCENES[-1])), lines[0]
+    for line in lines:
+        assert len(line) <= declared, line
+    legend = _legend("\n".join(lines))
+    assert sorted(legend.values()) == sorted(FOURTEEN_SPECS)
+    for scene in LONG_SCENES:  # full names, never cut
+        assert scene in lines, scene
+    text = log_summary(rows, width=100)
+    matrix_end = text.index(LONG_SCENES[-1])
+    for line in text[:matrix_end].splitlines()[1:]:
+        if " | " not in line:  # the failing rows are one line each, never cut
+            assert len(line) <= declared, line
+
+
+def test_ci_log_names_every_failing_row_on_one_line_with_value_expected_tolerance():
+    rows = fourteen_engine_rows()
+    failing = [row for row in rows if outcome_of(row) in ("failed", "unstable", "error")]
+    failing += [r for r in rows if outcome_of(r) in ("model_mismatch", "crashed", "timed_out")]
+    lines = row_lines(rows)
+    assert len(lines) == len(failing) > 0
+    scene, engine, metric = failing[0]["scenario"], failing[0]["engine"], failing[0]["metric"]
+    line = next(entry for entry in lines if f"{scene} | {engine} | {metric} |" in entry)
+    assert "value " in line and "expected " in line and "tolerance " in line
+
+
+CELL_TOKENS = {
+    *(outcome_label(o) for o in ("passed", "failed", "unstable", "error", "unsupported")),
+    "model_mismatch",
+    "pass",
+    "fail",
+    "unst.",
+    "mism.",
+    "unsup",
+    "-",
+    *COMPACT_WORDS.values(),
+}
+RATIO_TOKEN = re.compile(r"^(\d+(\.\d+)?(e-?\d+)?|inf)$")
+
+
+@pytest.mark.parametrize("width", [100, 120, 200])
+def test_terminal_matrix_with_14_engines_never_wraps_a_word(width):
+    """Before: at 100 columns the engine columns were folded: "passed" read "passe" / "d"."""
+    lines = summary(fourteen_engine_rows(), width=width).splitlines()
+    scene_lines = 0
+    for line in lines:
+        assert len(line) <= width, line
+        head, *tokens = line.split() or [""]
+        if head.rstrip("…") and any(s.startswith(head.rstrip("…")) for s in LONG_SCENES):
+            scene_lines += 1
+        elif not line.startswith(" ") or "=" in line:
+            continue  # the header, the legend, the key and the counts
+        else:
+            tokens = line.split()  # a cell's second line: its ratios
+        for token in tokens:
+            assert token.lstrip("*") in CELL_TOKENS or RATIO_TOKEN.match(token), (token, line)
+    assert scene_lines == len(LONG_SCENES), lines
+
+
+def test_headline_with_known_rows_never_says_all_passed():
+    """Before: report.html said "All N runs passed" with 52 known failures."""
+    rows = [
+        *_known(_cell_rows("dzhanibekov_box", "mini", "failed", 3.4)),
+        *_cell_rows("dzhanibekov_box", "mujoco", "ok", 0.5),
+    ]
+    lines = counts_lines(rows)
+    assert not lines[0].startswith("All"), lines
+    assert "1 of 6 rows are known failures" in lines[0] and "1 known" in lines[1], lines
+    assert "0 new failures" in lines[1], lines
+    passing = counts_lines(_cell_rows("projectile", "mini", "ok", 0.5))
+    assert passing[0].startswith("All 3 rows passed"), passing
+
+
+def test_a_regressions_line_shows_the_baseline_error_before_the_new_one():
+    rows = _cell_rows("spin", "mini", "ok", 0.9)
+    rows[0]["baseline"] = "regressed"
+    for row in rows[1:]:
+        row["baseline"] = "unchanged"
+    comparison = pd.DataFrame(
+        [
+            {
+                "scenario": "spin",
+                "engine": "mini",
+                "metric": row["metric"],
+                "baseline": row["baseline"],
+                "baseline_error": 1.25e-4 if row is rows[0] else row["error"],
+                "error": row["error"],
+            }
+            for row in rows
+        ]
+    )
+    (line,) = row_lines(rows, comparison)
+    assert line.startswith("regressed: spin | mini | energy_drift"), line
+    assert "error 0.0009" in line and "baseline error 0.000125" in line, line
+
+
+def test_news_never_cuts_a_row_at_its_error():
+    """Before: "new failure: ... velocity_after_impact.light_e05 (error 0…" cut at 100 columns."""
+    rows = _cell_rows("head_on_ratio_10", "mujoco(integrator=RK4)", "failed", 909.1)
+    rows[0]["metric"] = "velocity_after_impact.light_e05_of_a_long_named_body"
+    text = news(rows, width=80)
+    assert "…" not in text, text
+    assert "(error 0.909)" in text, text
+    for line in text.splitlines():
+        assert len(line) <= 80 or "(error" not in line, line

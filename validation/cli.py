@@ -88,6 +88,7 @@ def command_run(args: argparse.Namespace) -> int:
         clock,
         args.job_timeout,
         sweeps=SWEEPS[args.sweeps] if args.sweeps else _whole_library(args),
+        summary_file=args.summary,
     )
 
 
@@ -366,6 +367,12 @@ def _run_arguments(command: argparse.ArgumentParser) -> None:
         "the working folder has one; 'none': no comparison)",
     )
     command.add_argument("--junit", metavar="FILE", help="also write JUnit XML here")
+    command.add_argument(
+        "--summary",
+        type=Path,
+        metavar="FILE",
+        help="also write the run's summary in Markdown here (e.g. $GITHUB_STEP_SUMMARY)",
+    )
     command.add_argument(
         "--history",
         metavar="URL",

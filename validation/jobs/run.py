@@ -17,6 +17,7 @@ import hashlib
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import time
@@ -56,9 +57,10 @@ from validation.jobs.nightly_run import (
     sweep_result_rows,
     write_ci_files,
 )
-from validation.jobs.output import Output, claim
+from validation.jobs.output import Output, check_inside, claim
 from validation.jobs.phases import PhaseClock
 from validation.jobs.plan import BadInputError, Plan, expected_cost, plan_run
+from validation.jobs.summary import check_summary_target, summary_markdown
 from validation.jobs.sweep import (
     SWEEP_METRICS,
     lost_sweep_job,
@@ -67,7 +69,15 @@ from validation.jobs.sweep import (
     sweep_job,
     with_cross_checks,
 )
-from validation.jobs.terminal import SUMMARY_WIDTH, Progress, news, packed_lines, summary
+from validation.jobs.terminal import (
+    SUMMARY_WIDTH,
+    Progress,
+    counts_lines,
+    log_summary,
+    news,
+    packed_lines,
+    summary,
+)
 from validation.measure.comparator import COLUMNS, compare_scene, measure_run
 from validation.measure.definitions import MAX_KEPT_POSITIONS, MAX_SAMPLES, MAX_SERIES_POINTS
 from validation.measure.metrics import Measurement
@@ -241,6 +251,17 @@ def _provenance(runs: list[EngineRun], argv: list[str]) -> dict:
             "numpy": np.__version__,
         },
         "engines": engines,
+    }
+
+
+def _engine_notes(runs: list[EngineRun], scene: str) -> dict[str, list[str]]:
+    """Engine spec -> the notes its adapter recorded for ``scene`` (how its numbers read:
+    physval's own spring force law in PyBullet, MuJoCo's contact calibration), which the
+    report shows next to the engine's rows in the scene's card."""
+    return {
+        run.engine: list(run.provenance.notes)
+        for run in runs
+        if run.scenario == scene and run.provenance is not None and run.provenance.notes
     }
 
 
@@ -658,12 +679,13 @@ def _finish(
     clock: PhaseClock | None = None,
     job_timeout: float | None = None,
     extra_files: dict[str, str] | None = None,
+    summary_file: Path | None = None,
 ) -> int:
     """Run what the journal lacks, write and publish the run folder; the exit code.
     ``keep_copy``: also keep a stamped copy (default: when the run has no ``--out``).
     ``clock``: the clock that times the phases (printed on stderr at the end when it is
     ``shown``: ``--timings``). ``job_timeout``: ``--job-timeout``. ``extra_files``: name ->
-    text, written into the run folder with the record."""
+    text, written into the run folder with the record. ``summary_file``: ``--summary``."""
     clock = PhaseClock() if clock is None else clock
     with clock.phase("planning"):
         options = request.nightly()
@@ -683,8 +705,9 @@ def _finish(
             output.keep_history()
     with clock.phase("history"):
         recorded = record_history(output.destination, options)
-    print(summary(rows, color=sys.stdout.isatty()))
-    print(news(rows, comparison, options.baseline))
+    _print_summary(rows, comparison, options.baseline)
+    if summary_file is not None:
+        write_atomically(summary_file, summary_markdown(rows, comparison))
     total = len(plan.jobs) + len(_sweep_work(plan))
     journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
     written = f"{len(rows)} rows -> {printable(output.destination / RESULTS_FILE)}"
@@ -700,6 +723,20 @@ def _finish(
     if note:  # the record is published, but the page a reader opens is not: never exit 0
         return EXIT_BAD_INPUT
     return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+
+
+def _print_summary(rows: list[dict], comparison: object, baseline: object) -> None:
+    """The run's summary on stdout: the rich matrix, the headline and the news on a terminal,
+    within its width; in a log (a
+    CI's), the failing and new rows one per line and the compact matrix
+    (``terminal.log_summary``)."""
+    if sys.stdout.isatty():
+        width = shutil.get_terminal_size().columns
+        print(summary(rows, width=width, color=True))
+        print("\n".join(counts_lines(rows, comparison, width)))
+        print(news(rows, comparison, baseline, width))
+    else:
+        print(log_summary(rows, comparison, baseline))
 
 
 def _written(
@@ -721,6 +758,7 @@ def _written(
             **hashes[scene.name],
             "description": scene.scenario.description,
             "expect": expectation_records(scene.scenario.expect),
+            "engine_notes": _engine_notes(executed.runs, scene.name),
         }
     provenance["selection"] = run_selection(
         request.paths, request.cwd, request.only, request.engines, request.dt, plan
@@ -831,6 +869,7 @@ def run_main(
     extra_files: dict[str, str] | None = None,
     sweeps: bool = True,
     raise_refusals: bool = False,
+    summary_file: Path | None = None,
 ) -> int:
     """The whole job (on the Dask cluster at ``scheduler`` when given); returns the exit code (0 nothing regressed and no new failure: every
     failing row is a known finding or, against a baseline, failed there too; 1 a regression
@@ -840,15 +879,20 @@ def run_main(
     the run folder with the record (``RUN_FOLDER_FILES`` must name each: ``physval sim2sim``'s
     scene). ``sweeps``: whether the scenes' own sweeps run (``--sweeps``).
     ``raise_refusals``: raise a refusal (``BadInputError``, ``BackendError``, the write's
-    ``OSError``) instead of printing it and returning 2 (``physval.run``)."""
+    ``OSError``) instead of printing it and returning 2 (``physval.run``).
+    ``summary_file``: ``--summary FILE``, the run's Markdown summary (``jobs.summary``)."""
     clock = PhaseClock() if clock is None else clock
     try:
+        check_summary_target(summary_file)
         if resume is not None:
-            return _resume_main(resume, jobs, scheduler, junit, history, clock, job_timeout)
+            return _resume_main(
+                resume, jobs, scheduler, junit, history, clock, job_timeout, summary_file
+            )
         with clock.phase("planning"):
             request, plan = _planned(
                 paths, engines, out, dt, only, argv, baseline, junit, history, sweeps
             )
+            check_inside(request.destination, "--summary", summary_file)
             if scheduler is None:  # on a cluster the workers' memory is the cluster's
                 check_memory(plan, jobs, _sample_every)
         with claim(request.destination) as output:
@@ -865,6 +909,7 @@ def run_main(
                 clock=clock,
                 job_timeout=job_timeout,
                 extra_files=extra_files,
+                summary_file=summary_file,
             )
     except (BadInputError, BackendError) as error:
         if raise_refusals:
@@ -909,6 +954,7 @@ def _resume_main(
     history: str | None = None,
     clock: PhaseClock | None = None,
     job_timeout: float | None = None,
+    summary_file: Path | None = None,
 ) -> int:
     """``--resume DIR``: the journal read, its header checked and its request run writing only
     to DIR and to this command line's ``junit`` and ``history``, before any work."""
@@ -924,5 +970,14 @@ def _resume_main(
                 check_memory(plan, jobs, _sample_every)
         keep_copy = journal.header["request"]["out"] is None
         return _finish(
-            output, journal, plan, request, jobs, scheduler, keep_copy, clock, job_timeout
+            output,
+            journal,
+            plan,
+            request,
+            jobs,
+            scheduler,
+            keep_copy,
+            clock,
+            job_timeout,
+            summary_file=summary_file,
         )

@@ -34,7 +34,13 @@ from rich.text import Text
 from validation.contract import SWEEP_ROW_PREFIXES
 from validation.engine_api import declarations
 from validation.nightly.known import outcome_of
-from validation.report.news import NEWS_SECTIONS, NEWS_WORDS, news_selections
+from validation.report.news import (
+    NEWS_SECTIONS,
+    NEWS_WORDS,
+    class_counts,
+    headline,
+    news_selections,
+)
 from validation.report.outcomes import OUTCOME_ORDER, error_ratio, outcome_label
 from validation.scenario.problems import printable
 
@@ -324,10 +330,13 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
         cell_width, fit = natural, None
     else:
         cell_width = max(room, CELL_MIN_WIDTH)
+        cell_width = max(cell_width, _widest_part(cells, worst, cell_width))
         fit = cell_width
         scene_width = min(
             scene_width, max(SCENE_MIN_WIDTH, width - len(engines) * (cell_width + 1))
         )
+        if scene_width + len(engines) * (cell_width + 1) > width:  # would wrap mid-word
+            return "\n".join([*compact_matrix(rows, width), *_tally(rows, width)])
 
     table = Table(
         Column("scene", width=scene_width, no_wrap=True, overflow="ellipsis"),
@@ -365,15 +374,26 @@ def summary(rows: list[dict], width: int = SUMMARY_WIDTH, color: bool = False) -
     legend = packed_lines((f"{labels[e]}={e}" for e in engines), width, "engines:")
     key = [f"{ABBREVIATIONS[word]}={word}" for word in ABBREVIATIONS if word in used]
     key += [f"{WORST_MARKER} worst cell of its scene", f"{NO_TOLERANCE} no tolerance", RATIO_KEY]
-    tally = packed_lines(
-        (f"{n} {outcome_label(o)}" for o, n in counts(rows).items()),
-        width,
-        f"{len(rows)} rows:",
-        ", ",
-    )
+    tally = _tally(rows, width)
     for line in [*legend, *packed_lines(key, width, "key:"), *tally, *install_lines(rows)]:
         console.print(line, highlight=False, markup=False, soft_wrap=False)
     return "\n".join(line.rstrip() for line in console.file.getvalue().splitlines())
+
+
+def _widest_part(cells: dict, worst: set, width: int) -> int:
+    """The widest line of any cell's text in columns of ``width`` (a ratio like 1.2e-10 can
+    be wider than the narrowest column)."""
+    return max(
+        len(part)
+        for key, (outcome, ratio) in cells.items()
+        for part in _cell_text(_word(outcome), ratio, key in worst, width).split("\n")
+    )
+
+
+def _tally(rows: list[dict], width: int) -> list[str]:
+    """The counts line of the rows' outcomes, within ``width``."""
+    found = (f"{n} {outcome_label(o)}" for o, n in counts(rows).items())
+    return packed_lines(found, width, f"{len(rows)} rows:", ", ")
 
 
 def install_lines(rows: list[dict]) -> list[str]:
@@ -400,17 +420,51 @@ MAX_NAMED = 10
 
 
 def _named(key: str, rows: pd.DataFrame, width: int) -> list[str]:
-    """``  regressed: scene · engine · metric (error 3.1e-3)``, one per row, within ``width``."""
+    """``  regressed: scene · engine · metric (error 3.1e-3)``, one per row, never cut: the
+    error on a line of its own when the line would pass ``width``."""
     word = NEWS_WORDS[key].removesuffix("s") if key == "new_failures" else NEWS_WORDS[key]
     lines = []
     for _, row in rows.head(MAX_NAMED).iterrows():
         error = pd.to_numeric(pd.Series([row.get("error")]), errors="coerce").iloc[0]
         said = "" if pd.isna(error) else f" (error {error:.3g})"
-        line = f"  {word}: {row['scenario']} · {row['engine']} · {row['metric']}{said}"
-        lines.append(line if len(line) <= width else line[: width - 1] + "…")
+        line = f"  {word}: {row['scenario']} · {row['engine']} · {row['metric']}"
+        fits = len(line + said) <= width or not said
+        lines += [line + said] if fits else [line, f"    {said.strip()}"]  # never cut
     if len(rows) > MAX_NAMED:
         lines.append(f"  ... and {len(rows) - MAX_NAMED} more {NEWS_WORDS[key]} in report.html")
     return lines
+
+
+NO_BASELINE_NEWS = ("new_failures", "fixed", "known")
+"""The news sections a run without a baseline has."""
+
+
+def _against_baseline(table: pd.DataFrame) -> bool:
+    """Whether the rows were classified against a baseline (a ``baseline`` class)."""
+    return bool("baseline" in table and table["baseline"].fillna("").astype(bool).any())
+
+
+def _news_keys(table: pd.DataFrame) -> list[str]:
+    """The news sections a run has: every one against a baseline, else ``NO_BASELINE_NEWS``."""
+    if _against_baseline(table):
+        return [key for key, _, _ in NEWS_SECTIONS]
+    return list(NO_BASELINE_NEWS)
+
+
+def news_counts(
+    rows: list[dict],
+    comparison: pd.DataFrame | None = None,
+    baseline: object = None,
+    width: int = SUMMARY_WIDTH,
+) -> list[str]:
+    """The news line: the count of each of the run's news sections (``news``), packed
+    within ``width``."""
+    table = judged_table(rows)
+    selected = news_selections(table, comparison)
+    keys = _news_keys(table)
+    counts = [f"{len(selected[key])} {NEWS_WORDS[key]}" for key in keys]
+    head = f"news against {baseline}:" if _against_baseline(table) else "news (no baseline):"
+    return packed_lines(counts, width, head, ", ")
 
 
 def news(
@@ -423,17 +477,151 @@ def news(
     same sections, the same counts): a line of counts, then the regressions, changed rows and
     new failures by name. ``comparison`` is the run's baseline.csv (None without a baseline),
     ``baseline`` the baseline's file, named in the first line."""
+    table = judged_table(rows)
+    selected = news_selections(table, comparison)
+    lines = news_counts(rows, comparison, baseline, width)
+    for key in NAMED_NEWS:
+        if key in _news_keys(table):
+            lines += _named(key, selected[key], width)
+    return "\n".join(lines)
+
+
+COMPACT_WORDS = {
+    "error": "ERROR",
+    "crashed": "CRASH",
+    "timed_out": "T/OUT",
+    "model_mismatch": "MISM",
+    "unstable": "UNST",
+    "failed": "FAIL",
+    "known": "known",
+    "fixed": "fixed",
+    "passed": "pass",
+    "no_tolerance": "-",
+    "unsupported": "unsup",
+    "not_installed": "n/ins",
+}
+"""The compact matrix's cell words, at most ``COMPACT_CELL`` wide (capitals: needs a look),
+named in its key."""
+
+COMPACT_CELL = max(len(word) for word in COMPACT_WORDS.values())
+"""Width of a compact matrix cell: its longest word."""
+
+
+def judged_table(rows: list[dict]) -> pd.DataFrame:
+    """The rows as a table with each row's ``outcome`` (known findings applied)."""
     table = pd.DataFrame(rows)
     table["outcome"] = [outcome_of(row) for row in rows]
-    selected = news_selections(table, comparison)
-    against = "baseline" in table and table["baseline"].fillna("").astype(bool).any()
-    keys = [key for key, _, _ in NEWS_SECTIONS]
-    if not against:
-        keys = ["new_failures", "fixed", "known"]  # the sections a run without a baseline has
-    counts = [f"{len(selected[key])} {NEWS_WORDS[key]}" for key in keys]
-    head = f"news against {baseline}:" if against else "news (no baseline):"
-    lines = packed_lines(counts, width, head, ", ")
+    return table
+
+
+def compact_matrix(rows: list[dict], width: int = SUMMARY_WIDTH) -> list[str]:
+    """Scenes x engines for a CI log, no line wider than the width its heading declares
+    (``width``, or more when one engine key, scene name or row of cells cannot be shorter):
+    engine keys (E1=spec) one entry never split, full scene names, one word per cell
+    (``COMPACT_WORDS``, the worst of the cell's rows), a scene on its own line above its
+    cells when both do not fit on one."""
+    if not rows:
+        return ["(no rows)"]
+    judged = [row for row in rows if not is_sweep_row(row)] or rows
+    labels = engine_labels(judged)
+    column = max(COMPACT_CELL, *(len(label) for label in labels.values()))
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for row in judged:
+        groups.setdefault((row["scenario"], row["engine"]), []).append(row)
+    scenes = list(dict.fromkeys(row["scenario"] for row in rows))
+    cells_width = len(labels) * (column + 1) - 1
+    legend = [f"{label}={engine}" for engine, label in labels.items()]
+    scene_width = max(len(scene) for scene in [*scenes, "scene"])
+    width = max(width, cells_width, *(len(entry) for entry in legend))
+    inline = scene_width + 2 + cells_width <= width
+    if not inline:
+        width = max(width, *(len(scene) for scene in scenes))
+    used = set()
+
+    def cells(scene: str) -> str:
+        words = []
+        for engine in labels:
+            group = groups.get((scene, engine))
+            word = COMPACT_WORDS[_cell(group)[0]] if group else ""
+            used.add(word)
+            words.append(word.ljust(column))
+        return " ".join(words).rstrip()
+
+    header = " ".join(label.ljust(column) for label in labels.values()).rstrip()
+    lines = [("scene".ljust(scene_width) + "  " if inline else "") + header]
+    for scene in scenes:
+        if inline:
+            lines.append(f"{scene.ljust(scene_width)}  {cells(scene)}".rstrip())
+        else:
+            lines += [scene, cells(scene)]
+    key = [f"{w}={outcome_label(o)}" for o, w in COMPACT_WORDS.items() if w in used]
+    heading = f"matrix ({len(scenes)} scenes x {len(labels)} engines, lines <= {width} columns):"
+    return [
+        heading,
+        *packed_lines(legend, width, "engines:"),
+        *packed_lines(key, width, "key:"),
+        *lines,
+    ]
+
+
+def shown_value(value) -> str:
+    """A number as the row lines show it (4 significant digits), the text otherwise."""
+    number = _number(value)
+    if math.isnan(number):
+        return "" if value is None or (isinstance(value, float)) else str(value)
+    return f"{number:.4g}"
+
+
+def row_lines(rows: list[dict], comparison: pd.DataFrame | None = None) -> list[str]:
+    """One line per failing or new row, never cut: its news word (regressed, changed, new
+    failure), scene, engine, metric, value, expected, tolerance and error, and for a
+    regression the baseline's error before the new one."""
+    selected = news_selections(judged_table(rows), comparison)
+    lines = []
     for key in NAMED_NEWS:
-        if key in keys:
-            lines += _named(key, selected[key], width)
+        word = NEWS_WORDS[key].removesuffix("s") if key == "new_failures" else NEWS_WORDS[key]
+        for _, row in selected[key].iterrows():
+            fields = [
+                f"{word}: {row['scenario']}",
+                str(row["engine"]),
+                str(row["metric"]),
+                f"value {shown_value(row.get('value'))}",
+                f"expected {shown_value(row.get('expected'))}",
+                f"tolerance {shown_value(row.get('tolerance'))}",
+                f"error {shown_value(row.get('error'))}",
+            ]
+            before = shown_value(row.get("baseline_error"))
+            if before:
+                fields.append(f"baseline error {before}")
+            lines.append(printable(" | ".join(fields)))
+    return lines
+
+
+def counts_lines(
+    rows: list[dict], comparison: pd.DataFrame | None = None, width: int = SUMMARY_WIDTH
+) -> list[str]:
+    """The headline, then every class's count within ``width``, in the words of the summary
+    file and the page (``report.news.class_counts``, ``headline``)."""
+    table = judged_table(rows)
+    selected = news_selections(table, comparison)
+    found = (f"{n} {word}" for word, n in class_counts(table, selected).items())
+    return [headline(table, selected), *packed_lines(found, width, f"{len(table)} rows:", ", ")]
+
+
+def log_summary(
+    rows: list[dict],
+    comparison: pd.DataFrame | None = None,
+    baseline: object = None,
+    width: int = SUMMARY_WIDTH,
+) -> str:
+    """What ``physval run`` prints when stdout is not a terminal (a CI log): the failing and
+    new rows one per line, never cut (``row_lines``), the compact matrix (``compact_matrix``),
+    the headline with every class's count and the news counts."""
+    failing = row_lines(rows, comparison)
+    lines = [f"failing or new rows ({len(failing)}):" if failing else "no failing or new rows"]
+    lines += [*failing, *compact_matrix(rows, width), *install_lines(rows)]
+    lines += [
+        *counts_lines(rows, comparison, width),
+        *news_counts(rows, comparison, baseline, width),
+    ]
     return "\n".join(lines)

@@ -38,7 +38,13 @@ from validation.measure.noise import NOISE_RULE
 from validation.measure.resolution import RESOLUTION_MARK
 from validation.redact import shown_url
 from validation.report.closed_form import closed_form_charts, read_expectations
-from validation.report.news import build_news, build_sweep_cards
+from validation.report.news import (
+    build_news,
+    build_sweep_cards,
+    class_counts,
+    headline,
+    news_selections,
+)
 from validation.report.outcomes import (
     OUTCOME_COLOURS,
     OUTCOME_ORDER,
@@ -295,6 +301,7 @@ def build_runs(
     settings that differ from the spec's in provenance.json (the others are counted)."""
     specs = (provenance or {}).get("engines")
     specs = specs if isinstance(specs, dict) else {}
+    notes = _scene_engine_notes(provenance, str(rows["scenario"].iloc[0]) if len(rows) else "")
     runs = []
     # each engine's first row, its worst outcome and its status messages, the table ranked
     # and grouped once (ranking is stable: an engine's worst is the one its rows alone give)
@@ -330,9 +337,23 @@ def build_runs(
                 "settings_folded": own > SETTINGS_INLINE_UP_TO,
                 "settings_own": own,
                 "message": "; ".join(messages),
+                "notes": notes.get(engine, []),
             }
         )
     return runs
+
+
+def _scene_engine_notes(provenance: dict | None, scene: str) -> dict[str, list[str]]:
+    """Engine spec -> the notes its adapter recorded for the scene (provenance.json's
+    ``scenes.<scene>.engine_notes``; empty for a run recorded before it had them)."""
+    scenes = (provenance or {}).get("scenes")
+    entry = scenes.get(scene) if isinstance(scenes, dict) else None
+    found = entry.get("engine_notes") if isinstance(entry, dict) else None
+    if not isinstance(found, dict):
+        return {}
+    return {
+        str(e): [str(n) for n in notes] for e, notes in found.items() if isinstance(notes, list)
+    }
 
 
 def build_impacts(impacts: pd.DataFrame | None, scene: str) -> dict[str, Any]:
@@ -586,6 +607,7 @@ def build_context(run: RunData) -> dict[str, Any]:
     red_runs = sum(o in RED_OUTCOMES for o in cell_outcomes)
     offenders = table[table["outcome"].isin(RED_OUTCOMES)]
     provenance = build_provenance(run.provenance, table)
+    selected = news_selections(table, run.baseline)
     return {
         "title": f"physval report {provenance['created']}".strip(),
         "run_dir": str(run.run_dir),
@@ -594,6 +616,8 @@ def build_context(run: RunData) -> dict[str, Any]:
             "bad": red_runs > 0,
             "runs": sum(o != "not_run" for o in cell_outcomes),
             "red_runs": red_runs,
+            "headline": headline(table, selected),
+            "classes": class_counts(table, selected),
         },
         "scene_count": len(scenes),
         "engines": engines,

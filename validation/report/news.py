@@ -21,6 +21,7 @@ from validation.measure.noise import (
     REFERENCE_MOVED,
     large_improvement,
 )
+from validation.report.outcomes import OUTCOME_ORDER, outcome_label
 from validation.report.sweep_page import UNITS, sweep_chart, sweep_orders
 
 FAILING = (*RUN_FAILURE_STATUSES, "failed")
@@ -79,6 +80,22 @@ def _shown_error(value: Any) -> str:
     return "" if pd.isna(error) else f"{error:.4g}"
 
 
+KEYS = ["scenario", "engine", "metric"]
+"""The columns that name a row in results.csv and baseline.csv."""
+
+
+def with_baseline_error(rows: pd.DataFrame, baseline: pd.DataFrame | None) -> pd.DataFrame:
+    """``rows`` with ``baseline_error``: the error the baseline's row had (from the run's
+    baseline.csv; NaN without one), so a regression shows before and after."""
+    rows = rows.drop(columns=["baseline_error"], errors="ignore")
+    if baseline is None or "baseline_error" not in baseline or rows.empty:
+        return rows.assign(baseline_error=float("nan"))
+    before = baseline[[*KEYS, "baseline_error"]].drop_duplicates(KEYS)
+    joined = rows.reset_index().merge(before, on=KEYS, how="left").set_index("index")
+    joined.index.name = rows.index.name
+    return joined
+
+
 def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]]:
     return [
         {
@@ -88,6 +105,7 @@ def _entries(rows: pd.DataFrame, anchors: dict[str, str]) -> list[dict[str, Any]
             "metric": r["metric"],
             "outcome": r.get("outcome", ""),
             "error": _shown_error(r.get("error")),
+            "before": _shown_error(r.get("baseline_error")),
             "note": str(r.get("news_note", "") or r.get("known", "") or r.get("message", "") or ""),
         }
         for _, r in rows.head(MAX_NEWS_ROWS).iterrows()
@@ -130,8 +148,8 @@ def news_selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[
         baseline[baseline["baseline"] == "missing"] if baseline is not None else table.iloc[0:0]
     )
     return {
-        "regressed": table[classes == "regressed"],
-        "changed": table[classes == "changed"],
+        "regressed": with_baseline_error(table[classes == "regressed"], baseline),
+        "changed": with_baseline_error(table[classes == "changed"], baseline),
         "large_improvements": large_improvements(baseline),
         "new_failures": table[failing & (classes != "unchanged") & ~classes.isin(FAILS_A_RUN)],
         "fixed": table[table["outcome"] == "fixed"],
@@ -140,6 +158,37 @@ def news_selections(table: pd.DataFrame, baseline: pd.DataFrame | None) -> dict[
         "unchanged": table[classes == "unchanged"],
         "known": table[table["outcome"] == "known"],
     }
+
+
+HEADLINE_NEWS = ("new_failures", "regressed", "changed", "missing")
+"""The news counted in every headline next to the outcomes (what fails a run), in the same
+words in the terminal, the ``--summary`` file and report.html."""
+
+
+def class_counts(table: pd.DataFrame, selected: dict[str, pd.DataFrame]) -> dict[str, int]:
+    """Rows per outcome that occurs (worst first, ``OUTCOME_ORDER``), then the news counts
+    (``HEADLINE_NEWS``: new failures and regressions always, changed and missing when there
+    are any), keyed by the words every headline uses."""
+    found = table["outcome"].value_counts()
+    counts = {outcome_label(o): int(found[o]) for o in OUTCOME_ORDER if found.get(o, 0)}
+    for key in HEADLINE_NEWS:
+        if len(selected[key]) or key in ("new_failures", "regressed"):
+            counts[NEWS_WORDS[key]] = len(selected[key])
+    return counts
+
+
+def headline(table: pd.DataFrame, selected: dict[str, pd.DataFrame]) -> str:
+    """The run's verdict in one sentence, never "all passed" while a row fails: the new
+    failures and regressions that need a look, else the known failures that remain, else
+    that every run passed or had nothing to judge."""
+    new = sum(len(selected[key]) for key in HEADLINE_NEWS)
+    known = int((table["outcome"] == "known").sum())
+    if new:
+        rows = "1 row needs" if new == 1 else f"{new} rows need"
+        return f"{rows} a look (new failures, regressions, changed or missing)"
+    if known:
+        return f"No new failures; {known} of {len(table)} rows are known failures"
+    return f"All {len(table)} rows passed or had nothing to judge"
 
 
 def build_news(
