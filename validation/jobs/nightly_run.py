@@ -152,15 +152,20 @@ def scene_hashes(plan: Plan) -> dict[str, dict[str, str]]:
 
 
 def against_baseline(
-    rows: list[dict], options: NightlyOptions, hashes: dict[str, dict[str, str]], folder: Path
+    rows: list[dict],
+    options: NightlyOptions,
+    hashes: dict[str, dict[str, str]],
+    folder: Path,
+    asked: list[str] | None = None,
 ) -> tuple[list[dict], pd.DataFrame | None]:
     """The rows with their ``baseline`` class, and ``baseline.csv`` (every class, the missing
     rows too, each with the baseline's value and error), written into the run folder and
-    returned; the rows unchanged and None without a baseline."""
+    returned; the rows unchanged and None without a baseline. ``asked``: the ``--engines``
+    labels (None: every engine), the engines whose baseline rows the run must have."""
     if options.baseline_table is None:
         return rows, None
     sha = {name: entry["sha256"] for name, entry in hashes.items()}
-    classified, missing = classify(rows, options.baseline_table, sha)
+    classified, missing = classify(rows, options.baseline_table, sha, asked)
     before = {_key(r): r for r in options.baseline_table.to_dict("records")}
     comparison = pd.DataFrame(
         [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
