@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from validation.contract import BASELINE_FILE, EXIT_FAILED, EXIT_OK
+from validation.contract import BASELINE_FILE, EXIT_FAILED, EXIT_OK, SWEEP_ORDER
 from validation.nightly.baseline import classify
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -91,3 +91,13 @@ def test_a_not_installed_engine_asked_for_leaves_its_rows_missing():
     _, asked = classify([row], before, {"fall": "s"}, ["rapier"])
     _, left_out = classify([row], before, {"fall": "s"}, ["mini"])
     assert [r["metric"] for r in asked] == ["energy_drift"] and left_out == []
+
+
+def test_the_sweep_rows_of_a_run_that_did_not_sweep_are_not_missing():
+    drift = {"scenario": "fall", "engine": "mini", "metric": "energy_drift", "scene_sha256": "s"}
+    order = {**drift, "metric": f"{SWEEP_ORDER}.energy_drift"}
+    status = {"scenario": "fall", "engine": "mini", "metric": "status"}
+    _, swept = classify([status], pd.DataFrame([drift, order]), {"fall": "s"}, swept=True)
+    _, unswept = classify([status], pd.DataFrame([drift, order]), {"fall": "s"}, swept=False)
+    assert [r["metric"] for r in swept] == [drift["metric"], order["metric"]], swept
+    assert [r["metric"] for r in unswept] == [drift["metric"]], unswept

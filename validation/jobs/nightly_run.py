@@ -156,16 +156,20 @@ def against_baseline(
     options: NightlyOptions,
     hashes: dict[str, dict[str, str]],
     folder: Path,
-    asked: list[str] | None = None,
+    selection: dict | None = None,
 ) -> tuple[list[dict], pd.DataFrame | None]:
     """The rows with their ``baseline`` class, and ``baseline.csv`` (every class, the missing
     rows too, each with the baseline's value and error), written into the run folder and
-    returned; the rows unchanged and None without a baseline. ``asked``: the ``--engines``
-    labels (None: every engine), the engines whose baseline rows the run must have."""
+    returned; the rows unchanged and None without a baseline. ``selection``
+    (``run_selection``): its ``--engines`` labels (None: every engine) are the engines whose
+    baseline rows the run must have, and their sweep rows when it ``sweeps``."""
     if options.baseline_table is None:
         return rows, None
     sha = {name: entry["sha256"] for name, entry in hashes.items()}
-    classified, missing = classify(rows, options.baseline_table, sha, asked)
+    selection = selection or {}
+    classified, missing = classify(
+        rows, options.baseline_table, sha, selection.get("engines"), selection.get("sweeps", True)
+    )
     before = {_key(r): r for r in options.baseline_table.to_dict("records")}
     comparison = pd.DataFrame(
         [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]

@@ -729,7 +729,7 @@ def _written(
         total = len(plan.jobs) + len(_sweep_work(plan))
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}
     rows, comparison = against_baseline(
-        rows, options, hashes, output.run_folder, provenance["selection"]["engines"]
+        rows, options, hashes, output.run_folder, provenance["selection"]
     )
     write_run(
         output.run_folder, rows, executed.series, executed.impacts, provenance, executed.traces

@@ -46,6 +46,9 @@ from validation.contract import (
     RUN_FAILURE_STATUSES,
     SIGNED_COLUMNS,
     SIGNED_ERROR_COLUMN,
+    SWEEP_CROSS_CHECK,
+    SWEEP_ERROR,
+    SWEEP_ORDER,
     VECTOR_ERROR_COLUMNS,
 )
 from validation.csv_safe import csv_text, restored
@@ -61,6 +64,10 @@ from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_provenance, read_results
 
 KEY = ("scenario", "engine", "metric")
+
+SWEEP_ROWS = (SWEEP_ORDER, SWEEP_ERROR, SWEEP_CROSS_CHECK)
+"""How the metrics of a scene's sweep rows begin (``nightly_run.sweep_result_rows``): a run
+that did not sweep lacks them on purpose."""
 """What identifies a row across runs."""
 
 BASELINE_COLUMNS = (
@@ -193,16 +200,26 @@ def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
     return classify_change(was, reading(now, outcome_of(now)), floor)
 
 
+def _lacked_on_purpose(row: dict, asked: set[str] | None, swept: bool) -> bool:
+    """Whether a baseline row the run lacks was left out on purpose: its engine not among the
+    ``asked`` ones, or a sweep row of a run that did not sweep."""
+    if asked is not None and str(row["engine"]) not in asked:
+        return True
+    return not swept and str(row["metric"]).startswith(SWEEP_ROWS)
+
+
 def classify(
     rows: list[dict],
     baseline: pd.DataFrame,
     scene_hashes: dict[str, str],
     asked: Iterable[str] | None = None,
+    swept: bool = True,
 ) -> tuple[list[dict], list[dict]]:
     """The run's rows with a ``baseline`` class each, and the baseline's rows the run lacks
     (class ``missing``) for the scenes the run ran, in the engines it ``asked`` for (the
-    ``--engines`` labels; None: every engine). A moved divergence row whose reference engine
-    moved (and its own did not) reads ``reference_moved``."""
+    ``--engines`` labels; None: every engine), sweep rows only when it ``swept``. A moved
+    divergence row whose reference engine moved (and its own did not) reads
+    ``reference_moved``."""
     index = {tuple(r[k] for k in KEY): r for r in baseline.to_dict("records")}
     classified = []
     for row in rows:
@@ -224,7 +241,7 @@ def classify(
     missing = [
         {**r, "baseline": "missing"}
         for r in index.values()
-        if r["scenario"] in ran and (wanted is None or r["engine"] in wanted)
+        if r["scenario"] in ran and not _lacked_on_purpose(r, wanted, swept)
     ]
     return classified, missing
 
