@@ -4,56 +4,27 @@ unless its engine was left out of ``--engines`` on purpose: an engine that reads
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from tiny_project import shell, tiny_project
 
 from validation.contract import BASELINE_FILE, EXIT_FAILED, EXIT_OK, SWEEP_ORDER
 from validation.nightly.baseline import classify
 
-ROOT = Path(__file__).resolve().parent.parent
-
-FALL = """\
-description: a ball falling freely for 0.05 s (a tiny scene, mini only)
-dt: 1.0e-3
-duration: 0.05
-engines: [mini]
-bodies:
-  - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [0.0, 0.0, 1.0]}
-"""
-
 ABSENT = "ghost"
 """An engine the baseline has rows of and this machine does not (uninstalled, or renamed)."""
-
-
-def physval(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "validation.entry", *argv],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )
 
 
 @pytest.fixture(scope="module")
 def nightly(tmp_path_factory) -> Path:
     """A folder with the scene and a baseline of its mini rows plus the same rows of
     ``ABSENT``."""
-    folder = tmp_path_factory.mktemp("missing")
-    (folder / "scenes").mkdir()
-    (folder / "scenes" / "fall.yaml").write_text(FALL)
-    first = physval(
-        "run", "scenes", "--out", "first", "--jobs", "1", "--history", "none", cwd=folder
-    )
+    folder = tiny_project(tmp_path_factory.mktemp("missing"))
+    first = shell("physval run --out first --jobs 1 --history none", folder)
     assert first.returncode == EXIT_OK, first.stdout + first.stderr
-    saved = physval("baseline", "save", "first", "--to", "mini.csv", cwd=folder)
+    saved = shell("physval baseline save first --to mini.csv", folder)
     assert saved.returncode == EXIT_OK, saved.stderr
     mini = pd.read_csv(folder / "mini.csv", dtype=str, keep_default_na=False)
     pd.concat([mini, mini.assign(engine=ABSENT)]).to_csv(folder / "baseline.csv", index=False)
@@ -61,10 +32,7 @@ def nightly(tmp_path_factory) -> Path:
 
 
 def test_rows_of_an_absent_engine_are_missing_and_fail_the_run(nightly):
-    run = physval(
-        "run", "scenes", "--baseline", "baseline.csv", "--out", "absent", "--history", "none",
-        cwd=nightly,
-    )  # fmt: skip
+    run = shell("physval run --baseline baseline.csv --out absent --history none", nightly)
     assert run.returncode == EXIT_FAILED, run.stdout + run.stderr
     assert f"fall · {ABSENT} (" in run.stdout, run.stdout
     comparison = pd.read_csv(nightly / "absent" / BASELINE_FILE)
@@ -73,10 +41,9 @@ def test_rows_of_an_absent_engine_are_missing_and_fail_the_run(nightly):
 
 
 def test_an_engine_left_out_of_engines_is_absent_on_purpose(nightly):
-    run = physval(
-        "run", "scenes", "--engines", "mini", "--baseline", "baseline.csv", "--out", "chosen",
-        "--history", "none", cwd=nightly,
-    )  # fmt: skip
+    run = shell(
+        "physval run --engines mini --baseline baseline.csv --out chosen --history none", nightly
+    )
     assert run.returncode == EXIT_OK, run.stdout + run.stderr
     comparison = pd.read_csv(nightly / "chosen" / BASELINE_FILE)
     assert "missing" not in set(comparison["baseline"]), comparison

@@ -6,20 +6,17 @@ already installed: they exit 0 and leave what the recipe publishes and caches.""
 
 from __future__ import annotations
 
-import os
 import shlex
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from tiny_project import shell, tiny_project
 
 from validation.cli import COMMANDS, parser
 
-ROOT = Path(__file__).resolve().parent.parent
-RECIPES = ROOT / "examples" / "ci"
+RECIPES = Path(__file__).resolve().parent.parent / "examples" / "ci"
 SCRIPT_KEYS = ("run", "script", "before_script", "after_script")
 """Where a GitHub Actions step (``run``) or a GitLab job (``script``...) keeps its commands."""
 
@@ -53,15 +50,6 @@ PUBLISHED = ("reports/latest/report.html", "reports/junit.xml", "reports/history
 CACHED = "reports/history.sqlite"
 """What the recipes publish as artifacts and keep in the cache."""
 
-TINY = """\
-description: a ball falling freely for 0.05 s (a tiny scene set for the recipes' commands)
-dt: 1.0e-3
-duration: 0.05
-engines: [mini]
-bodies:
-  - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [0.0, 0.0, 1.0]}
-"""
-
 BASELINE_COMMANDS = (
     "physval run --history none",
     "physval baseline save reports/latest --to baselines/default.csv",
@@ -72,15 +60,6 @@ BASELINE_COMMANDS = (
 def _installs(path: Path) -> list[list[str]]:
     lines = _commands(yaml.safe_load(path.read_text()))
     return [shlex.split(line) for line in lines if line.strip().startswith("pip install")]
-
-
-def _shell(line: str, cwd: Path) -> subprocess.CompletedProcess:
-    """One recipe line in bash in ``cwd``, with this checkout's physval on PATH and the path."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
-    return subprocess.run(
-        ["bash", "-c", line], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
-    )
 
 
 @pytest.mark.parametrize("recipe", sorted(RECIPES.glob("*.yml")), ids=lambda p: p.name)
@@ -144,10 +123,9 @@ def test_a_recipe_saves_its_history_and_report_when_the_run_fails(recipe):
 
 @pytest.mark.parametrize("recipe", sorted(RECIPES.glob("*.yml")), ids=lambda p: p.name)
 def test_a_recipes_commands_run_in_a_fresh_project(recipe, tmp_path):
-    (tmp_path / "scenarios").mkdir()
-    (tmp_path / "scenarios" / "fall.yaml").write_text(TINY)
+    tiny_project(tmp_path)
     for line in BASELINE_COMMANDS:  # on a fresh clone: no reports/, no baselines/
-        done = _shell(line, tmp_path)
+        done = shell(line, tmp_path)
         assert done.returncode == 0, f"{line}\n{done.stdout}\n{done.stderr}"
     assert (tmp_path / "baselines" / "default.csv").is_file()
     shutil.rmtree(tmp_path / "reports")  # a fresh runner: the committed files, the cache missed
@@ -155,7 +133,7 @@ def test_a_recipes_commands_run_in_a_fresh_project(recipe, tmp_path):
     ran = [line for line in lines if not line.strip().startswith("pip install")]  # installed
     assert any(line.strip().startswith("physval run") for line in ran), lines
     for line in ran:
-        done = _shell(line, tmp_path)
+        done = shell(line, tmp_path)
         assert done.returncode == 0, f"{recipe.name}: {line}\n{done.stdout}\n{done.stderr}"
     for path in (*PUBLISHED, CACHED):
         assert (tmp_path / path).is_file(), (recipe.name, path)
@@ -165,10 +143,8 @@ def test_a_recipes_commands_run_in_a_fresh_project(recipe, tmp_path):
 def ran_once(tmp_path_factory) -> Path:
     """A project folder after one run: ``reports/latest`` and ``reports/history.sqlite``, and a
     file of the user's named ``taken``."""
-    folder = tmp_path_factory.mktemp("ran")
-    (folder / "scenarios").mkdir()
-    (folder / "scenarios" / "fall.yaml").write_text(TINY)
-    done = _shell("physval run --history sqlite:///reports/history.sqlite", folder)
+    folder = tiny_project(tmp_path_factory.mktemp("ran"))
+    done = shell("physval run --history sqlite:///reports/history.sqlite", folder)
     assert done.returncode == 0, done.stderr
     (folder / "taken").write_text(USERS_FILE)
     return folder
@@ -187,7 +163,7 @@ USERS_FILE = "the user's file\n"
     ],
 )
 def test_a_missing_folder_is_made_but_a_file_in_its_place_is_refused(line, ran_once):
-    done = _shell(line, ran_once)
+    done = shell(line, ran_once)
     assert done.returncode == 2 and "taken is a file" in done.stderr, done
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert (ran_once / "taken").read_text() == USERS_FILE

@@ -9,6 +9,7 @@ are not run), so nothing is downloaded."""
 from __future__ import annotations
 
 import os
+import shlex
 import shutil
 import site
 import subprocess
@@ -18,6 +19,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from tiny_project import shell, tiny_project
 
 from validation.bundled import BUNDLED_SCENARIOS
 from validation.contract import EXIT_OK, RESULTS_FILE
@@ -33,22 +35,12 @@ NOT_SOURCE = shutil.ignore_patterns(
 LIBRARY_SCENE = "bounce_impact_times"
 """A bundled scene that runs in a fraction of a second in mini."""
 
-FALL = """\
-description: a ball falling freely for 0.05 s (the other project's own scene)
-dt: 1.0e-3
-duration: 0.05
-engines: [mini]
-bodies:
-  - {name: ball, shape: {type: sphere, radius: 0.1}, mass: 1.0, position: [0.0, 0.0, 1.0]}
-"""
-
 
 def _run(cwd: Path, env: dict | None, *command: str) -> subprocess.CompletedProcess:
     """``command`` run in ``cwd`` with ``env`` (None: this process's), asserted to exit 0."""
-    done = subprocess.run(
-        list(command), cwd=cwd, env=env, capture_output=True, text=True, timeout=120, check=False
-    )
-    assert done.returncode == EXIT_OK, f"{command}:\n{done.stdout}\n{done.stderr}"
+    line = shlex.join(command)
+    done = shell(line, cwd, env or dict(os.environ))
+    assert done.returncode == EXIT_OK, f"{line}:\n{done.stdout}\n{done.stderr}"
     return done
 
 
@@ -84,9 +76,7 @@ def installed(tmp_path_factory) -> tuple[Path, Path, dict]:
     )
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env["PATH"] = f"{environment / 'bin'}{os.pathsep}{env.get('PATH', '')}"
-    project = work / "project"
-    (project / "scenes").mkdir(parents=True)
-    (project / "scenes" / "fall.yaml").write_text(FALL)
+    project = tiny_project(work / "project", "scenes")
     return wheel, project, env
 
 
