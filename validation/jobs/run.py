@@ -683,8 +683,9 @@ def _finish(
         recorded = record_history(output.destination, options)
     print(summary(rows, color=sys.stdout.isatty()))
     print(news(rows, comparison, options.baseline))
-    if missing_note(comparison):
-        print(missing_note(comparison))
+    lacked = missing_note(comparison)
+    if lacked:
+        print(lacked)
     total = len(plan.jobs) + len(_sweep_work(plan))
     journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
     written = f"{len(rows)} rows -> {printable(output.destination / RESULTS_FILE)}"

@@ -64,11 +64,11 @@ from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_provenance, read_results
 
 KEY = ("scenario", "engine", "metric")
+"""What identifies a row across runs."""
 
 SWEEP_ROWS = (SWEEP_ORDER, SWEEP_ERROR, SWEEP_CROSS_CHECK)
 """How the metrics of a scene's sweep rows begin (``nightly_run.sweep_result_rows``): a run
 that did not sweep lacks them on purpose."""
-"""What identifies a row across runs."""
 
 BASELINE_COLUMNS = (
     *KEY,
@@ -264,7 +264,8 @@ def missing_rows(comparison: pd.DataFrame | None) -> pd.DataFrame:
 
 def missing_note(comparison: pd.DataFrame | None) -> str:
     """One line naming the (scene, engine) pairs whose baseline rows the run lacks, with their
-    row counts: ``missing against the baseline (fails the run): ...``; empty when none."""
+    row counts (``missing against the baseline (fails the run; ...): drop · rapier (12 rows),
+    ...``); empty when none."""
     missing = missing_rows(comparison)
     if missing.empty:
         return ""
