@@ -4,6 +4,7 @@ unless its engine was left out of ``--engines`` on purpose: an engine that reads
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pandas as pd
@@ -32,12 +33,18 @@ def nightly(tmp_path_factory) -> Path:
 
 
 def test_rows_of_an_absent_engine_are_missing_and_fail_the_run(nightly):
-    run = shell("physval run --baseline baseline.csv --out absent --history none", nightly)
+    run = shell(
+        "physval run --baseline baseline.csv --out absent --history none --junit junit.xml",
+        nightly,
+    )
     assert run.returncode == EXIT_FAILED, run.stdout + run.stderr
     assert f"fall · {ABSENT} (" in run.stdout, run.stdout
     comparison = pd.read_csv(nightly / "absent" / BASELINE_FILE)
     missing = comparison[comparison["baseline"] == "missing"]
     assert set(missing["engine"]) == {ABSENT} and len(missing) > 0, comparison
+    case = ET.parse(nightly / "junit.xml").find(f".//testcase[@name='{ABSENT}']")
+    assert case is not None and case.find("failure") is not None, "a failing JUnit case"
+    assert f"{len(missing)} row(s) missing" in case.find("failure").get("message")
 
 
 def test_an_engine_left_out_of_engines_is_absent_on_purpose(nightly):

@@ -21,6 +21,7 @@ from validation.jobs.sweep import SWEEP_METRICS
 from validation.nightly.baseline import (
     KEY,
     classify,
+    missing_case_rows,
     read_baseline,
     scene_hash,
 )
@@ -198,10 +199,13 @@ def _comparison(row: dict, before: dict) -> dict:
     }
 
 
-def write_ci_files(rows: list[dict], options: NightlyOptions) -> None:
-    """JUnit XML, when asked for."""
+def write_ci_files(
+    rows: list[dict], options: NightlyOptions, comparison: pd.DataFrame | None = None
+) -> None:
+    """JUnit XML, when asked for: the rows, and the baseline rows the run lacks (each a failure
+    of its case, ``missing_case_rows``)."""
     if options.junit is not None:
-        write_junit(rows, options.junit)
+        write_junit([*rows, *missing_case_rows(comparison)], options.junit)
 
 
 def record_history(folder: Path, options: NightlyOptions) -> str:

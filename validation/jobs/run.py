@@ -737,7 +737,7 @@ def _written(
     )
     if executed.sweep_rows:
         write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
-    write_ci_files(rows, options)
+    write_ci_files(rows, options, comparison)
     return rows, comparison
 
 

@@ -60,6 +60,7 @@ from validation.measure.noise import (
     classify_change,
     floor_for,
 )
+from validation.nightly.cases import MISSING
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_provenance, read_results
 
@@ -260,6 +261,20 @@ def missing_rows(comparison: pd.DataFrame | None) -> pd.DataFrame:
     if comparison is None or comparison.empty:
         return pd.DataFrame(columns=list(KEY))
     return comparison[comparison["baseline"] == "missing"]
+
+
+def missing_case_rows(comparison: pd.DataFrame | None) -> list[dict]:
+    """The ``missing`` rows of a run's baseline comparison as result rows of their (scene,
+    engine) case, outcome ``missing`` (a failure of the case: ``cases.OUTCOME_KINDS``), for the
+    JUnit XML."""
+    return [
+        {
+            **{k: row[k] for k in KEY},
+            "outcome": MISSING,
+            "message": f"in the baseline ({row['baseline_outcome']}), not in this run",
+        }
+        for row in missing_rows(comparison).to_dict("records")
+    ]
 
 
 def missing_note(comparison: pd.DataFrame | None) -> str:
