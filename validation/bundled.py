@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-BUNDLED_SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
-"""The scene library shipped with physval (``scenarios/`` of the checkout)."""
+BUNDLED_SCENARIOS = (Path(__file__).resolve().parent / "library").resolve()
+"""The scene library shipped with physval: ``scenarios/`` of the checkout, which
+``validation/library`` links to, so that a wheel carries it inside the package (the link is
+followed when the wheel is built: ``package-data`` of pyproject.toml)."""
 
 
 def default_scenario_paths() -> list[Path]:

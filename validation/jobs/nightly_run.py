@@ -21,6 +21,7 @@ from validation.jobs.sweep import SWEEP_METRICS
 from validation.nightly.baseline import (
     KEY,
     classify,
+    missing_case_rows,
     read_baseline,
     scene_hash,
 )
@@ -152,15 +153,24 @@ def scene_hashes(plan: Plan) -> dict[str, dict[str, str]]:
 
 
 def against_baseline(
-    rows: list[dict], options: NightlyOptions, hashes: dict[str, dict[str, str]], folder: Path
+    rows: list[dict],
+    options: NightlyOptions,
+    hashes: dict[str, dict[str, str]],
+    folder: Path,
+    selection: dict | None = None,
 ) -> tuple[list[dict], pd.DataFrame | None]:
     """The rows with their ``baseline`` class, and ``baseline.csv`` (every class, the missing
     rows too, each with the baseline's value and error), written into the run folder and
-    returned; the rows unchanged and None without a baseline."""
+    returned; the rows unchanged and None without a baseline. ``selection``
+    (``run_selection``): its ``--engines`` labels (None: every engine) are the engines whose
+    baseline rows the run must have, and their sweep rows when it ``sweeps``."""
     if options.baseline_table is None:
         return rows, None
     sha = {name: entry["sha256"] for name, entry in hashes.items()}
-    classified, missing = classify(rows, options.baseline_table, sha)
+    selection = selection or {}
+    classified, missing = classify(
+        rows, options.baseline_table, sha, selection.get("engines"), selection.get("sweeps", True)
+    )
     before = {_key(r): r for r in options.baseline_table.to_dict("records")}
     comparison = pd.DataFrame(
         [_comparison(row, before.get(_key(row), {})) for row in [*classified, *missing]]
@@ -189,10 +199,13 @@ def _comparison(row: dict, before: dict) -> dict:
     }
 
 
-def write_ci_files(rows: list[dict], options: NightlyOptions) -> None:
-    """JUnit XML, when asked for."""
+def write_ci_files(
+    rows: list[dict], options: NightlyOptions, comparison: pd.DataFrame | None = None
+) -> None:
+    """JUnit XML, when asked for: the rows, and the baseline rows the run lacks (each a failure
+    of its case, ``missing_case_rows``)."""
     if options.junit is not None:
-        write_junit(rows, options.junit)
+        write_junit([*rows, *missing_case_rows(comparison)], options.junit)
 
 
 def record_history(folder: Path, options: NightlyOptions) -> str:

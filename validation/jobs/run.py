@@ -84,7 +84,7 @@ from validation.measure.metrics import Measurement
 from validation.measure.recording import kept_samples
 from validation.measure.runner import EngineRun, run_engine
 from validation.measure.states import Series
-from validation.nightly.baseline import exit_failed
+from validation.nightly.baseline import exit_failed, missing_note
 from validation.nightly.known import apply_known
 from validation.redact import shown_argv, shown_command, shown_url
 from validation.report.closed_form import expectation_records, trace_rows, traced
@@ -708,6 +708,9 @@ def _finish(
     _print_summary(rows, comparison, options.baseline)
     if summary_file is not None:
         write_atomically(summary_file, summary_markdown(rows, comparison))
+    lacked = missing_note(comparison)
+    if lacked:
+        print(lacked)
     total = len(plan.jobs) + len(_sweep_work(plan))
     journaled = f"{resumed} of {total} jobs from the journal" if resumed else ""
     written = f"{len(rows)} rows -> {printable(output.destination / RESULTS_FILE)}"
@@ -722,7 +725,7 @@ def _finish(
         print(clock.text(), file=sys.stderr)
     if note:  # the record is published, but the page a reader opens is not: never exit 0
         return EXIT_BAD_INPUT
-    return EXIT_FAILED if exit_failed(rows) else EXIT_OK
+    return EXIT_FAILED if exit_failed(rows, comparison) else EXIT_OK
 
 
 def _print_summary(rows: list[dict], comparison: object, baseline: object) -> None:
@@ -766,13 +769,15 @@ def _written(
     if resumed:
         total = len(plan.jobs) + len(_sweep_work(plan))
         provenance["resumed"] = {"jobs_from_journal": resumed, "jobs_run": total - resumed}
-    rows, comparison = against_baseline(rows, options, hashes, output.run_folder)
+    rows, comparison = against_baseline(
+        rows, options, hashes, output.run_folder, provenance["selection"]
+    )
     write_run(
         output.run_folder, rows, executed.series, executed.impacts, provenance, executed.traces
     )
     if executed.sweep_rows:
         write_table(executed.sweep_rows, output.run_folder / SWEEP_FILE)
-    write_ci_files(rows, options)
+    write_ci_files(rows, options, comparison)
     return rows, comparison
 
 

@@ -6,7 +6,10 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
 ``physval run --baseline FILE`` classifies every row of the new run:
 
 - ``scene_changed``: the scene file's hash differs (the numbers may move; not a regression);
-- ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run;
+- ``new``: the baseline has no such row; ``missing``: the baseline's row is not in the run
+  (a row of a scene the run ran, in an engine it asked for: with ``--engines`` the engines it
+  names, else every engine of the baseline, so an engine that reads ``not_installed`` or is
+  absent now leaves its rows missing; an engine left out of ``--engines`` is absent on purpose);
 - ``regressed`` / ``improved`` / ``changed`` / ``unchanged``: decided by the noise rule
   (``validation.measure.noise.classify_change``, the one rule of baseline, compare and history):
   the verdict got worse / better (passed -> failed, ok -> unstable), or the error moved beyond
@@ -18,8 +21,9 @@ the scene file's content hash, as CSV (reviewed in a pull request like code).
   judged on its pair (``comparator.judge_divergence``): one whose reference alone is off its
   closed forms is not judged, so it is never a failure, new or not, of the other engine.
 
-The run fails (exit 1) on a regression, a ``changed`` row or a *new failure*: a failing row
-(bad status, not a known finding) that the baseline does not have failing too.
+The run fails (exit 1) on a regression, a ``changed`` row, a ``missing`` row or a *new
+failure*: a failing row (bad status, not a known finding) that the baseline does not have
+failing too.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import math
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +46,9 @@ from validation.contract import (
     RUN_FAILURE_STATUSES,
     SIGNED_COLUMNS,
     SIGNED_ERROR_COLUMN,
+    SWEEP_CROSS_CHECK,
+    SWEEP_ERROR,
+    SWEEP_ORDER,
     VECTOR_ERROR_COLUMNS,
 )
 from validation.csv_safe import csv_text, restored
@@ -52,11 +60,16 @@ from validation.measure.noise import (
     classify_change,
     floor_for,
 )
+from validation.nightly.cases import MISSING
 from validation.nightly.known import FIXED, KNOWN, outcome_of
 from validation.report.read import ReportInputError, read_provenance, read_results
 
 KEY = ("scenario", "engine", "metric")
 """What identifies a row across runs."""
+
+SWEEP_ROWS = (SWEEP_ORDER, SWEEP_ERROR, SWEEP_CROSS_CHECK)
+"""How the metrics of a scene's sweep rows begin (``nightly_run.sweep_result_rows``): a run
+that did not sweep lacks them on purpose."""
 
 BASELINE_COLUMNS = (
     *KEY,
@@ -188,12 +201,26 @@ def classify_row(now: dict, before: dict | None, scene_sha256: str) -> str:
     return classify_change(was, reading(now, outcome_of(now)), floor)
 
 
+def _lacked_on_purpose(row: dict, asked: set[str] | None, swept: bool) -> bool:
+    """Whether a baseline row the run lacks was left out on purpose: its engine not among the
+    ``asked`` ones, or a sweep row of a run that did not sweep."""
+    if asked is not None and str(row["engine"]) not in asked:
+        return True
+    return not swept and str(row["metric"]).startswith(SWEEP_ROWS)
+
+
 def classify(
-    rows: list[dict], baseline: pd.DataFrame, scene_hashes: dict[str, str]
+    rows: list[dict],
+    baseline: pd.DataFrame,
+    scene_hashes: dict[str, str],
+    asked: Iterable[str] | None = None,
+    swept: bool = True,
 ) -> tuple[list[dict], list[dict]]:
     """The run's rows with a ``baseline`` class each, and the baseline's rows the run lacks
-    (class ``missing``) for the scenes the run ran. A moved divergence row whose reference
-    engine moved (and its own did not) reads ``reference_moved``."""
+    (class ``missing``) for the scenes the run ran, in the engines it ``asked`` for (the
+    ``--engines`` labels; None: every engine), sweep rows only when it ``swept``. A moved
+    divergence row whose reference engine moved (and its own did not) reads
+    ``reference_moved``."""
     index = {tuple(r[k] for k in KEY): r for r in baseline.to_dict("records")}
     classified = []
     for row in rows:
@@ -211,7 +238,12 @@ def classify(
         for row, change in zip(classified, attributed, strict=True)
     ]
     ran = {str(r["scenario"]) for r in rows}
-    missing = [{**r, "baseline": "missing"} for r in index.values() if r["scenario"] in ran]
+    wanted = None if asked is None else set(asked)
+    missing = [
+        {**r, "baseline": "missing"}
+        for r in index.values()
+        if r["scenario"] in ran and not _lacked_on_purpose(r, wanted, swept)
+    ]
     return classified, missing
 
 
@@ -223,9 +255,49 @@ def is_new_failure(row: dict) -> bool:
     return row.get("baseline", "new") != "unchanged"
 
 
-def exit_failed(rows: list[dict]) -> bool:
-    """Whether the run fails (exit 1): a regression or a ``changed`` row (``FAILS_A_RUN``), or
-    a new failure (module docstring). Without a baseline every failing row counts as new."""
+def missing_rows(comparison: pd.DataFrame | None) -> pd.DataFrame:
+    """The ``missing`` rows of a run's baseline comparison (``baseline.csv``); none without a
+    baseline."""
+    if comparison is None or comparison.empty:
+        return pd.DataFrame(columns=list(KEY))
+    return comparison[comparison["baseline"] == "missing"]
+
+
+def missing_case_rows(comparison: pd.DataFrame | None) -> list[dict]:
+    """The ``missing`` rows of a run's baseline comparison as result rows of their (scene,
+    engine) case, outcome ``missing`` (a failure of the case: ``cases.OUTCOME_KINDS``), for the
+    JUnit XML."""
+    return [
+        {
+            **{k: row[k] for k in KEY},
+            "outcome": MISSING,
+            "message": f"in the baseline ({row['baseline_outcome']}), not in this run",
+        }
+        for row in missing_rows(comparison).to_dict("records")
+    ]
+
+
+def missing_note(comparison: pd.DataFrame | None) -> str:
+    """One line naming the (scene, engine) pairs whose baseline rows the run lacks, with their
+    row counts (``missing against the baseline (fails the run; ...): drop · rapier (12 rows),
+    ...``); empty when none."""
+    missing = missing_rows(comparison)
+    if missing.empty:
+        return ""
+    counts = missing.groupby(["scenario", "engine"], sort=True).size()
+    named = ", ".join(f"{scene} · {engine} ({n} rows)" for (scene, engine), n in counts.items())
+    return (
+        f"missing against the baseline (fails the run; leave an engine out of --engines to "
+        f"run without it on purpose): {named}"
+    )
+
+
+def exit_failed(rows: list[dict], comparison: pd.DataFrame | None = None) -> bool:
+    """Whether the run fails (exit 1): a regression or a ``changed`` row (``FAILS_A_RUN``), a
+    new failure, or a row of the baseline ``comparison`` that is missing (module docstring).
+    Without a baseline every failing row counts as new."""
+    if not missing_rows(comparison).empty:
+        return True
     return any(row.get("baseline") in FAILS_A_RUN or is_new_failure(row) for row in rows)
 
 

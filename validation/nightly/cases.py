@@ -19,17 +19,21 @@ from validation.nightly.known import KNOWN, outcome_of
 FAILURE, ERROR, SKIPPED, PASSED = "failure", "error", "skipped", "passed"
 """A case's verdicts, in the words of JUnit XML (its elements) and pytest."""
 
+MISSING = "missing"
+"""The outcome of a baseline row the run lacks, as a row of its case (the baseline class)."""
+
 OUTCOME_KINDS: dict[str, str] = {
     "failed": FAILURE,
     "unstable": ERROR,
     "model_mismatch": ERROR,
     **dict.fromkeys(RUN_FAILURE_STATUSES, ERROR),
     KNOWN: SKIPPED,
+    MISSING: FAILURE,
 }
 """Row outcome -> what it makes of its case. An engine that could not run the scene (unstable,
 an exception, another model) is an error of the test, not a wrong answer; a known finding
-that still fails is skipped. Every other outcome (passed, no_tolerance, unsupported, fixed)
-passes."""
+that still fails is skipped; a baseline row the run lacks (``baseline.missing_case_rows``)
+fails. Every other outcome (passed, no_tolerance, unsupported, fixed) passes."""
 
 VERDICT_ORDER = (ERROR, FAILURE, SKIPPED)
 """The case's verdict is the first of these that one of its rows gives (an error hides a

@@ -1,8 +1,8 @@
 """Result rows as JUnit XML, the format CI dashboards read (Jenkins, GitLab, GitHub reporters).
 
 One ``<testcase>`` per (scene, engine spec): ``classname`` the scene, ``name`` the engine spec
-label, ``time`` the run's wall time. A case with failed checks carries one ``<failure>`` whose
-text has a line per failed row (metric, value, expected, error, tolerance, band, message); a
+label, ``time`` the run's wall time. A case with failed checks (or baseline rows the run
+lacks, outcome ``missing``) carries one ``<failure>`` whose text has a line per failed row (metric, value, expected, error, tolerance, band, message); a
 case whose engine was unstable, raised or built another model carries an ``<error>`` the same
 way; a case whose every bad row is a known finding is ``<skipped message="reason">``. Known rows
 of a case that also fails, and ``fixed`` rows (a known finding that now passes), are listed in
