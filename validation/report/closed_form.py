@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from validation.reference.newton_euler import reference_motion
 from validation.reference.rotation import quat_to_matrix
 from validation.report.palette import engine_style
 from validation.report.svgchart import Chart, Trace
@@ -114,35 +115,74 @@ def _quantity(trajectory, body: int, quantity: str) -> np.ndarray:
     return getattr(trajectory, quantity)[:, body]
 
 
+RESIDUAL_KINDS = frozenset(k for k, form in CLOSED_FORMS.items() if form.expected == "points")
+"""Expectation kinds drawn as a residual panel (``residual_chart``): a vector at a time, whose
+row has a signed error per component (``error_x``, ``error_y``, ``error_z``)."""
+
+RESIDUAL_QUANTITIES = frozenset(CLOSED_FORMS[kind].quantity for kind in RESIDUAL_KINDS)
+"""The traced quantities a residual panel draws minus their closed form."""
+
+CLOSED_FORM_SUFFIX = "-closed_form"
+"""trace.csv's quantity ``<quantity>-closed_form``: the traced quantity minus the scene's
+closed form (the DOP853 reference motion, ``newton_euler.reference_motion``) at the same
+times, kept where the scene has one (nothing can touch)."""
+
+
+def closed_form_motion(scene: Any, times: np.ndarray):
+    """The scene's reference motion at ``times`` (``reference_motion``), or None where it has
+    none: bodies that can touch (contacts have no closed form here), or no scene given."""
+    if scene is None or getattr(scene, "can_touch", True) or times.size == 0:
+        return None
+    return reference_motion(scene, times)
+
+
 def trace_rows(
-    scenario: str, engine: str, trajectory, bodies: list[str], wanted: list[tuple[str, str]]
+    scenario: str,
+    engine: str,
+    trajectory,
+    bodies: list[str],
+    wanted: list[tuple[str, str]],
+    scene: Any = None,
 ) -> pd.DataFrame:
     """The thin trace of a run (``TRACE_POINTS`` evenly spaced samples) of each wanted (body,
-    quantity): trace.csv's rows (``contract.TRACE_COLUMNS``)."""
+    quantity): trace.csv's rows (``contract.TRACE_COLUMNS``); with the compiled ``scene``,
+    also each quantity minus its closed form (``CLOSED_FORM_SUFFIX``) where the scene has one."""
     size = len(trajectory)
     if size == 0 or not wanted:
         return pd.DataFrame()
     keep = np.unique(np.linspace(0, size - 1, min(size, TRACE_POINTS)).astype(int))
+    kept = trajectory.take(keep)
+    reference = closed_form_motion(scene, np.asarray(kept.t, dtype=float))
     frames = []
     for body, quantity in wanted:
         if body not in bodies:
             continue
-        values = _quantity(trajectory.take(keep), bodies.index(body), quantity)
-        frames.append(
-            pd.DataFrame(
-                {
-                    "scenario": scenario,
-                    "engine": engine,
-                    "body": body,
-                    "quantity": quantity,
-                    "t": trajectory.t[keep],
-                    "x": values[:, 0],
-                    "y": values[:, 1],
-                    "z": values[:, 2],
-                }
+        index = bodies.index(body)
+        values = _quantity(kept, index, quantity)
+        frames.append(_trace_frame(scenario, engine, body, quantity, kept.t, values))
+        if reference is not None and quantity in RESIDUAL_QUANTITIES:
+            residual = values - _quantity(reference, index, quantity)
+            frames.append(
+                _trace_frame(
+                    scenario, engine, body, quantity + CLOSED_FORM_SUFFIX, kept.t, residual
+                )
             )
-        )
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _trace_frame(scenario, engine, body, quantity, t, values) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "scenario": scenario,
+            "engine": engine,
+            "body": body,
+            "quantity": quantity,
+            "t": t,
+            "x": values[:, 0],
+            "y": values[:, 1],
+            "z": values[:, 2],
+        }
+    )
 
 
 # --- the report's side: read back and draw -------------------------------------------------
@@ -273,18 +313,160 @@ def _level(value: float, t_end: float, label: str) -> Trace:
     )
 
 
+ERROR_COLUMNS = ("error_x", "error_y", "error_z")
+"""results.csv's signed world-frame error of a vector row: measured minus closed form."""
+
+BAND_COLOUR = "#2e9d4a"
+"""The tolerance band's legend sample (the strip itself is ``svgchart.BAND_FILL``)."""
+
+
+def _row_errors(rows: pd.DataFrame, metric: str, engines: list[str]) -> dict[str, np.ndarray]:
+    """Engine -> the signed error vector of its ``metric`` row, for engines whose row has one."""
+    mine = rows[rows["metric"] == metric]
+    found = {}
+    for engine in engines:
+        row = mine[mine["engine"] == engine]
+        if row.empty or not all(c in row for c in ERROR_COLUMNS):
+            continue
+        error = pd.to_numeric(row.iloc[0][list(ERROR_COLUMNS)], errors="coerce").to_numpy(float)
+        if np.isfinite(error).any():
+            found[engine] = error
+    return found
+
+
+def _worst_component(record: dict, errors: dict[str, np.ndarray]) -> str:
+    """The component where the engines' errors are largest; where every error is zero, the
+    first the closed form sets (``_component``)."""
+    with np.errstate(invalid="ignore"):
+        worst = np.nanmax(np.abs(np.vstack(list(errors.values()))), axis=0)
+    worst = np.where(np.isfinite(worst), worst, 0.0)
+    if worst.max() > 0.0:
+        return "xyz"[int(np.argmax(worst))]
+    return (_component(record, CLOSED_FORMS[record["kind"]]) or ["z"])[0]
+
+
+def _tolerance(rows: pd.DataFrame, metric: str) -> float | None:
+    """The widest tolerance plus band of the ``metric`` rows (the band the check allows); None
+    when no row has a tolerance."""
+    mine = rows[rows["metric"] == metric]
+    tolerance = pd.to_numeric(mine.get("tolerance"), errors="coerce")
+    band = pd.to_numeric(mine.get("band", pd.Series(0.0, index=mine.index)), errors="coerce")
+    allowed = (tolerance + band.fillna(0.0)).dropna()
+    return float(allowed.max()) if not allowed.empty else None
+
+
+def residual_chart(
+    record: dict, quantity: str, lines: dict, rows: pd.DataFrame, engines: list[str]
+) -> Chart | None:
+    """One expectation's panel: measured minus closed form at its time (a marker per engine,
+    the row's signed error in the component where it is largest), the same component of each
+    engine's trace minus the closed form over time where the scene has one, and the band
+    ±(tolerance + band) where the row passes. A failure at 200x its tolerance is a marker
+    200 band-widths from zero."""
+    if not isinstance(record.get("metric"), str):
+        return None
+    errors = _row_errors(rows, record["metric"], engines)
+    if not errors:
+        return None
+    component = _worst_component(record, errors)
+    index = "xyz".index(component)
+    traces = _closed_form_residuals(record["body"], quantity, component, lines, engines)
+    for engine, error in errors.items():
+        traces.append(
+            Trace(
+                f"{engine}: measured − closed form",
+                np.array([float(record["time"])]),
+                np.array([error[index]]),
+                engine_style(engine).colour,
+                line=False,
+                marker="o",
+                legend=False,
+            )
+        )
+    allowed = _tolerance(rows, record["metric"])
+    traces += _residual_keys(allowed is not None)
+    pattern, unit = QUANTITY_WORDS[quantity]
+    return Chart(
+        title=f"{record['metric']}: {pattern.format(c=component)} − closed form",
+        xlabel="t (s)",
+        ylabel=unit,
+        traces=traces,
+        band=None if allowed is None else (-allowed, allowed),
+    )
+
+
+def _residual_keys(banded: bool) -> list[Trace]:
+    """Legend-only traces (no points) of a residual panel: the row's marker and the band."""
+    empty = np.zeros(0)
+    keys = [
+        Trace(
+            "measured − closed form (the row)",
+            empty,
+            empty,
+            EXPECTED_COLOUR,
+            line=False,
+            marker="o",
+        )
+    ]
+    if banded:
+        keys.append(Trace("± (tolerance + band): passes inside", empty, empty, BAND_COLOUR))
+    return keys
+
+
+def _closed_form_residuals(
+    body: str, quantity: str, component: str, lines: dict, engines: list[str]
+) -> list[Trace]:
+    """Each engine's traced ``component`` minus its closed form over time (trace.csv's
+    ``CLOSED_FORM_SUFFIX`` quantities, where the scene has a closed form)."""
+    found = []
+    for engine in engines:
+        line = lines.get((body, quantity + CLOSED_FORM_SUFFIX, engine))
+        if line is None:
+            continue
+        line = line.sort_values("t", kind="stable")
+        style = engine_style(engine)
+        found.append(
+            Trace(
+                engine,
+                line["t"].to_numpy(float),
+                line[component].to_numpy(float),
+                style.colour,
+                style.dash,
+            )
+        )
+    return found
+
+
 def closed_form_charts(
-    scene: str, trace: pd.DataFrame | None, expectations: list[dict], engines: list[str]
+    scene: str,
+    trace: pd.DataFrame | None,
+    expectations: list[dict],
+    engines: list[str],
+    rows: pd.DataFrame | None = None,
 ) -> tuple[list[Chart], int]:
-    """The scene's closed-form charts (at most ``MAX_CHARTS``) and how many were left out: each
-    engine's traced quantity over time in its colour, the closed form in black."""
-    if trace is None or not expectations:
+    """The scene's closed-form charts (at most ``MAX_CHARTS``) and how many were left out: one
+    residual panel per expectation at a time (``residual_chart``, from the scene's ``rows``),
+    then each engine's traced quantity over time for the other kinds (apex heights, levels
+    after an impact, flips), in its colour, the closed form in black."""
+    if not expectations:
         return [], 0
-    mine = trace[trace["scenario"] == scene]
-    lines = dict(tuple(mine.groupby(["body", "quantity", "engine"], sort=False)))
-    charts = []
+    mine = trace[trace["scenario"] == scene] if trace is not None else pd.DataFrame()
+    lines = (
+        dict(tuple(mine.groupby(["body", "quantity", "engine"], sort=False))) if len(mine) else {}
+    )
+    charts, absolute = [], []
+    for record in expectations:
+        chart = None
+        if rows is not None and record["kind"] in RESIDUAL_KINDS:
+            quantity = CLOSED_FORMS[record["kind"]].quantity
+            chart = residual_chart(record, quantity, lines, rows, engines)
+        if chart is None:
+            absolute.append(record)
+        else:
+            charts.append(chart)
+    panels, expectations = len(charts), absolute
     groups = _groups(expectations)
-    for (body, quantity, component), records in list(groups.items())[:MAX_CHARTS]:
+    for (body, quantity, component), records in groups.items():
         found = [(e, lines[body, quantity, e]) for e in engines if (body, quantity, e) in lines]
         if not found:
             continue
@@ -305,4 +487,5 @@ def closed_form_charts(
                 traces=[*traces, *_expected_traces(records, component, t_end)],
             )
         )
-    return charts, max(0, len(groups) - MAX_CHARTS)
+    total = panels + len(groups)
+    return charts[:MAX_CHARTS], max(0, total - MAX_CHARTS)
