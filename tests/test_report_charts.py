@@ -16,10 +16,11 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from report_fixtures import ENGINES, SCENES, write_synthetic_run
+from test_report import chromium, requires_chromium
 
-from tests.report_fixtures import ENGINES, SCENES, write_synthetic_run
-from tests.test_report import chromium, requires_chromium
 from validation.report import render
+from validation.report.svgchart import Chart, Trace, figure_html
 
 BOUNCE = SCENES[0]
 MINI, MUJOCO = ENGINES[:2]
@@ -92,6 +93,25 @@ MEASURE = """
 })();
 </script>
 """.replace("SLACK", str(SLACK_PX))
+
+
+def _hard_charts() -> str:
+    """Charts whose tick labels are long: 10-character y labels (a large value varying in its
+    first decimal), 8-character x labels with the last tick on the plot's right edge, a log
+    axis."""
+    t = 1000.0 + np.linspace(0.0, 0.00962, 50)  # padded by 4 %: the axis ends on 1000.01
+    cases = [
+        ("large, varying in a decimal", t, -1234567.25 + 0.5 * np.sin(400 * t)),
+        ("small and negative", t, -1.2345e-4 * (1 + np.cos(400 * t))),
+        ("log speeds", np.logspace(-5, 3, 50), np.linspace(-0.001, 0.5, 50)),
+    ]
+    charts = [
+        Chart(
+            title, "t (s)", "unit", [Trace("line", x, y, "#0072B2")], xlog=title.startswith("log")
+        )
+        for title, x, y in cases
+    ]
+    return '<div class="charts">' + "".join(figure_html(c) for c in charts) + "</div>"
 
 
 def _fourteen_engine_run(tmp_path):
@@ -185,7 +205,7 @@ def test_a_failure_at_200x_its_tolerance_is_outside_its_band(run_dir):
 def _layout(run_dir, tmp_path, width: int) -> dict:
     page = tmp_path / f"measure-{width}.html"
     html = (run_dir / "report.html").read_text()
-    page.write_text(html.replace("</body>", MEASURE + "</body>"))
+    page.write_text(html.replace("</body>", _hard_charts() + MEASURE + "</body>"))
     dom, requests = chromium(
         tmp_path,
         f"layout-{width}",
