@@ -48,6 +48,7 @@ QUANTITY_WORDS = {
     "vel": ("v_{c}(t)", "m/s"),
     "ang_vel": ("ω_{c}(t)", "rad/s"),
     "body_ang_vel": ("body-frame ω_{c}(t)", "rad/s"),
+    "tilt": ("tilt of the {c} axis", "rad"),
 }
 """Trace quantity -> the chart's title pattern and unit (``{c}`` the component)."""
 
@@ -74,8 +75,9 @@ CLOSED_FORMS: dict[str, ClosedForm] = {
     "angular_velocity_after_impact": ClosedForm("ang_vel", "after_impact"),
     "flip_times": ClosedForm("body_ang_vel", "times", "axis"),
     "flips": ClosedForm("body_ang_vel", "zero", "axis"),
+    "orientation_at": ClosedForm("tilt", "orientation"),
 }
-"""Expectation kind -> how it is charted. Kinds not listed (orientations, precession rates,
+"""Expectation kind -> how it is charted. Kinds not listed (precession rates,
 energies, impact times, and a joint's ``joint_position_at`` and ``period``: their subject is a
 joint, not a body) have no time trace that shows more than their row."""
 
@@ -105,19 +107,44 @@ def traced(expectations: list[Any]) -> list[tuple[str, str]]:
     """(body, quantity) pairs the trace keeps for a scene's expectations: those of the charts
     a card draws (the first ``MAX_CHARTS``), in order, once each."""
     charted = list(_groups(expectation_records(expectations)))[:MAX_CHARTS]
-    return list(dict.fromkeys((body, quantity) for body, quantity, _ in charted))
+    pairs = [(body, quantity) for body, quantity, _ in charted]
+    pairs += [(body, "tilt") for body, quantity in pairs if quantity in ROTATION_QUANTITIES]
+    return list(dict.fromkeys(pairs))
+
+
+ROTATION_QUANTITIES = ("ang_vel", "body_ang_vel", "tilt")
+"""Traced quantities of a body's rotation: where one is charted, so is the body's tilt (the
+angle of each body axis from its initial direction: a box toppling reads 0 to 90°, where its
+ω is a burst of noise at the impact)."""
+
+
+def _axes(trajectory, body: int) -> np.ndarray:
+    """(samples, 3, 3): the body's axes in the world frame (columns of its rotation)."""
+    return quat_to_matrix(trajectory.quat[:, body])
+
+
+def _axis_angles(axes: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """(samples, 3) rad: the angle between each body axis of ``axes`` and of ``others``."""
+    return np.arccos(np.clip(np.einsum("sji,sji->si", axes, others), -1.0, 1.0))
 
 
 def _quantity(trajectory, body: int, quantity: str) -> np.ndarray:
+    if quantity == "tilt":
+        axes = _axes(trajectory, body)
+        return _axis_angles(axes, np.broadcast_to(axes[:1], axes.shape))
     if quantity == "body_ang_vel":
         rot = quat_to_matrix(trajectory.quat[:, body])
         return np.einsum("sji,sj->si", rot, trajectory.ang_vel[:, body])
     return getattr(trajectory, quantity)[:, body]
 
 
-RESIDUAL_KINDS = frozenset(k for k, form in CLOSED_FORMS.items() if form.expected == "points")
+TIMED = ("points", "orientation")
+"""``ClosedForm.expected`` of the kinds with a ``time``."""
+
+RESIDUAL_KINDS = frozenset(k for k, form in CLOSED_FORMS.items() if form.expected in TIMED)
 """Expectation kinds drawn as a residual panel (``residual_chart``): a vector at a time, whose
-row has a signed error per component (``error_x``, ``error_y``, ``error_z``)."""
+row has a signed error per component (``error_x``, ``error_y``, ``error_z``), or an
+orientation, whose row's error is the angle to the closed form."""
 
 RESIDUAL_QUANTITIES = frozenset(CLOSED_FORMS[kind].quantity for kind in RESIDUAL_KINDS)
 """The traced quantities a residual panel draws minus their closed form."""
@@ -161,13 +188,21 @@ def trace_rows(
         values = _quantity(kept, index, quantity)
         frames.append(_trace_frame(scenario, engine, body, quantity, kept.t, values))
         if reference is not None and quantity in RESIDUAL_QUANTITIES:
-            residual = values - _quantity(reference, index, quantity)
+            residual = _minus_closed_form(kept, reference, index, quantity, values)
             frames.append(
                 _trace_frame(
                     scenario, engine, body, quantity + CLOSED_FORM_SUFFIX, kept.t, residual
                 )
             )
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _minus_closed_form(kept, reference, body: int, quantity: str, values) -> np.ndarray:
+    """The traced quantity minus its closed form: a difference, or for the tilt the angle of
+    each body axis from where the closed form puts it (rad, never negative)."""
+    if quantity == "tilt":
+        return _axis_angles(_axes(kept, body), _axes(reference, body))
+    return values - _quantity(reference, body, quantity)
 
 
 def _trace_frame(scenario, engine, body, quantity, t, values) -> pd.DataFrame:
@@ -198,9 +233,14 @@ VALUE_SHAPES = {
     "levels": "list",
     "times": "list",
     "zero": "number",
+    "orientation": "quaternion",
 }
 """What an expectation's ``value`` is, by how it is drawn (``ClosedForm.expected``): a vector
-of three numbers, a non-empty list of numbers, or one number."""
+of three numbers, a non-empty list of numbers, one number, or a quaternion (four)."""
+
+
+SIZES = {"vector": 3, "quaternion": 4}
+"""Numbers in a value of a fixed size (``VALUE_SHAPES``)."""
 
 
 def _valid(record: Any) -> bool:
@@ -212,12 +252,12 @@ def _valid(record: Any) -> bool:
     form = CLOSED_FORMS[record["kind"]]
     if not isinstance(record.get("body"), str):
         return False
-    if form.expected == "points" and not _finite_number(record.get("time")):
+    if form.expected in TIMED and not _finite_number(record.get("time")):
         return False
     value, shape = record.get("value"), VALUE_SHAPES[form.expected]
     if shape == "number":
         values = [value]
-    elif isinstance(value, list) and value and (shape == "list" or len(value) == 3):
+    elif isinstance(value, list) and value and (shape == "list" or len(value) == SIZES[shape]):
         values = value
     else:
         return False
@@ -365,24 +405,15 @@ def residual_chart(
     200 band-widths from zero."""
     if not isinstance(record.get("metric"), str):
         return None
+    if quantity == "tilt":
+        return _orientation_chart(record, lines, rows, engines)
     errors = _row_errors(rows, record["metric"], engines)
     if not errors:
         return None
     component = _worst_component(record, errors)
     index = "xyz".index(component)
     traces = _closed_form_residuals(record["body"], quantity, component, lines, engines)
-    for engine, error in errors.items():
-        traces.append(
-            Trace(
-                f"{engine}: measured − closed form",
-                np.array([float(record["time"])]),
-                np.array([error[index]]),
-                engine_style(engine).colour,
-                line=False,
-                marker="o",
-                legend=False,
-            )
-        )
+    traces += [_row_marker(e, float(record["time"]), error[index]) for e, error in errors.items()]
     allowed = _tolerance(rows, record["metric"])
     traces += _residual_keys(allowed is not None)
     pattern, unit = QUANTITY_WORDS[quantity]
@@ -393,6 +424,84 @@ def residual_chart(
         traces=traces,
         band=None if allowed is None else (-allowed, allowed),
     )
+
+
+def _orientation_chart(
+    record: dict, lines: dict, rows: pd.DataFrame, engines: list[str]
+) -> Chart | None:
+    """An orientation expectation's panel: the row's angle to the closed form at its time
+    (a marker per engine), each engine's largest body-axis angle to the closed form over time
+    (where the scene has one), and the band [0, tolerance + band]."""
+    mine = rows[rows["metric"] == record["metric"]]
+    angles = {
+        engine: float(error)
+        for engine, error in zip(
+            mine["engine"], pd.to_numeric(mine["error"], errors="coerce"), strict=True
+        )
+        if engine in engines and math.isfinite(error)
+    }
+    if not angles:
+        return None
+    traces = []
+    for engine in engines:
+        line = lines.get((record["body"], "tilt" + CLOSED_FORM_SUFFIX, engine))
+        if line is None:
+            continue
+        line = line.sort_values("t", kind="stable")
+        style = engine_style(engine)
+        worst_axis = line[["x", "y", "z"]].to_numpy(float).max(axis=1)
+        traces.append(
+            Trace(engine, line["t"].to_numpy(float), worst_axis, style.colour, style.dash)
+        )
+    traces += [
+        _row_marker(engine, float(record["time"]), angle) for engine, angle in angles.items()
+    ]
+    allowed = _tolerance(rows, record["metric"])
+    return Chart(
+        title=f"{record['metric']}: axis angle to the closed form",
+        xlabel="t (s)",
+        ylabel="rad",
+        traces=[*traces, *_residual_keys(allowed is not None)],
+        band=None if allowed is None else (0.0, allowed),
+    )
+
+
+def _row_marker(engine: str, time: float, error: float) -> Trace:
+    """The row's measured minus closed form at the expectation's time, in the engine's colour."""
+    return Trace(
+        f"{engine}: measured − closed form",
+        np.array([time]),
+        np.array([error]),
+        engine_style(engine).colour,
+        line=False,
+        marker="o",
+        legend=False,
+    )
+
+
+def tilt_chart(body: str, lines: dict, engines: list[str]) -> Chart | None:
+    """The body's tilt over time, one line per engine: the angle of its body axis that turns
+    most (over the engines) from its initial direction."""
+    found = [(e, lines[body, "tilt", e]) for e in engines if (body, "tilt", e) in lines]
+    if not found:
+        return None
+    turned = np.nanmax([line[["x", "y", "z"]].to_numpy(float).max(axis=0) for _, line in found], 0)
+    component = "xyz"[int(np.argmax(np.where(np.isfinite(turned), turned, -1.0)))]
+    traces = []
+    for engine, line in found:
+        line = line.sort_values("t", kind="stable")
+        style = engine_style(engine)
+        traces.append(
+            Trace(
+                engine,
+                line["t"].to_numpy(float),
+                line[component].to_numpy(float),
+                style.colour,
+                style.dash,
+            )
+        )
+    pattern, unit = QUANTITY_WORDS["tilt"]
+    return Chart(f"{pattern.format(c=component)} of {body} from its start", "t (s)", unit, traces)
 
 
 def _residual_keys(banded: bool) -> list[Trace]:
@@ -409,7 +518,7 @@ def _residual_keys(banded: bool) -> list[Trace]:
         )
     ]
     if banded:
-        keys.append(Trace("± (tolerance + band): passes inside", empty, empty, BAND_COLOUR))
+        keys.append(Trace("tolerance + band: passes inside", empty, empty, BAND_COLOUR))
     return keys
 
 
@@ -454,7 +563,7 @@ def closed_form_charts(
     lines = (
         dict(tuple(mine.groupby(["body", "quantity", "engine"], sort=False))) if len(mine) else {}
     )
-    charts, absolute = [], []
+    charts, absolute, every = [], [], expectations
     for record in expectations:
         chart = None
         if rows is not None and record["kind"] in RESIDUAL_KINDS:
@@ -465,6 +574,9 @@ def closed_form_charts(
         else:
             charts.append(chart)
     panels, expectations = len(charts), absolute
+    rotating = dict.fromkeys(b for b, q, _ in _groups(every) if q in ROTATION_QUANTITIES)
+    tilts = [chart for body in rotating if (chart := tilt_chart(body, lines, engines))]
+    charts += tilts
     groups = _groups(expectations)
     for (body, quantity, component), records in groups.items():
         found = [(e, lines[body, quantity, e]) for e in engines if (body, quantity, e) in lines]
@@ -487,5 +599,5 @@ def closed_form_charts(
                 traces=[*traces, *_expected_traces(records, component, t_end)],
             )
         )
-    total = panels + len(groups)
+    total = panels + len(tilts) + len(groups)
     return charts[:MAX_CHARTS], max(0, total - MAX_CHARTS)

@@ -370,6 +370,19 @@ def _trace_svg(trace: Trace, sx: _Scale, sy: _Scale) -> str:
     return "".join(parts)
 
 
+BOLD_CHAR_PX = 0.66 * FONT_PX
+"""Upper bound of a bold title character's width (px), as ``CHAR_PX``."""
+
+
+def _fit(title: str, width: int) -> str:
+    """A title longer than the chart is wide is squeezed to fit (SVG ``textLength``) rather
+    than clipped by the SVG's box."""
+    room = width - 2 * MARGIN["right"]
+    if len(title) * BOLD_CHAR_PX <= room:
+        return ""
+    return f' textLength="{room}" lengthAdjust="spacingAndGlyphs"'
+
+
 def left_margin(ylabels: list[str], titled: bool) -> int:
     """px left of the plot area: the longest y tick label (``CHAR_PX`` a character) and the
     rotated axis title, at least ``MARGIN["left"]``."""
@@ -435,7 +448,7 @@ def render_chart(chart: Chart, width: int = WIDTH, height: int = HEIGHT) -> str:
         f'<path d="{"".join(grid)}" stroke="{GRID}" stroke-width="0.8"/>'
         f'<rect x="{left}" y="{top}" width="{right - left}" height="{bottom - top}" fill="none" stroke="{AXIS}"/>'
         f'<g class="ticks">{"".join(labels)}</g>'
-        f'<text x="{width / 2:.0f}" y="13" text-anchor="middle" font-weight="600">{escape(chart.title)}</text>'
+        f'<text x="{width / 2:.0f}" y="13" text-anchor="middle" font-weight="600"{_fit(chart.title, width)}>{escape(chart.title)}</text>'
         f'<text x="{(left + right) / 2:.0f}" y="{height - 4}" text-anchor="middle">{escape(chart.xlabel)}</text>'
         + (
             f'<text transform="translate(11 {(top + bottom) / 2:.0f}) rotate(-90)" text-anchor="middle">{escape(chart.ylabel)}</text>'
