@@ -19,7 +19,9 @@ import pytest
 from report_fixtures import ENGINES, SCENES, write_synthetic_run
 from test_report import chromium, requires_chromium
 
+from validation.engines.base import Trajectory
 from validation.report import render
+from validation.report.closed_form import trace_rows
 from validation.report.svgchart import Chart, Trace, figure_html
 
 BOUNCE = SCENES[0]
@@ -250,3 +252,23 @@ def test_the_report_fits_the_window_and_its_charts_keep_their_labels(run_dir, tm
         (run_dir / "report.html").as_uri(),
     )
     assert shot.read_bytes().startswith(b"\x89PNG")
+
+
+def _turning_about_x(rate: float, end: float) -> Trajectory:
+    """One body turning about the world x axis at ``rate`` rad/s from the identity."""
+    t = np.linspace(0.0, end, 301)
+    half = rate * t / 2
+    quat = np.stack([np.cos(half), np.sin(half), 0 * t, 0 * t], axis=-1)[:, None, :]
+    zeros = np.zeros((t.size, 1, 3))
+    return Trajectory(t, zeros, quat, zeros, np.tile([rate, 0.0, 0.0], (t.size, 1, 1)))
+
+
+def test_the_tilt_is_each_body_axis_angle_from_its_start():
+    """A body turning about x: its y and z axes tilt by the angle turned (to π/2 at the end),
+    its x axis not at all; without a closed form no residual rows are written."""
+    frame = trace_rows("s", "mini", _turning_about_x(1.0, np.pi / 2), ["box"], [("box", "tilt")])
+    assert set(frame["quantity"]) == {"tilt"}
+    np.testing.assert_allclose(frame["x"], 0.0, atol=1e-7)
+    np.testing.assert_allclose(frame["y"], frame["t"], atol=1e-7)
+    np.testing.assert_allclose(frame["z"], frame["t"], atol=1e-7)
+    assert frame["y"].iloc[-1] == pytest.approx(np.pi / 2)
