@@ -444,17 +444,7 @@ def _orientation_chart(
     }
     if not angles:
         return None
-    traces = []
-    for engine in engines:
-        line = lines.get((record["body"], "tilt" + CLOSED_FORM_SUFFIX, engine))
-        if line is None:
-            continue
-        line = line.sort_values("t", kind="stable")
-        style = engine_style(engine)
-        worst_axis = line[["x", "y", "z"]].to_numpy(float).max(axis=1)
-        traces.append(
-            Trace(engine, line["t"].to_numpy(float), worst_axis, style.colour, style.dash)
-        )
+    traces = engine_lines(lines, record["body"], "tilt" + CLOSED_FORM_SUFFIX, engines, _largest)
     traces += [
         _row_marker(engine, float(record["time"]), angle) for engine, angle in angles.items()
     ]
@@ -489,19 +479,7 @@ def tilt_chart(body: str, lines: dict, engines: list[str]) -> Chart | None:
         return None
     turned = np.nanmax([line[["x", "y", "z"]].to_numpy(float).max(axis=0) for _, line in found], 0)
     component = "xyz"[int(np.argmax(np.where(np.isfinite(turned), turned, -1.0)))]
-    traces = []
-    for engine, line in found:
-        line = line.sort_values("t", kind="stable")
-        style = engine_style(engine)
-        traces.append(
-            Trace(
-                engine,
-                line["t"].to_numpy(float),
-                line[component].to_numpy(float),
-                style.colour,
-                style.dash,
-            )
-        )
+    traces = engine_lines(lines, body, "tilt", engines, lambda line: line[component])
     pattern, unit = QUANTITY_WORDS["tilt"]
     return Chart(f"{pattern.format(c=component)} of {body} from its start", "t (s)", unit, traces)
 
@@ -529,22 +507,27 @@ def _closed_form_residuals(
 ) -> list[Trace]:
     """Each engine's traced ``component`` minus its closed form over time (trace.csv's
     ``CLOSED_FORM_SUFFIX`` quantities, where the scene has a closed form)."""
+    quantity += CLOSED_FORM_SUFFIX
+    return engine_lines(lines, body, quantity, engines, lambda line: line[component])
+
+
+def _largest(line: pd.DataFrame) -> pd.Series:
+    """The largest of a line's three axis angles at each time."""
+    return line[["x", "y", "z"]].max(axis=1)
+
+
+def engine_lines(lines: dict, body: str, quantity: str, engines: list[str], pick) -> list[Trace]:
+    """One line per engine with a trace of (``body``, ``quantity``): ``pick(frame)`` over time,
+    in the engine's colour and dash."""
     found = []
     for engine in engines:
-        line = lines.get((body, quantity + CLOSED_FORM_SUFFIX, engine))
+        line = lines.get((body, quantity, engine))
         if line is None:
             continue
         line = line.sort_values("t", kind="stable")
         style = engine_style(engine)
-        found.append(
-            Trace(
-                engine,
-                line["t"].to_numpy(float),
-                line[component].to_numpy(float),
-                style.colour,
-                style.dash,
-            )
-        )
+        values = pick(line).to_numpy(float)
+        found.append(Trace(engine, line["t"].to_numpy(float), values, style.colour, style.dash))
     return found
 
 
