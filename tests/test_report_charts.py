@@ -20,9 +20,12 @@ from report_fixtures import ENGINES, SCENES, write_synthetic_run
 from test_report import chromium, requires_chromium
 
 from validation.engines.base import Trajectory
+from validation.reference.newton_euler import reference_motion
 from validation.report import render
-from validation.report.closed_form import trace_rows
+from validation.report.closed_form import CLOSED_FORM_SUFFIX, trace_rows, traced
 from validation.report.svgchart import Chart, Trace, figure_html
+from validation.scenario.compiled import compile_scene
+from validation.scenario.load import load_scenario
 
 BOUNCE = SCENES[0]
 MINI, MUJOCO = ENGINES[:2]
@@ -272,3 +275,21 @@ def test_the_tilt_is_each_body_axis_angle_from_its_start():
     np.testing.assert_allclose(frame["y"], frame["t"], atol=1e-7)
     np.testing.assert_allclose(frame["z"], frame["t"], atol=1e-7)
     assert frame["y"].iloc[-1] == pytest.approx(np.pi / 2)
+
+
+def test_a_run_on_its_closed_form_traces_zero_residuals():
+    """trace.csv's residuals of a scene with a closed form over time (nothing touches): a
+    trajectory that is the closed form itself traces zeros for every residual quantity the
+    scene's panels draw (position, ω and the orientation's axis angles), none for the rest."""
+    scene = compile_scene(load_scenario("scenarios/rotation/spin_between_steps.yaml"))
+    motion = reference_motion(scene, np.linspace(0.0, 1.0, 200))
+    exact = Trajectory(motion.t, motion.pos, motion.quat, motion.vel, motion.ang_vel)
+    bodies = [body.name for body in scene.scenario.bodies]
+    frame = trace_rows(scene.name, "mini", exact, bodies, traced(scene.scenario.expect), scene)
+    residuals = frame[frame["quantity"].str.endswith(CLOSED_FORM_SUFFIX)]
+    assert set(residuals["quantity"]) == {
+        "pos-closed_form",
+        "ang_vel-closed_form",
+        "tilt-closed_form",
+    }
+    np.testing.assert_allclose(residuals[["x", "y", "z"]].to_numpy(float), 0.0, atol=1e-6)

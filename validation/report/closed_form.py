@@ -148,8 +148,16 @@ RESIDUAL_KINDS = frozenset(k for k, form in CLOSED_FORMS.items() if form.expecte
 row has a signed error per component (``error_x``, ``error_y``, ``error_z``), or an
 orientation, whose row's error is the angle to the closed form."""
 
-RESIDUAL_QUANTITIES = frozenset(CLOSED_FORMS[kind].quantity for kind in RESIDUAL_KINDS)
-"""The traced quantities a residual panel draws minus their closed form."""
+
+def residual_pairs(expectations: list[Any]) -> set[tuple[str, str]]:
+    """(body, quantity) pairs a residual panel draws minus their closed form."""
+    records = expectation_records(expectations)
+    return {
+        (r["body"], CLOSED_FORMS[r["kind"]].quantity)
+        for r in records
+        if r["kind"] in RESIDUAL_KINDS
+    }
+
 
 CLOSED_FORM_SUFFIX = "-closed_form"
 """trace.csv's quantity ``<quantity>-closed_form``: the traced quantity minus the scene's
@@ -182,6 +190,7 @@ def trace_rows(
     keep = np.unique(np.linspace(0, size - 1, min(size, TRACE_POINTS)).astype(int))
     kept = trajectory.take(keep)
     reference = closed_form_motion(scene, np.asarray(kept.t, dtype=float))
+    drawn = residual_pairs(scene.scenario.expect) if reference is not None else set()
     frames = []
     for body, quantity in wanted:
         if body not in bodies:
@@ -189,7 +198,7 @@ def trace_rows(
         index = bodies.index(body)
         values = _quantity(kept, index, quantity)
         frames.append(_trace_frame(scenario, engine, body, quantity, kept.t, values))
-        if reference is not None and quantity in RESIDUAL_QUANTITIES:
+        if (body, quantity) in drawn:
             residual = _minus_closed_form(kept, reference, index, quantity, values)
             frames.append(
                 _trace_frame(
