@@ -34,7 +34,7 @@ width); 27 ms apart on a 4-s scene, so an apex drawn from them is within g·(13 
 of the sampled one (the row's message gives the measured apexes exactly). The library's
 trace.csv: 382 traces, 57,000 rows, about 3.8 MB (its series.csv: 19.6 MB), measured before
 the tilt and the closed-form residuals were traced: with them the rotation folder's trace.csv
-went from 9,300 to 28,200 rows (2.3 MB), a contact scene's gains only the tilt."""
+went from 9,300 to 24,600 rows (1.95 MB), a contact scene's gains only the tilt."""
 
 MAX_CHARTS = 6
 """Closed-form charts per scene card (two rows of three); the rest are counted in a note."""
