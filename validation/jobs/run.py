@@ -194,7 +194,7 @@ def _trace(scene: CompiledScene, engine: str, trajectory: Trajectory) -> dict[st
     columns of plain data (text lists, float arrays), so a journal record can hold it."""
     bodies = [body.name for body in scene.scenario.bodies]
     wanted = traced(scene.scenario.expect)
-    frame = trace_rows(scene.name, engine, trajectory, bodies, wanted)
+    frame = trace_rows(scene.name, engine, trajectory, bodies, wanted, scene)
     if frame.empty:
         return None
     return {

@@ -512,7 +512,7 @@ def build_scene(
     charts = []
     scene_engines = [e for e in engines if e in set(rows["engine"])]
     expectations = read_expectations(run.provenance, scene, run.warnings)
-    closed, left_out = closed_form_charts(scene, run.trace, expectations, scene_engines)
+    closed, left_out = closed_form_charts(scene, run.trace, expectations, scene_engines, rows)
     charts += closed
     if left_out:
         notes.append(f"{left_out} more closed-form charts not drawn (the rows list every check)")

@@ -71,6 +71,18 @@ near 1e100."""
 GRID, AXIS, TEXT = "#e6e6e6", "#888888", "#333333"
 """Grid lines, the plot's frame, and text."""
 
+BAND_FILL, BAND_OPACITY = "#2e9d4a", 0.16
+"""The tolerance band (``Chart.band``): a pale green strip behind the traces, where a check
+passes."""
+
+CHAR_PX = 0.62 * FONT_PX
+"""Upper bound of a tick label character's width (px) in the page's sans-serif at
+``FONT_PX``: DejaVu Sans digits and the minus sign are 0.636 em, the others narrower; the
+left margin grows with the longest y label so no label is clipped by the SVG's box."""
+
+YLABEL_PX = 16
+"""px left of the y tick labels for the rotated y-axis title."""
+
 
 @dataclass
 class Trace:
@@ -103,6 +115,9 @@ class Chart:
     traces: list[Trace] = field(default_factory=list)
     xlog: bool = False
     ylog: bool = False
+    band: tuple[float, float] | None = None
+    """(low, high) of the y axis where a check passes (the tolerance band), drawn as a strip
+    across the plot and always inside the axis."""
 
 
 def thin_line(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS):
@@ -355,22 +370,63 @@ def _trace_svg(trace: Trace, sx: _Scale, sy: _Scale) -> str:
     return "".join(parts)
 
 
+BOLD_CHAR_PX = 0.66 * FONT_PX
+"""Upper bound of a bold title character's width (px), as ``CHAR_PX``."""
+
+
+def _fit(title: str, width: int) -> str:
+    """A title longer than the chart is wide is squeezed to fit (SVG ``textLength``) rather
+    than clipped by the SVG's box."""
+    room = width - 2 * MARGIN["right"]
+    if len(title) * BOLD_CHAR_PX <= room:
+        return ""
+    return f' textLength="{room}" lengthAdjust="spacingAndGlyphs"'
+
+
+def left_margin(ylabels: list[str], titled: bool) -> int:
+    """px left of the plot area: the longest y tick label (``CHAR_PX`` a character) and the
+    rotated axis title, at least ``MARGIN["left"]``."""
+    longest = max((len(label) for label in ylabels), default=0)
+    return max(MARGIN["left"], math.ceil(longest * CHAR_PX) + 6 + (YLABEL_PX if titled else 0))
+
+
+def right_margin(xlabels: list[str]) -> int:
+    """px right of the plot area: half the last x tick label (centred on its tick, which may
+    sit on the plot's edge), at least ``MARGIN["right"]``."""
+    last = len(xlabels[-1]) if xlabels else 0
+    return max(MARGIN["right"], math.ceil(last * CHAR_PX / 2) + 2)
+
+
+def _band_svg(band: tuple[float, float] | None, sy: _Scale, left: float, right: float) -> str:
+    if band is None:
+        return ""
+    low, high = sorted(sy(np.array(band, dtype=float)).tolist())
+    return (
+        f'<rect class="band" x="{left}" y="{_number(low)}" width="{right - left}" '
+        f'height="{_number(max(high - low, 1.0))}" fill="{BAND_FILL}" '
+        f'fill-opacity="{BAND_OPACITY}"><title>tolerance band</title></rect>'
+    )
+
+
 def render_chart(chart: Chart, width: int = WIDTH, height: int = HEIGHT) -> str:
     """The chart as an inline ``<svg>`` element (class ``chart``): frame, grid, tick labels,
     axis titles and traces, clipped to the plot area."""
-    left, right = MARGIN["left"], width - MARGIN["right"]
-    top, bottom = MARGIN["top"], height - MARGIN["bottom"]
     xs = [t.x for t in chart.traces]
     ys = [
         np.concatenate([t.y, *(() if t.yerr is None else (t.y + t.yerr, t.y - t.yerr))])
         for t in chart.traces
     ]
+    if chart.band is not None:
+        ys.append(np.array(chart.band, dtype=float))
     xlow, xhigh = data_range(xs, chart.xlog)
     ylow, yhigh = data_range(ys, chart.ylog)
-    sx = _Scale(xlow, xhigh, left, right, chart.xlog)
-    sy = _Scale(ylow, yhigh, bottom, top, chart.ylog)
     xticks = log_ticks(xlow, xhigh) if chart.xlog else linear_ticks(xlow, xhigh)
     yticks = log_ticks(ylow, yhigh) if chart.ylog else linear_ticks(ylow, yhigh)
+    left = left_margin(tick_labels(yticks), bool(chart.ylabel))
+    right = width - right_margin(tick_labels(xticks))
+    top, bottom = MARGIN["top"], height - MARGIN["bottom"]
+    sx = _Scale(xlow, xhigh, left, right, chart.xlog)
+    sy = _Scale(ylow, yhigh, bottom, top, chart.ylog)
     grid, labels = [], []
     for label, at in zip(tick_labels(xticks), sx(np.array(xticks)).tolist(), strict=True):
         grid.append(f"M{_number(at)} {top}V{bottom}")
@@ -382,7 +438,9 @@ def render_chart(chart: Chart, width: int = WIDTH, height: int = HEIGHT) -> str:
         labels.append(
             f'<text x="{left - 4}" y="{_number(at + 3.5)}" text-anchor="end">{label}</text>'
         )
-    body = "".join(_trace_svg(t, sx, sy) for t in chart.traces)
+    body = _band_svg(chart.band, sy, left, right) + "".join(
+        _trace_svg(t, sx, sy) for t in chart.traces
+    )
     return (
         f'<svg class="chart" role="img" viewBox="0 0 {width} {height}" width="{width}" '
         f'height="{height}" font-size="{FONT_PX}" fill="{TEXT}" stroke-linejoin="round">'
@@ -390,7 +448,7 @@ def render_chart(chart: Chart, width: int = WIDTH, height: int = HEIGHT) -> str:
         f'<path d="{"".join(grid)}" stroke="{GRID}" stroke-width="0.8"/>'
         f'<rect x="{left}" y="{top}" width="{right - left}" height="{bottom - top}" fill="none" stroke="{AXIS}"/>'
         f'<g class="ticks">{"".join(labels)}</g>'
-        f'<text x="{(left + right) / 2:.0f}" y="13" text-anchor="middle" font-weight="600">{escape(chart.title)}</text>'
+        f'<text x="{width / 2:.0f}" y="13" text-anchor="middle" font-weight="600"{_fit(chart.title, width)}>{escape(chart.title)}</text>'
         f'<text x="{(left + right) / 2:.0f}" y="{height - 4}" text-anchor="middle">{escape(chart.xlabel)}</text>'
         + (
             f'<text transform="translate(11 {(top + bottom) / 2:.0f}) rotate(-90)" text-anchor="middle">{escape(chart.ylabel)}</text>'
