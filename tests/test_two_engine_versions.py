@@ -44,20 +44,35 @@ def plugin_version(folder: Path, version: str, flight: str) -> Path:
     return built_wheel(copy, folder)
 
 
+HISTORY = "history.sqlite"
+"""The history both venvs' runs are recorded in (runs 1 and 2)."""
+
+COMPARED = {"folders": ("runs/A", "runs/B"), "history ids": ("1", "2", "--db", HISTORY)}
+"""The two ways the recipe compares the runs: their folders, or their ids in the history."""
+
+
 @pytest.fixture(scope="module")
-def compared(tmp_path_factory) -> tuple[str, list[dict]]:
-    """The recipe run: (what ``physval compare runs/A runs/B`` printed, compare.csv's rows)."""
+def recipe(tmp_path_factory) -> tuple[Path, dict]:
+    """The recipe's runs, one per venv into one history: (the project, a shell's environment
+    with venv B)."""
     work = tmp_path_factory.mktemp("versions")
     physval = physval_wheel(work)
     project = tiny_project(work / "project", "scenes")
     for name, version, flight in (("A", RELEASE, FLIGHT), ("B", BRANCH, BRANCH_FLIGHT)):
-        env = venv_with(
-            work / f"venv-{name}", physval, plugin_version(work / f"plugin-{name}", version, flight)
-        )
-        run_ok(project, env, "physval", "run", "scenes", "--engines", "freeflight",
-               "--out", f"runs/{name}", "--history", "none", "--jobs", "1")  # fmt: skip
-    done = run_ok(project, env, "physval", "compare", "runs/A", "runs/B", "--out", "compare")
-    with (project / "compare" / "compare.csv").open() as rows:
+        plugin = plugin_version(work / f"plugin-{name}", version, flight)
+        env = venv_with(work / f"venv-{name}", physval, plugin)
+        run_ok(project, env, "physval", "run", "scenes", "--engines", "freeflight", "--jobs", "1",
+               "--out", f"runs/{name}", "--history", f"sqlite:///{HISTORY}")  # fmt: skip
+    return project, env
+
+
+@pytest.fixture(scope="module", params=COMPARED, ids=str)
+def compared(recipe, request) -> tuple[str, list[dict]]:
+    """``physval compare`` of the two runs: (what it printed, compare.csv's rows)."""
+    project, env = recipe
+    out = f"compare-{len(request.param)}"
+    done = run_ok(project, env, "physval", "compare", *COMPARED[request.param], "--out", out)
+    with (project / out / "compare.csv").open() as rows:
         return done.stdout, list(csv.DictReader(rows))
 
 
@@ -72,3 +87,10 @@ def test_compare_names_both_versions_in_its_output_and_its_rows(compared):
     assert f"engine versions differ: freeflight {RELEASE} → {BRANCH}" in printed, printed
     versions = {(r["engine_version_a"], r["engine_version_b"]) for r in rows}
     assert versions == {(RELEASE, BRANCH)}, versions
+
+
+def test_the_history_draws_both_runs_as_one_series(recipe):
+    project, env = recipe
+    done = run_ok(project, env, "physval", "history", "--db", HISTORY)
+    page = Path(project, done.stdout.splitlines()[-1]).read_text()
+    assert RELEASE in page and BRANCH in page
