@@ -70,7 +70,7 @@ def recipe(tmp_path_factory) -> tuple[Path, dict]:
 def compared(recipe, request) -> tuple[str, list[dict]]:
     """``physval compare`` of the two runs: (what it printed, compare.csv's rows)."""
     project, env = recipe
-    out = f"compare-{len(request.param)}"
+    out = f"compare-{request.param.replace(' ', '-')}"
     done = run_ok(project, env, "physval", "compare", *COMPARED[request.param], "--out", out)
     with (project / out / "compare.csv").open() as rows:
         return done.stdout, list(csv.DictReader(rows))
