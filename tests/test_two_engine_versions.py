@@ -1,8 +1,8 @@
 """Two versions of one engine compared (docs/two-engine-versions.md): the recipe's commands run
 as written, offline. The engine is the example plugin (examples/engine_plugin) in two
 versions, a release and a branch that changes one number of its flight; each goes into its
-own venv with physval's wheel, runs one scene there, and ``physval compare`` of the two run
-folders names the row that moved and both versions."""
+own venv with physval's wheel, runs one scene there into one history, and ``physval compare``
+of the two run folders (and of the two run ids) names the row that moved and both versions."""
 
 from __future__ import annotations
 
@@ -26,6 +26,7 @@ BRANCH_FLIGHT = "self.pos0 + self.vel0 * time + 0.6 * self.acceleration * time**
 the fall's position error moves from rounding to centimetres."""
 
 MOVED_METRIC = "position_error"
+"""The fall's row that the branch's change moves beyond the noise."""
 
 
 def plugin_version(folder: Path, version: str, flight: str) -> Path:
@@ -89,7 +90,7 @@ def test_compare_names_both_versions_in_its_output_and_its_rows(compared):
     assert versions == {(RELEASE, BRANCH)}, versions
 
 
-def test_the_history_draws_both_runs_as_one_series(recipe):
+def test_the_history_page_names_both_versions(recipe):
     project, env = recipe
     done = run_ok(project, env, "physval", "history", "--db", HISTORY)
     page = Path(project, done.stdout.splitlines()[-1]).read_text()

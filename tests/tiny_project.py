@@ -1,5 +1,6 @@
 """A tiny project of physval's user, for the tests that run physval's commands as a shell in
-another project would: one scene that runs in mini in a few milliseconds."""
+another project would: one scene that runs in mini in a few milliseconds; and the wheels and
+venvs (nothing downloaded) of the tests that install physval and engines outside the checkout."""
 
 from __future__ import annotations
 
