@@ -329,6 +329,18 @@ def _versions(row: dict[str, Any]) -> str:
     return f"{a} → {b}" if a and b and a != b else b or a
 
 
+def version_note(a: RunSide, b: RunSide) -> str:
+    """The printed line naming each engine whose version differs between the two runs
+    (``engine versions differ: mujoco 3.3.7 → 3.4.0``; an engine one run lacks is left out),
+    empty when none does: two versions of one engine compared (docs/two-engine-versions.md)."""
+    moved = [
+        f"{engine} {a.engine_versions[engine]} → {version}"
+        for engine, version in sorted(b.engine_versions.items())
+        if a.engine_versions.get(engine, version) != version
+    ]
+    return f"engine versions differ: {', '.join(moved)}" if moved else ""
+
+
 FOLDED = ("missing", "unchanged")
 """Classes listed folded under their scene (a count first): not what a reader looks for."""
 
@@ -446,4 +458,6 @@ def compare_main(
         f"{len(moved_rows)} rows moved ({counts or 'none'}){selection_note(shared)} "
         f"-> {folder / COMPARE_HTML}"
     )
+    if note := version_note(a, b):
+        print(note)
     return EXIT_OK
