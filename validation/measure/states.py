@@ -113,6 +113,7 @@ def invariants(scene: CompiledScene, trajectory: Trajectory, free: bool = False)
     """The scene's energy and momenta at every sample of ``trajectory`` (one definition:
     ``CompiledScene``); with ``free``, the offsets from the ballistic motion too."""
     states = (trajectory.pos, trajectory.quat, trajectory.vel, trajectory.ang_vel)
+    rot = None if scene.joint_tree is None else rotations(trajectory.quat)  # the joints read it
     no_offset = np.zeros((0, 3))
     with np.errstate(over="ignore", invalid="ignore"):
         momentum = scene.linear_momentum(trajectory.vel)
@@ -136,22 +137,24 @@ def invariants(scene: CompiledScene, trajectory: Trajectory, free: bool = False)
             angular_momentum_scale=_angular_momentum_scale(scene, trajectory, momentum),
             position_offset=offsets[0],
             velocity_offset=offsets[1],
-            joint_violation=joint_violation(scene, trajectory),
-            joint_coordinates=tree_coordinates(scene, trajectory),
+            joint_violation=joint_violation(scene, trajectory, rot),
+            joint_coordinates=tree_coordinates(scene, trajectory, rot),
         )
 
 
-def joint_violation(scene: CompiledScene, trajectory: Trajectory) -> np.ndarray:
+def joint_violation(
+    scene: CompiledScene, trajectory: Trajectory, rot: np.ndarray | None = None
+) -> np.ndarray:
     """(s,) m: at each sample the largest joint violation as a distance, over the joints of
     ``scene.joint_tree`` (``articulated.joint_violations``, from the bodies' poses alone): an
     anchor's separation, or a misalignment times the child's reach from the anchor (how far
-    the rotation error moves its centre). Zeros without joints."""
+    the rotation error moves its centre). Zeros without joints. ``rot``: (s, n, 3, 3) the
+    bodies' rotations when the caller has them."""
     tree = scene.joint_tree
     if tree is None:
         return np.zeros(trajectory.t.shape)
-    separation, misalignment, reach = joint_violations(
-        tree, trajectory.pos, rotations(trajectory.quat)
-    )
+    rot = rotations(trajectory.quat) if rot is None else rot
+    separation, misalignment, reach = joint_violations(tree, trajectory.pos, rot)
     return np.maximum(separation, misalignment * reach).max(axis=1, initial=0.0)
 
 
@@ -164,14 +167,17 @@ def coordinate_joints(scene: CompiledScene) -> list[Joint]:
     return [joint for joint in tree.joints if joint.type in AXIS_TYPES]
 
 
-def tree_coordinates(scene: CompiledScene, trajectory: Trajectory) -> np.ndarray:
+def tree_coordinates(
+    scene: CompiledScene, trajectory: Trajectory, rot: np.ndarray | None = None
+) -> np.ndarray:
     """(s, c) rad or m: each of ``coordinate_joints``' coordinate at every sample, read from
     the observed poses (``articulated.joint_coordinates``; a hinge's angle unwrapped within
     the block of samples only, so comparisons wrap its differences)."""
     joints = coordinate_joints(scene)
     if not joints:
         return np.zeros((trajectory.t.size, 0))
-    found = joint_coordinates(scene.joint_tree, trajectory.pos, rotations(trajectory.quat))
+    rot = rotations(trajectory.quat) if rot is None else rot
+    found = joint_coordinates(scene.joint_tree, trajectory.pos, rot)
     return np.stack([found[joint.name] for joint in joints], axis=1)
 
 

@@ -177,12 +177,15 @@ class CompiledScene:
         reads; the bodies and joints themselves are already in the scenario."""
         return model_layouts(self.scenario) if self.scenario.models else ()
 
+    @cached_property
+    def model_names(self) -> dict[str, ModelLayout]:
+        """Every body and joint name a model's expansion gave -> its model (what a native
+        loader builds itself, and leaves out of the scene it writes)."""
+        return {name: layout for layout in self.models for name in (*layout.bodies, *layout.joints)}
+
     def model_of(self, body: str) -> ModelLayout | None:
         """The model whose expansion gave the body (or joint) named ``body``, or None."""
-        for layout in self.models:
-            if body in layout.bodies or body in layout.joints:
-                return layout
-        return None
+        return self.model_names.get(body)
 
     def __getstate__(self) -> dict:
         """Pickled for worker processes without the inertia cache (rebuilt on demand), with

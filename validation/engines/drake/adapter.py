@@ -43,6 +43,7 @@ from __future__ import annotations
 import contextlib
 import importlib.metadata
 import logging
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 
 import numpy as np
@@ -259,7 +260,7 @@ class DrakeAdapter:
             )
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scenario.gravity, dtype=float))
         layouts = scene.models if self.settings.model_loader == NATIVE else ()
-        owned = {name for layout in layouts for name in (*layout.bodies, *layout.joints)}
+        owned = scene.model_names.keys() if layouts else frozenset()
         self.bodies = [
             None if b.name in owned else self._create_body(k, b)
             for k, b in enumerate(scenario.bodies)
@@ -348,7 +349,7 @@ class DrakeAdapter:
                 placed[index[name]] = in_link
         return placed
 
-    def _create_joints(self, scenario: Scenario, placed: list, owned: set) -> list:
+    def _create_joints(self, scenario: Scenario, placed: list, owned: AbstractSet[str]) -> list:
         """The joint tree's joints (``joints.add_joints``) with the stated limits, but for a
         native model's (``owned``)."""
         limits = {j.name: tuple(j.limits) for j in scenario.joints if j.limits is not None}

@@ -308,7 +308,7 @@ def without_models(scene):
     writes under native loading), and the joint tree of what remains."""
     from validation.scenario.joints import joint_tree
 
-    owned = {name for layout in scene.models for name in (*layout.bodies, *layout.joints)}
+    owned = scene.model_names.keys()
     scenario = scene.scenario
     bodies = [b for b in scenario.bodies if b.name not in owned]
     joints = [j for j in scenario.joints if j.name not in owned]

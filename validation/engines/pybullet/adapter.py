@@ -49,6 +49,7 @@ import importlib
 import importlib.metadata
 import os
 import sys
+from collections.abc import Set as AbstractSet
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from types import ModuleType
@@ -382,7 +383,7 @@ IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 """w x y z."""
 
 
-def _without(tree: JointTree, names: set[str]) -> JointTree:
+def _without(tree: JointTree, names: AbstractSet[str]) -> JointTree:
     """``tree`` without the joints named in ``names`` (a native model's, loaded by PyBullet
     itself): the scene's other joints, planned into multibodies as before."""
     return replace(tree, joints=tuple(j for j in tree.joints if j.name not in names))
@@ -435,7 +436,7 @@ class PybulletAdapter:
         self.steps_taken = 0
         self.notes: list[str] = []
         layouts = scene.models if self.model_loader == "native" else ()
-        owned = {name for layout in layouts for name in (*layout.bodies, *layout.joints)}
+        owned = scene.model_names.keys() if layouts else frozenset()
         self.trees = (
             [] if scene.joint_tree is None else plan_trees(_without(scene.joint_tree, owned))
         )
@@ -823,7 +824,7 @@ class PybulletAdapter:
             )
         return notes
 
-    def _keep_apart(self, scenario: Scenario, owned: set[str]) -> None:
+    def _keep_apart(self, scenario: Scenario, owned: AbstractSet[str]) -> None:
         """Every body with ``collides: false`` in no collision group and accepting none (a
         native model's links are its loader's: ``models.load_model``)."""
         for k, body in enumerate(scenario.bodies):
